@@ -1,0 +1,802 @@
+"""Compiled kernels: one interpreter that evaluates a whole compiled machine.
+
+A compiled machine (see :mod:`sewmech.machine`) is a short program: an integer table of units in
+solve order, each row an opcode followed by indices into the point, link, variable and parameter
+slots. :func:`evaluate_program` walks that program for every design and every crank angle and
+fills position, velocity and acceleration of every point, angle, angular velocity and angular
+acceleration of every link, and value and first and second time derivative of every joint
+variable (slider displacements, free contact angles).
+
+All closed-form units follow the basic units of the JB dynamics report (after C. H. Suh): the
+rigid-body point, the two-link (RRR) dyad, the slider (RRP) dyad and the rotating guide (RPR).
+Velocities and accelerations are analytic: each unit differentiates its closure equation once
+and twice and solves the resulting 2x2 linear system. Loop groups (mechanisms that are not a
+chain of those units, cams included) are solved by Newton-Raphson on vector loop-closure
+equations, the method of the dynamics report's feed-mechanism analysis; velocities and
+accelerations come from the same loop Jacobian.
+
+Units: mm, rad, s. Nothing here allocates per angle, prints or writes files.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# ---- opcodes (column 0 of the unit table) -----------------------------------------------------
+OP_FIXED = 0  # point, x_param, y_param
+OP_CRANK = 1  # link, phase_param, ratio_param, setting_param (-1: driven by the shaft)
+OP_POINT = 2  # new point, link, origin point, u_param, v_param
+OP_RRR = 3  # p1, p2, new point, link1, link2, l1_param, l2_param, branch
+OP_RRP = 4  # pin, guide point, guide link, new point, rod link, slider link, l, alpha, e, branch, var
+OP_RPR = 5  # pin, pivot, slot link, block link (-1: none), e_param, branch, var
+OP_LOOP = 6  # group index
+
+UNIT_COLS = 12
+
+# ---- failure codes ------------------------------------------------------------------------------
+FAIL_NONE = 0
+FAIL_ASSEMBLY = 1  # the closure equations have no real solution at this angle
+FAIL_SINGULAR = 2  # assembled, but at a singular position: velocity is not defined
+FAIL_NEWTON = 3  # the loop solver did not converge
+FAIL_LOST = 4  # continuation lost because an earlier angle failed
+
+# ---- loop-term table columns ---------------------------------------------------------------------
+TERM_POINT = 0  # + position of a known point
+TERM_VEC = 1  # + L * e^{i (theta + alpha)}
+TERM_CAM = 2  # + contact point (or roller centre) on a circular-arc cam profile
+TERM_COLS = 12
+# column layout: type, row, sign, len_src, len_idx, ang_src, ang_idx, alpha_param, cam,
+#                offset_param, len_col, ang_col
+SRC_PARAM = 0
+SRC_LINK = 0
+SRC_VAR = 1
+
+TWO_PI = 2.0 * math.pi
+# a discriminant this small relative to the squared lengths is a toggle position, not a failure
+_TOGGLE_REL = 1e-12
+
+
+@njit(cache=True)
+def _par(params, d, idx, default):
+    if idx < 0:
+        return default
+    return params[d, idx]
+
+
+@njit(cache=True)
+def _solve2(m11, m12, m21, m22, b1, b2):
+    det = m11 * m22 - m12 * m21
+    return (b1 * m22 - m12 * b2) / det, (m11 * b2 - m21 * b1) / det, det
+
+
+@njit(cache=True)
+def _gauss_solve(M, b, n):
+    """Solve M x = b in place (partial pivoting). Returns (x in b, smallest |pivot| / scale)."""
+    scale = 0.0
+    for i in range(n):
+        for j in range(n):
+            if abs(M[i, j]) > scale:
+                scale = abs(M[i, j])
+    if scale == 0.0:
+        return 0.0
+    minpiv = np.inf
+    for k in range(n):
+        p = k
+        for i in range(k + 1, n):
+            if abs(M[i, k]) > abs(M[p, k]):
+                p = i
+        if p != k:
+            for j in range(n):
+                t = M[k, j]
+                M[k, j] = M[p, j]
+                M[p, j] = t
+            t = b[k]
+            b[k] = b[p]
+            b[p] = t
+        piv = M[k, k]
+        if abs(piv) < minpiv:
+            minpiv = abs(piv)
+        if piv == 0.0:
+            return 0.0
+        for i in range(k + 1, n):
+            f = M[i, k] / piv
+            if f != 0.0:
+                for j in range(k, n):
+                    M[i, j] -= f * M[k, j]
+                b[i] -= f * b[k]
+    for k in range(n - 1, -1, -1):
+        acc = b[k]
+        for j in range(k + 1, n):
+            acc -= M[k, j] * b[j]
+        b[k] = acc / M[k, k]
+    return minpiv / scale
+
+
+# ---- closed-form units ---------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def rigid_point(px, py, vx, vy, ax, ay, th, om, ep, u, v):
+    """Point at local (u, v) mm on a link with origin (px, py) and angle th (rad)."""
+    c = math.cos(th)
+    s = math.sin(th)
+    rx = c * u - s * v
+    ry = s * u + c * v
+    return (
+        px + rx,
+        py + ry,
+        vx - om * ry,
+        vy + om * rx,
+        ax - ep * ry - om * om * rx,
+        ay + ep * rx - om * om * ry,
+    )
+
+
+@njit(cache=True)
+def rrr_dyad(p1x, p1y, v1x, v1y, a1x, a1y, p2x, p2y, v2x, v2y, a2x, a2y, l1, l2, branch, out):
+    """Two links l1 (from point 1) and l2 (from point 2) meeting at a new joint C.
+
+    out[0:6] = C position, velocity, acceleration; out[6:12] = theta1, omega1, eps1, theta2,
+    omega2, eps2 (angles of the vectors 1->C and 2->C). Returns a failure code.
+    ``branch`` +1 puts C to the left of the directed line 1 -> 2.
+    """
+    dx = p2x - p1x
+    dy = p2y - p1y
+    dd = math.sqrt(dx * dx + dy * dy)
+    if dd == 0.0:
+        return FAIL_ASSEMBLY
+    a = (l1 * l1 - l2 * l2 + dd * dd) / (2.0 * dd)
+    h2 = l1 * l1 - a * a
+    if h2 < 0.0:
+        if h2 > -_TOGGLE_REL * l1 * l1:
+            h2 = 0.0
+        else:
+            return FAIL_ASSEMBLY
+    h = math.sqrt(h2)
+    ex = dx / dd
+    ey = dy / dd
+    cx = p1x + a * ex - branch * h * ey
+    cy = p1y + a * ey + branch * h * ex
+    r1x = cx - p1x
+    r1y = cy - p1y
+    r2x = cx - p2x
+    r2y = cy - p2y
+    # omega1 x r1 - omega2 x r2 = v2 - v1
+    w1, w2, det = _solve2(-r1y, r2y, r1x, -r2x, v2x - v1x, v2y - v1y)
+    if abs(det) <= 1e-13 * l1 * l2:
+        return FAIL_SINGULAR
+    e1, e2, det = _solve2(
+        -r1y,
+        r2y,
+        r1x,
+        -r2x,
+        a2x - a1x - w2 * w2 * r2x + w1 * w1 * r1x,
+        a2y - a1y - w2 * w2 * r2y + w1 * w1 * r1y,
+    )
+    out[0] = cx
+    out[1] = cy
+    out[2] = v1x - w1 * r1y
+    out[3] = v1y + w1 * r1x
+    out[4] = a1x - e1 * r1y - w1 * w1 * r1x
+    out[5] = a1y + e1 * r1x - w1 * w1 * r1y
+    out[6] = math.atan2(r1y, r1x)
+    out[7] = w1
+    out[8] = e1
+    out[9] = math.atan2(r2y, r2x)
+    out[10] = w2
+    out[11] = e2
+    return FAIL_NONE
+
+
+@njit(cache=True)
+def rrp_dyad(
+    bx, by, bvx, bvy, bax, bay, gx, gy, gvx, gvy, gax, gay, tg, wg, eg, l, alpha, e, branch, out
+):
+    """Rod of length l from pin B to a slider C on a guide line of a (possibly moving) link.
+
+    The guide passes through point G of the guide link, direction tg + alpha, shifted e to the
+    left. s is the slider position along the guide from the foot G + e*n. out[0:6] = C; out[6:9]
+    = rod angle, omega, eps; out[9:12] = s, s_dot, s_ddot. ``branch`` +1 takes the larger s.
+    """
+    beta = tg + alpha
+    ux = math.cos(beta)
+    uy = math.sin(beta)
+    nx = -uy
+    ny = ux
+    qx = gx + e * nx
+    qy = gy + e * ny
+    wx = qx - bx
+    wy = qy - by
+    wu = wx * ux + wy * uy
+    disc = wu * wu - (wx * wx + wy * wy) + l * l
+    if disc < 0.0:
+        if disc > -_TOGGLE_REL * l * l:
+            disc = 0.0
+        else:
+            return FAIL_ASSEMBLY
+    s = -wu + branch * math.sqrt(disc)
+    cx = qx + s * ux
+    cy = qy + s * uy
+    r1x = cx - bx
+    r1y = cy - by
+    rhox = cx - gx
+    rhoy = cy - gy
+    # s_dot u - omega1 x r1 = vB - vG - omega_g x rho
+    sd, w1, det = _solve2(ux, r1y, uy, -r1x, bvx - gvx + wg * rhoy, bvy - gvy - wg * rhox)
+    if abs(det) <= 1e-13 * l:
+        return FAIL_SINGULAR
+    rhs_x = bax - w1 * w1 * r1x - gax + eg * rhoy + wg * wg * rhox + 2.0 * wg * sd * uy
+    rhs_y = bay - w1 * w1 * r1y - gay - eg * rhox + wg * wg * rhoy - 2.0 * wg * sd * ux
+    sdd, e1, det = _solve2(ux, r1y, uy, -r1x, rhs_x, rhs_y)
+    out[0] = cx
+    out[1] = cy
+    out[2] = bvx - w1 * r1y
+    out[3] = bvy + w1 * r1x
+    out[4] = bax - e1 * r1y - w1 * w1 * r1x
+    out[5] = bay + e1 * r1x - w1 * w1 * r1y
+    out[6] = math.atan2(r1y, r1x)
+    out[7] = w1
+    out[8] = e1
+    out[9] = s
+    out[10] = sd
+    out[11] = sdd
+    return FAIL_NONE
+
+
+@njit(cache=True)
+def rpr_guide(bx, by, bvx, bvy, bax, bay, ax_, ay_, avx, avy, aax, aay, e, branch, out):
+    """Rotating guide: a slot link pivoting at A passes through the block pinned at B.
+
+    The slot line lies e to the left of A; the link angle is the slot direction; s is the
+    block position along the slot from the foot A + e*n. out[0:3] = link angle, omega, eps;
+    out[3:6] = s, s_dot, s_ddot. ``branch`` +1 takes s > 0.
+    """
+    dx = bx - ax_
+    dy = by - ay_
+    d2 = dx * dx + dy * dy
+    s2 = d2 - e * e
+    if s2 < 0.0:
+        if s2 > -_TOGGLE_REL * max(d2, 1e-300):
+            s2 = 0.0
+        else:
+            return FAIL_ASSEMBLY
+    s = branch * math.sqrt(s2)
+    th = math.atan2(dy, dx) - math.atan2(e, s)
+    ux = math.cos(th)
+    uy = math.sin(th)
+    # omega x d + s_dot u = vB - vA
+    w, sd, det = _solve2(-dy, ux, dx, uy, bvx - avx, bvy - avy)
+    if abs(det) <= 1e-13 * math.sqrt(max(d2, 1e-300)):
+        return FAIL_SINGULAR
+    rx = bax - aax + w * w * dx + 2.0 * w * sd * uy
+    ry = bay - aay + w * w * dy - 2.0 * w * sd * ux
+    ep, sdd, det = _solve2(-dy, ux, dx, uy, rx, ry)
+    out[0] = th
+    out[1] = w
+    out[2] = ep
+    out[3] = s
+    out[4] = sd
+    out[5] = sdd
+    return FAIL_NONE
+
+
+# ---- loop groups ---------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def _arc_of(arcs_i, params, d, start, n, rho):
+    """Index of the arc whose normal-angle range (cam frame) contains rho, or -1."""
+    for k in range(start, start + n):
+        a0 = params[d, arcs_i[k, 3]]
+        a1 = params[d, arcs_i[k, 4]]
+        r = rho
+        while r < a0:
+            r += TWO_PI
+        while r >= a0 + TWO_PI:
+            r -= TWO_PI
+        if r < a1:
+            return k
+    return -1
+
+
+@njit(cache=True)
+def _term_value(t, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd, level, res):
+    """Evaluate one loop term's vector (level 0), its known-rate part (1) or known accel part (2).
+
+    For level 1 and 2 the parts that multiply an unknown rate (column >= 0) are left out; they
+    live in the Jacobian. res[0:2] += sign * value; res[2:4] = d/dL; res[4:6] = d/dangle.
+    """
+    typ = terms[t, 0]
+    sign = float(terms[t, 2])
+    res[2] = 0.0
+    res[3] = 0.0
+    res[4] = 0.0
+    res[5] = 0.0
+    if typ == TERM_POINT:
+        i = terms[t, 4]
+        if level == 0:
+            res[0] += sign * p[i, 0]
+            res[1] += sign * p[i, 1]
+        elif level == 1:
+            res[0] += sign * v[i, 0]
+            res[1] += sign * v[i, 1]
+        else:
+            res[0] += sign * a[i, 0]
+            res[1] += sign * a[i, 1]
+        return 0
+    # angle of the term
+    ai = terms[t, 6]
+    if terms[t, 5] == SRC_LINK:
+        psi = th[ai]
+        psid = om[ai]
+        psidd = ep[ai]
+    else:
+        psi = s[ai]
+        psid = sd[ai]
+        psidd = sdd[ai]
+    psi += _par(params, d, terms[t, 7], 0.0)
+    ang_col = terms[t, 11]
+    c = math.cos(psi)
+    sn = math.sin(psi)
+    if typ == TERM_VEC:
+        li = terms[t, 4]
+        if terms[t, 3] == SRC_PARAM:
+            L = params[d, li]
+            Ld = 0.0
+            Ldd = 0.0
+        else:
+            L = s[li]
+            Ld = sd[li]
+            Ldd = sdd[li]
+        len_col = terms[t, 10]
+        if level == 0:
+            res[0] += sign * L * c
+            res[1] += sign * L * sn
+        elif level == 1:
+            # d/dt (L e^{i psi}) = Ld e + i L psid e: keep the known parts
+            kx = 0.0
+            ky = 0.0
+            if len_col < 0:
+                kx += Ld * c
+                ky += Ld * sn
+            if ang_col < 0:
+                kx += -L * psid * sn
+                ky += L * psid * c
+            res[0] += sign * kx
+            res[1] += sign * ky
+        else:
+            # (Ldd + i L psidd) e + (2 i Ld psid - L psid^2) e: the rates are all known now
+            kx = 2.0 * (-Ld * psid * sn) - L * psid * psid * c
+            ky = 2.0 * (Ld * psid * c) - L * psid * psid * sn
+            if len_col < 0:
+                kx += Ldd * c
+                ky += Ldd * sn
+            if ang_col < 0:
+                kx += -L * psidd * sn
+                ky += L * psidd * c
+            res[0] += sign * kx
+            res[1] += sign * ky
+        res[2] = sign * c
+        res[3] = sign * sn
+        res[4] = -sign * L * sn
+        res[5] = sign * L * c
+        return 0
+    # TERM_CAM: contact point p_c + R(th_c) c_k + (R_k + off) e^{i psi}
+    cam = terms[t, 8]
+    cl = cams_i[cam, 0]
+    cp = cams_i[cam, 1]
+    tc = th[cl]
+    wc = om[cl]
+    ec = ep[cl]
+    rho = psi - tc
+    k = _arc_of(arcs_i, params, d, cams_i[cam, 2], cams_i[cam, 3], rho)
+    if k < 0:
+        return 1
+    ccx = params[d, arcs_i[k, 0]]
+    ccy = params[d, arcs_i[k, 1]]
+    R = params[d, arcs_i[k, 2]] + _par(params, d, terms[t, 9], 0.0)
+    cc = math.cos(tc)
+    cs = math.sin(tc)
+    rx = cc * ccx - cs * ccy
+    ry = cs * ccx + cc * ccy
+    if level == 0:
+        res[0] += sign * (p[cp, 0] + rx + R * c)
+        res[1] += sign * (p[cp, 1] + ry + R * sn)
+    elif level == 1:
+        kx = v[cp, 0] - wc * ry
+        ky = v[cp, 1] + wc * rx
+        if ang_col < 0:
+            kx += -R * psid * sn
+            ky += R * psid * c
+        res[0] += sign * kx
+        res[1] += sign * ky
+    else:
+        kx = a[cp, 0] - ec * ry - wc * wc * rx - R * psid * psid * c
+        ky = a[cp, 1] + ec * rx - wc * wc * ry - R * psid * psid * sn
+        if ang_col < 0:
+            kx += -R * psidd * sn
+            ky += R * psidd * c
+        res[0] += sign * kx
+        res[1] += sign * ky
+    res[4] = -sign * R * sn
+    res[5] = sign * R * c
+    return 0
+
+
+@njit(cache=True)
+def _assemble(g, grp, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd, level,
+              F, J, res):
+    """Fill F (level 0: residual; 1: known velocity part; 2: known acceleration part) and J."""
+    n = grp[g, 0]
+    t0 = grp[g, 3]
+    nt = grp[g, 4]
+    for i in range(n):
+        F[i] = 0.0
+        for j in range(n):
+            J[i, j] = 0.0
+    for t in range(t0, t0 + nt):
+        row = 2 * terms[t, 1]
+        res[0] = 0.0
+        res[1] = 0.0
+        if _term_value(t, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd,
+                       level, res) != 0:
+            return 1
+        F[row] += res[0]
+        F[row + 1] += res[1]
+        lc = terms[t, 10]
+        ac = terms[t, 11]
+        if lc >= 0:
+            J[row, lc] += res[2]
+            J[row + 1, lc] += res[3]
+        if ac >= 0:
+            J[row, ac] += res[4]
+            J[row + 1, ac] += res[5]
+    return 0
+
+
+@njit(cache=True)
+def _set_unknowns(g, grp, unk, q, th, s, which, om, ep, sd, sdd):
+    """Write q into the state slots of group g's unknowns (which: 0 value, 1 rate, 2 accel)."""
+    u0 = grp[g, 1]
+    n = grp[g, 0]
+    for j in range(n):
+        kind = unk[u0 + j, 0]
+        idx = unk[u0 + j, 1]
+        if kind == 0:
+            if which == 0:
+                th[idx] = q[j]
+            elif which == 1:
+                om[idx] = q[j]
+            else:
+                ep[idx] = q[j]
+        else:
+            if which == 0:
+                s[idx] = q[j]
+            elif which == 1:
+                sd[idx] = q[j]
+            else:
+                sdd[idx] = q[j]
+
+
+@njit(cache=True)
+def _solve_group(g, grp, unk, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd,
+                 q, tol, max_iter, F, J, res, info):
+    """Newton-Raphson from q (updated in place); then rates and accelerations.
+
+    info[0] = residual max-norm (mm), info[1] = iterations, info[2] = the loop with the largest
+    residual. Returns a failure code.
+    """
+    n = grp[g, 0]
+    dq = np.empty(n)
+    Jw = np.empty((n, n))
+    resid = np.inf
+    it = 0
+    while True:
+        _set_unknowns(g, grp, unk, q, th, s, 0, om, ep, sd, sdd)
+        if _assemble(g, grp, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd,
+                     0, F, J, res) != 0:
+            info[0] = np.inf
+            info[1] = it
+            return FAIL_NEWTON
+        resid = 0.0
+        for i in range(n):
+            if abs(F[i]) > resid or not math.isfinite(F[i]):
+                resid = abs(F[i])
+                info[2] = i // 2
+        if resid <= tol or it >= max_iter or not math.isfinite(resid):
+            break
+        for i in range(n):
+            dq[i] = -F[i]
+            for j in range(n):
+                Jw[i, j] = J[i, j]
+        if _gauss_solve(Jw, dq, n) < 1e-14:
+            info[0] = resid
+            info[1] = it
+            return FAIL_SINGULAR
+        # limit angle steps to half a radian so that a poor start cannot jump a branch
+        big = 0.0
+        for j in range(n):
+            if unk[grp[g, 1] + j, 2] == 1 and abs(dq[j]) > big:
+                big = abs(dq[j])
+        f = 1.0 if big <= 0.5 else 0.5 / big
+        for j in range(n):
+            q[j] += f * dq[j]
+        it += 1
+    info[0] = resid
+    info[1] = it
+    if not (resid <= tol):
+        return FAIL_NEWTON
+    # velocities: J qd = -(known part of dF/dt)
+    for i in range(n):
+        for j in range(n):
+            Jw[i, j] = J[i, j]
+    _assemble(g, grp, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd, 1,
+              F, J, res)
+    for i in range(n):
+        dq[i] = -F[i]
+    if _gauss_solve(Jw, dq, n) < 1e-13:
+        return FAIL_SINGULAR
+    _set_unknowns(g, grp, unk, dq, th, s, 1, om, ep, sd, sdd)
+    # accelerations: J qdd = -(d2F/dt2 without the unknown accelerations)
+    _assemble(g, grp, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd, 2,
+              F, Jw, res)
+    for i in range(n):
+        dq[i] = -F[i]
+        for j in range(n):
+            Jw[i, j] = J[i, j]
+    _gauss_solve(Jw, dq, n)
+    _set_unknowns(g, grp, unk, dq, th, s, 2, om, ep, sd, sdd)
+    return FAIL_NONE
+
+
+# ---- the interpreter -------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def evaluate_program(
+    units,
+    params,
+    march_phi,
+    march_store,
+    march_omega,
+    march_eps,
+    grp,
+    unk,
+    terms,
+    cams_i,
+    arcs_i,
+    n_points,
+    n_links,
+    n_vars,
+    tol,
+    max_iter,
+    P,
+    V,
+    A,
+    TH,
+    OM,
+    EP,
+    S,
+    SD,
+    SDD,
+    fail_unit,
+    fail_code,
+    loop_res,
+    loop_worst,
+):
+    """Evaluate the program for every design (axis 0 of params) along the march of shaft angles.
+
+    march_store[k] is the output row for march step k, or -1 for an intermediate continuation
+    step. Output arrays are (n_design, n_out, ...); fail_unit is -1 where all units assembled.
+    """
+    n_design = params.shape[0]
+    n_units = units.shape[0]
+    n_groups = grp.shape[0]
+    n_unk = unk.shape[0]
+    max_n = 1
+    for g in range(n_groups):
+        if grp[g, 0] > max_n:
+            max_n = grp[g, 0]
+    out = np.empty(12)
+    res = np.empty(6)
+    info = np.zeros(3)
+    F = np.empty(max_n)
+    J = np.empty((max_n, max_n))
+    for d in range(n_design):
+        p = np.empty((n_points, 2))
+        v = np.empty((n_points, 2))
+        a = np.empty((n_points, 2))
+        th = np.empty(n_links)
+        om = np.empty(n_links)
+        ep = np.empty(n_links)
+        s = np.empty(n_vars)
+        sd = np.empty(n_vars)
+        sdd = np.empty(n_vars)
+        q_prev = np.empty(n_unk)
+        q_prev2 = np.empty(n_unk)
+        phi_prev = np.empty(n_groups)
+        phi_prev2 = np.empty(n_groups)
+        n_hist = np.zeros(n_groups, dtype=np.int64)
+        lost = np.zeros(n_groups, dtype=np.bool_)
+        for k in range(march_phi.shape[0]):
+            phi = march_phi[k]
+            ws = march_omega[k]
+            es = march_eps[k]
+            p[:] = np.nan
+            v[:] = np.nan
+            a[:] = np.nan
+            th[:] = np.nan
+            om[:] = np.nan
+            ep[:] = np.nan
+            s[:] = np.nan
+            sd[:] = np.nan
+            sdd[:] = np.nan
+            th[0] = 0.0  # link 0 is the frame
+            om[0] = 0.0
+            ep[0] = 0.0
+            fu = -1
+            fc = FAIL_NONE
+            for u in range(n_units):
+                op = units[u, 0]
+                code = FAIL_NONE
+                if op == OP_FIXED:
+                    i = units[u, 1]
+                    p[i, 0] = params[d, units[u, 2]]
+                    p[i, 1] = params[d, units[u, 3]]
+                    v[i, 0] = 0.0
+                    v[i, 1] = 0.0
+                    a[i, 0] = 0.0
+                    a[i, 1] = 0.0
+                elif op == OP_CRANK:
+                    L = units[u, 1]
+                    phase = params[d, units[u, 2]]
+                    if units[u, 4] >= 0:
+                        th[L] = phase + params[d, units[u, 4]]
+                        om[L] = 0.0
+                        ep[L] = 0.0
+                    else:
+                        ratio = params[d, units[u, 3]]
+                        th[L] = phase + ratio * phi
+                        om[L] = ratio * ws
+                        ep[L] = ratio * es
+                elif op == OP_POINT:
+                    i = units[u, 1]
+                    L = units[u, 2]
+                    o = units[u, 3]
+                    r = rigid_point(p[o, 0], p[o, 1], v[o, 0], v[o, 1], a[o, 0], a[o, 1],
+                                    th[L], om[L], ep[L],
+                                    params[d, units[u, 4]], params[d, units[u, 5]])
+                    p[i, 0] = r[0]
+                    p[i, 1] = r[1]
+                    v[i, 0] = r[2]
+                    v[i, 1] = r[3]
+                    a[i, 0] = r[4]
+                    a[i, 1] = r[5]
+                elif op == OP_RRR:
+                    i1 = units[u, 1]
+                    i2 = units[u, 2]
+                    code = rrr_dyad(p[i1, 0], p[i1, 1], v[i1, 0], v[i1, 1], a[i1, 0], a[i1, 1],
+                                    p[i2, 0], p[i2, 1], v[i2, 0], v[i2, 1], a[i2, 0], a[i2, 1],
+                                    params[d, units[u, 6]], params[d, units[u, 7]],
+                                    float(units[u, 8]), out)
+                    if code == FAIL_NONE:
+                        i = units[u, 3]
+                        for c in range(2):
+                            p[i, c] = out[c]
+                            v[i, c] = out[2 + c]
+                            a[i, c] = out[4 + c]
+                        L1 = units[u, 4]
+                        L2 = units[u, 5]
+                        th[L1] = out[6]
+                        om[L1] = out[7]
+                        ep[L1] = out[8]
+                        th[L2] = out[9]
+                        om[L2] = out[10]
+                        ep[L2] = out[11]
+                elif op == OP_RRP:
+                    b = units[u, 1]
+                    gp = units[u, 2]
+                    gl = units[u, 3]
+                    code = rrp_dyad(p[b, 0], p[b, 1], v[b, 0], v[b, 1], a[b, 0], a[b, 1],
+                                    p[gp, 0], p[gp, 1], v[gp, 0], v[gp, 1], a[gp, 0], a[gp, 1],
+                                    th[gl], om[gl], ep[gl],
+                                    params[d, units[u, 7]], params[d, units[u, 8]],
+                                    params[d, units[u, 9]], float(units[u, 10]), out)
+                    if code == FAIL_NONE:
+                        i = units[u, 4]
+                        for c in range(2):
+                            p[i, c] = out[c]
+                            v[i, c] = out[2 + c]
+                            a[i, c] = out[4 + c]
+                        L1 = units[u, 5]
+                        th[L1] = out[6]
+                        om[L1] = out[7]
+                        ep[L1] = out[8]
+                        Ls = units[u, 6]
+                        th[Ls] = th[gl] + params[d, units[u, 8]]
+                        om[Ls] = om[gl]
+                        ep[Ls] = ep[gl]
+                        var = units[u, 11]
+                        s[var] = out[9]
+                        sd[var] = out[10]
+                        sdd[var] = out[11]
+                elif op == OP_RPR:
+                    b = units[u, 1]
+                    pv = units[u, 2]
+                    code = rpr_guide(p[b, 0], p[b, 1], v[b, 0], v[b, 1], a[b, 0], a[b, 1],
+                                     p[pv, 0], p[pv, 1], v[pv, 0], v[pv, 1], a[pv, 0], a[pv, 1],
+                                     params[d, units[u, 5]], float(units[u, 6]), out)
+                    if code == FAIL_NONE:
+                        L = units[u, 3]
+                        th[L] = out[0]
+                        om[L] = out[1]
+                        ep[L] = out[2]
+                        Lb = units[u, 4]
+                        if Lb >= 0:
+                            th[Lb] = out[0]
+                            om[Lb] = out[1]
+                            ep[Lb] = out[2]
+                        var = units[u, 7]
+                        s[var] = out[3]
+                        sd[var] = out[4]
+                        sdd[var] = out[5]
+                elif op == OP_LOOP:
+                    g = units[u, 1]
+                    u0 = grp[g, 1]
+                    n = grp[g, 0]
+                    if lost[g]:
+                        code = FAIL_LOST
+                    else:
+                        q = np.empty(n)
+                        if n_hist[g] == 0:
+                            for j in range(n):
+                                q[j] = params[d, unk[u0 + j, 3]]
+                            iters = 4 * max_iter
+                        elif n_hist[g] == 1 or phi_prev[g] == phi_prev2[g]:
+                            for j in range(n):
+                                q[j] = q_prev[u0 + j]
+                            iters = max_iter
+                        else:
+                            f = (phi - phi_prev[g]) / (phi_prev[g] - phi_prev2[g])
+                            for j in range(n):
+                                q[j] = q_prev[u0 + j] + f * (q_prev[u0 + j] - q_prev2[u0 + j])
+                            iters = max_iter
+                        code = _solve_group(g, grp, unk, terms, cams_i, arcs_i, params, d,
+                                            p, v, a, th, om, ep, s, sd, sdd, q, tol, iters,
+                                            F, J, res, info)
+                        if march_store[k] >= 0:
+                            loop_res[d, march_store[k], g] = info[0]
+                            loop_worst[d, march_store[k], g] = int(info[2])
+                        if code == FAIL_NONE:
+                            for j in range(n):
+                                q_prev2[u0 + j] = q_prev[u0 + j]
+                                q_prev[u0 + j] = q[j]
+                            phi_prev2[g] = phi_prev[g]
+                            phi_prev[g] = phi
+                            n_hist[g] += 1
+                        else:
+                            lost[g] = True
+                if code != FAIL_NONE:
+                    fu = u
+                    fc = code
+                    break
+            row = march_store[k]
+            if row >= 0:
+                fail_unit[d, row] = fu
+                fail_code[d, row] = fc
+                for i in range(n_points):
+                    for c in range(2):
+                        P[d, row, i, c] = p[i, c]
+                        V[d, row, i, c] = v[i, c]
+                        A[d, row, i, c] = a[i, c]
+                for i in range(n_links):
+                    TH[d, row, i] = th[i]
+                    OM[d, row, i] = om[i]
+                    EP[d, row, i] = ep[i]
+                for i in range(n_vars):
+                    S[d, row, i] = s[i]
+                    SD[d, row, i] = sd[i]
+                    SDD[d, row, i] = sdd[i]

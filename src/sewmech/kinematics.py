@@ -1,0 +1,224 @@
+"""Kinematics of a compiled machine over crank angles and designs.
+
+:func:`kinematics` is the one entry point: it broadcasts designs, builds the march of shaft
+angles (continuation for loop units), runs the compiled interpreter once and wraps the arrays in
+a :class:`~sewmech.results.KinematicsResult`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from . import _kernels as K
+from .errors import AssemblyError, ConvergenceError
+from .machine import Machine
+from .results import KinematicsResult
+
+_REASONS = {
+    K.FAIL_ASSEMBLY: ("cannot be assembled: its closure equations have no real solution (a link"
+                      " is too short or too long for the distance it must bridge)",
+                      "Check this unit's lengths and the positions of the points it joins; for"
+                      " sweeps over many designs pass on_failure='mask'"),
+    K.FAIL_SINGULAR: ("singular position (a dead centre or toggle): the velocity of this unit is"
+                      " not defined here",
+                      "Evaluate at angles off the toggle or change the dimensions"),
+    K.FAIL_NEWTON: ("the loop solver did not converge", "Check the unit's initial guesses"
+                    " (unknown_*) at the assembly angle and the loop terms"),
+    K.FAIL_LOST: ("continuation was lost after the loop failed at an earlier angle", ""),
+}
+
+
+def rpm_to_rad_s(rpm: float) -> float:
+    """Shaft speed rev/min -> rad/s."""
+    return rpm * 2.0 * math.pi / 60.0
+
+
+def _march(phi: np.ndarray, start: float, max_step: float):
+    """Continuation path from the assembly angle through every requested angle (forward)."""
+    offsets = np.mod(phi - start, 2.0 * math.pi)
+    order = np.argsort(offsets, kind="stable")
+    march: list[float] = []
+    store: list[int] = []
+    where: list[int] = []  # index into phi for omega lookup
+    last = 0.0
+    if offsets[order[0]] > 0.0:
+        march.append(start)
+        store.append(-1)
+        where.append(int(order[0]))
+    for i in order:
+        target = offsets[i]
+        gap = target - last
+        if march and gap > max_step:
+            n_sub = int(math.ceil(gap / max_step))
+            for k in range(1, n_sub):
+                march.append(start + last + gap * k / n_sub)
+                store.append(-1)
+                where.append(int(i))
+        march.append(start + target)
+        store.append(int(i))
+        where.append(int(i))
+        last = target
+    return np.asarray(march), np.asarray(store, dtype=np.int64), np.asarray(where, dtype=np.int64)
+
+
+def kinematics(
+    machine: Machine,
+    phi: ArrayLike,
+    *,
+    params: ArrayLike | None = None,
+    inputs: Mapping[str, ArrayLike] | None = None,
+    rpm: float | None = None,
+    omega: ArrayLike | None = None,
+    epsilon: ArrayLike = 0.0,
+    on_failure: Literal["raise", "mask"] = "raise",
+    max_step_deg: float = 5.0,
+    tol: float = 1e-10,
+    max_iter: int = 25,
+) -> KinematicsResult:
+    """Positions, velocities and accelerations of every point, link and joint variable.
+
+    Parameters
+    ----------
+    machine : Machine
+        A compiled machine (:func:`sewmech.load_machine`).
+    phi : array_like, shape (n_phi,)
+        Upper-shaft angles, rad, in the machine's angle convention.
+    params : array_like, shape batch + (n_parameters,), optional
+        Parameter vectors of a batch of designs (:meth:`Machine.parameters`); default: the file.
+    inputs : mapping name -> array_like, optional
+        Setting inputs (e.g. ``{"regulator": 0.1}``), rad; broadcast against ``params``' batch.
+    rpm : float, optional
+        Constant shaft speed, rev/min (default: the machine file's ``[speed] rpm``).
+    omega : array_like, shape () or (n_phi,), optional
+        Shaft angular velocity, rad/s, constant or prescribed per angle omega(phi); overrides rpm.
+    epsilon : array_like, shape () or (n_phi,)
+        Shaft angular acceleration, rad/s^2, per angle (default 0: constant speed).
+    on_failure : {"raise", "mask"}
+        "raise": an :class:`AssemblyError` names the unit and the crank angle of the first
+        failure. "mask": return with ``feasible`` False (and NaN values) where it failed.
+    max_step_deg : float
+        Largest continuation step of the loop solver, degrees.
+    tol : float
+        Loop-closure tolerance of the Newton iteration, mm (max-norm of the residual).
+    max_iter : int
+        Newton iterations per continuation step (four times as many at assembly).
+
+    Returns
+    -------
+    KinematicsResult
+    """
+    phi = np.atleast_1d(np.asarray(phi, dtype=float))
+    if phi.ndim != 1:
+        raise ValueError(f"phi must be one-dimensional (n_phi,), got shape {phi.shape}")
+    if not np.all(np.isfinite(phi)):
+        raise ValueError("phi contains NaN or infinite angles")
+    n_phi = phi.shape[0]
+    if omega is None:
+        omega = rpm_to_rad_s(machine.rpm if rpm is None else rpm)
+    omega_arr = np.broadcast_to(np.asarray(omega, dtype=float), (n_phi,)).copy()
+    eps_arr = np.broadcast_to(np.asarray(epsilon, dtype=float), (n_phi,)).copy()
+
+    if params is None:
+        P0 = machine.parameters(inputs=inputs)
+    else:
+        P0 = np.asarray(params, dtype=float)
+        if P0.shape[-1:] != machine.defaults.shape:
+            raise ValueError(f"params must have shape batch + ({machine.defaults.size},),"
+                             f" got {P0.shape}")
+        if inputs:
+            extra = machine.parameters(inputs=inputs)
+            P0 = np.broadcast_to(P0, np.broadcast_shapes(P0.shape, extra.shape)).copy()
+            for name in inputs:
+                i = machine.parameter_index(f"input.{name}")
+                P0[..., i] = extra[..., i]
+    batch = P0.shape[:-1]
+    flat = np.ascontiguousarray(P0.reshape(-1, P0.shape[-1]))
+    n_design = flat.shape[0]
+
+    if machine.has_loops:
+        march, store, where = _march(phi, machine.assembly_phi, math.radians(max_step_deg))
+    else:
+        march, store, where = phi, np.arange(n_phi, dtype=np.int64), np.arange(n_phi)
+    n_pt = len(machine.point_names)
+    n_l = len(machine.link_names)
+    n_v = len(machine.variable_names)
+    n_g = machine.groups.shape[0]
+    P = np.empty((n_design, n_phi, n_pt, 2))
+    V = np.empty_like(P)
+    A = np.empty_like(P)
+    TH = np.empty((n_design, n_phi, n_l))
+    OM = np.empty_like(TH)
+    EP = np.empty_like(TH)
+    S = np.empty((n_design, n_phi, n_v))
+    SD = np.empty_like(S)
+    SDD = np.empty_like(S)
+    fail_unit = np.full((n_design, n_phi), -1, dtype=np.int64)
+    fail_code = np.zeros((n_design, n_phi), dtype=np.int64)
+    loop_res = np.full((n_design, n_phi, n_g), np.nan)
+    loop_worst = np.zeros((n_design, n_phi, n_g), dtype=np.int64)
+    K.evaluate_program(
+        machine.program, flat, np.ascontiguousarray(march), store, omega_arr[where],
+        eps_arr[where], machine.groups, machine.unknowns, machine.terms, machine.cams,
+        machine.arcs, n_pt, n_l, n_v, tol, max_iter,
+        P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst,
+    )
+    feasible = fail_unit < 0
+    if on_failure == "raise" and not feasible.all():
+        _raise_first(machine, phi, store, batch, fail_unit, fail_code, loop_res, loop_worst)
+    elif on_failure not in ("raise", "mask"):
+        raise ValueError(f"on_failure must be 'raise' or 'mask', got {on_failure!r}")
+
+    unit_of = np.asarray(machine.kernel_unit_of_row + (-1,), dtype=np.int64)
+    failure_unit = np.where(feasible, -1, unit_of[fail_unit])
+
+    def shape(x, tail):
+        return x.reshape(batch + (n_phi,) + tail)
+
+    return KinematicsResult(
+        machine=machine.name,
+        phi=phi,
+        omega_shaft=omega_arr,
+        epsilon_shaft=eps_arr,
+        point_names=machine.point_names,
+        link_names=machine.link_names,
+        variable_names=machine.variable_names,
+        variable_units=machine.variable_units,
+        unit_names=machine.unit_names,
+        p=shape(P, (n_pt, 2)), v=shape(V, (n_pt, 2)), a=shape(A, (n_pt, 2)),
+        theta=shape(TH, (n_l,)), omega=shape(OM, (n_l,)), epsilon=shape(EP, (n_l,)),
+        q=shape(S, (n_v,)), q_dot=shape(SD, (n_v,)), q_ddot=shape(SDD, (n_v,)),
+        feasible=shape(feasible, ()),
+        failure_unit=shape(failure_unit, ()),
+        loop_residual=shape(loop_res, (n_g,)),
+        branches=dict(machine.branches),
+    )
+
+
+def _raise_first(machine, phi, store, batch, fail_unit, fail_code, loop_res, loop_worst):
+    # the first failure in march order is the root cause (later ones may be "lost")
+    order = store[store >= 0]
+    for d in range(fail_unit.shape[0]):
+        for i in order:
+            if fail_unit[d, i] >= 0:
+                row = int(fail_unit[d, i])
+                code = int(fail_code[d, i])
+                ui = machine.kernel_unit_of_row[row]
+                unit = machine.unit_names[ui] if ui >= 0 else "?"
+                design = tuple(int(x) for x in np.unravel_index(d, batch)) if batch else ()
+                reason, hint = _REASONS[code]
+                phi_deg = math.degrees(phi[i])
+                if code in (K.FAIL_NEWTON, K.FAIL_SINGULAR) and machine.unit_types[ui] == "loop":
+                    g = int(machine.program[row, 1])
+                    spec = machine.spec.units[ui]
+                    loop = spec.loops[int(loop_worst[d, i, g])].name
+                    res = loop_res[d, i, g]
+                    reason = (f"{reason} in loop '{loop}' (residual {res:.3g} mm)"
+                              if code == K.FAIL_NEWTON else
+                              f"{reason} (loop Jacobian singular near loop '{loop}')")
+                    raise ConvergenceError(unit, phi_deg, design, reason, hint)
+                raise AssemblyError(unit, phi_deg, design, reason, hint)

@@ -1,0 +1,593 @@
+"""Compile a :class:`~sewmech.spec.MachineSpec` once into a :class:`Machine` of index arrays.
+
+Names are resolved here, once: every point, link, joint variable and numeric parameter gets an
+index, and each unit becomes one row of an integer program that the compiled interpreter in
+:mod:`sewmech._kernels` walks. Every numeric value of the file is a named *parameter* (lengths in
+mm, angles in rad), so a batch of designs is just an array of parameter vectors.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from . import _kernels as K
+from .errors import MachineFileError
+from .spec import (
+    FRAME,
+    SHAFT,
+    CrankUnit,
+    LoopUnit,
+    MachineSpec,
+    PointUnit,
+    RPRUnit,
+    RRPUnit,
+    RRRUnit,
+    load_machine_spec,
+    parse_machine,
+)
+
+MACHINES_PACKAGE = "sewmech.data.machines"
+
+
+@dataclass(frozen=True, eq=False)
+class Machine:
+    """A compiled machine: immutable, built once, shared by every evaluation.
+
+    Attributes
+    ----------
+    spec : MachineSpec
+        The validated machine file.
+    file : str
+        Where it came from.
+    point_names, link_names, variable_names : tuple[str, ...]
+        Names in index order. Link 0 is always ``"frame"``.
+    variable_units : tuple[str, ...]
+        ``"mm"`` (slider displacements, lengths) or ``"rad"`` (free angles) per variable.
+    parameter_names, parameter_units : tuple[str, ...]
+        Every numeric value of the file, in internal units (mm, rad, or 1).
+    defaults : ndarray, shape (n_parameters,)
+        The parameter values of the file.
+    unit_names, unit_types : tuple[str, ...]
+        The units in solve order.
+    branches : dict[str, int]
+        The assembly branch (+1/-1) of every closed-form unit that has one.
+    point_links : dict[str, tuple[str, ...]]
+        The links each point belongs to (a joint belongs to two).
+    """
+
+    spec: MachineSpec
+    file: str
+    point_names: tuple[str, ...]
+    link_names: tuple[str, ...]
+    variable_names: tuple[str, ...]
+    variable_units: tuple[str, ...]
+    parameter_names: tuple[str, ...]
+    parameter_units: tuple[str, ...]
+    defaults: np.ndarray
+    unit_names: tuple[str, ...]
+    unit_types: tuple[str, ...]
+    branches: dict[str, int]
+    point_links: dict[str, tuple[str, ...]]
+    program: np.ndarray = field(repr=False)
+    groups: np.ndarray = field(repr=False)
+    unknowns: np.ndarray = field(repr=False)
+    terms: np.ndarray = field(repr=False)
+    cams: np.ndarray = field(repr=False)
+    arcs: np.ndarray = field(repr=False)
+    kernel_unit_of_row: tuple[int, ...] = field(repr=False)
+
+    # ---- names -----------------------------------------------------------------------------
+    @property
+    def name(self) -> str:
+        return self.spec.machine.name
+
+    @property
+    def has_loops(self) -> bool:
+        return self.groups.shape[0] > 0
+
+    @property
+    def rpm(self) -> float:
+        """Working speed of the upper shaft from the file, rev/min."""
+        return float(self.spec.speed.rpm)
+
+    @property
+    def reference_phi(self) -> float:
+        """Shaft angle (rad) at the convention's reference event."""
+        return math.radians(self.spec.convention.reference_phi_deg)
+
+    @property
+    def assembly_phi(self) -> float:
+        """Shaft angle (rad) where loop units start from their initial guesses."""
+        c = self.spec.convention
+        return math.radians(c.assembly_phi_deg if c.assembly_phi_deg is not None
+                            else c.reference_phi_deg)
+
+    def _index(self, names: tuple[str, ...], name: str, what: str) -> int:
+        try:
+            return names.index(name)
+        except ValueError:
+            close = difflib.get_close_matches(name, names, n=3)
+            hint = f"; did you mean {', '.join(close)}?" if close else ""
+            raise KeyError(f"machine '{self.name}' has no {what} '{name}'{hint}") from None
+
+    def point_index(self, name: str) -> int:
+        return self._index(self.point_names, name, "point")
+
+    def link_index(self, name: str) -> int:
+        return self._index(self.link_names, name, "link")
+
+    def variable_index(self, name: str) -> int:
+        return self._index(self.variable_names, name, "joint variable")
+
+    def parameter_index(self, name: str) -> int:
+        return self._index(self.parameter_names, name, "parameter")
+
+    # ---- designs -----------------------------------------------------------------------------
+    def parameters(
+        self,
+        overrides: Mapping[str, ArrayLike] | None = None,
+        *,
+        inputs: Mapping[str, ArrayLike] | None = None,
+    ) -> np.ndarray:
+        """Parameter vectors for a batch of designs.
+
+        Parameters
+        ----------
+        overrides : mapping of parameter name -> array_like
+            Values in internal units (mm, rad). All arrays broadcast to one batch shape.
+        inputs : mapping of input name -> array_like
+            Setting inputs (e.g. the stitch regulator), rad; shorthand for ``input.NAME``.
+
+        Returns
+        -------
+        ndarray, shape batch_shape + (n_parameters,)
+        """
+        items: dict[int, np.ndarray] = {}
+        for name, value in (overrides or {}).items():
+            items[self.parameter_index(name)] = np.asarray(value, dtype=float)
+        for name, value in (inputs or {}).items():
+            items[self.parameter_index(f"input.{name}")] = np.asarray(value, dtype=float)
+        shape = np.broadcast_shapes(*(v.shape for v in items.values())) if items else ()
+        out = np.empty(shape + (len(self.defaults),))
+        out[...] = self.defaults
+        for i, v in items.items():
+            out[..., i] = v
+        return out
+
+
+# ---- compiler ---------------------------------------------------------------------------------
+
+
+class _Compiler:
+    def __init__(self, spec: MachineSpec, file: str):
+        self.spec = spec
+        self.file = file
+        self.points: list[str] = []
+        self.point_links: dict[str, list[str]] = {}
+        self.links: list[str] = [FRAME]
+        self.vars: list[str] = []
+        self.var_units: list[str] = []
+        self.pnames: list[str] = []
+        self.punits: list[str] = []
+        self.pvalues: list[float] = []
+        self.rows: list[list[int]] = []
+        self.row_unit: list[int] = []
+        self.branches: dict[str, int] = {}
+        self.groups: list[list[int]] = []
+        self.unk: list[list[int]] = []
+        self.terms: list[list[int]] = []
+        self.cams: list[list[int]] = []
+        self.arcs: list[list[int]] = []
+        self.cam_index: dict[str, int] = {}
+        # every name any unit will define, to tell "unknown" from "not solved yet"
+        self.all_points, self.all_links = self._scan()
+
+    # -- helpers
+    def err(self, table: str, key: str, msg: str) -> MachineFileError:
+        return MachineFileError(self.file, table, key, msg)
+
+    def param(self, name: str, value: float, unit: str) -> int:
+        self.pnames.append(name)
+        self.punits.append(unit)
+        self.pvalues.append(float(value))
+        return len(self.pnames) - 1
+
+    def _scan(self):
+        pts = set(self.spec.points)
+        links = {FRAME}
+        for u in self.spec.units:
+            if isinstance(u, CrankUnit):
+                links.add(u.link or u.name)
+                pts.update(u.points)
+            elif isinstance(u, PointUnit):
+                pts.update(u.points)
+            elif isinstance(u, RRRUnit):
+                pts.add(u.new)
+                links.update(u.links)
+            elif isinstance(u, RRPUnit):
+                pts.add(u.new)
+                links.update((u.rod, u.slider))
+            elif isinstance(u, RPRUnit):
+                links.add(u.link)
+                if u.block:
+                    links.add(u.block)
+            elif isinstance(u, LoopUnit):
+                links.update(u.unknown_links_deg)
+        return pts, links
+
+    def known_point(self, table: str, key: str, name: str) -> int:
+        if name in self.points:
+            return self.points.index(name)
+        if name in self.all_points:
+            raise self.err(table, key, f"point '{name}' is used before it is solved; move the unit"
+                           " that solves it above this one (units are solved in file order)")
+        close = difflib.get_close_matches(name, sorted(self.all_points), n=3)
+        hint = f" Did you mean {', '.join(close)}?" if close else ""
+        raise self.err(table, key, f"unknown point '{name}': it is neither a frame point"
+                       f" ([points]) nor solved by any unit.{hint}")
+
+    def known_link(self, table: str, key: str, name: str) -> int:
+        if name in self.links:
+            return self.links.index(name)
+        if name in self.all_links:
+            raise self.err(table, key, f"link '{name}' is used before the unit that moves it;"
+                           " move that unit above this one")
+        close = difflib.get_close_matches(name, sorted(self.all_links), n=3)
+        hint = f" Did you mean {', '.join(close)}?" if close else ""
+        raise self.err(table, key, f"unknown link '{name}'.{hint}")
+
+    def new_point(self, table: str, key: str, name: str, links: tuple[str, ...]) -> int:
+        if name in self.points:
+            raise self.err(table, key, f"point '{name}' is already defined; every point is"
+                           " solved once (pick another name)")
+        self.points.append(name)
+        self.point_links[name] = list(links)
+        return len(self.points) - 1
+
+    def new_link(self, table: str, key: str, name: str) -> int:
+        if name in self.links:
+            raise self.err(table, key, f"link '{name}' is already moved by an earlier unit;"
+                           " every link is solved by exactly one unit")
+        self.links.append(name)
+        return len(self.links) - 1
+
+    def new_var(self, table: str, key: str, name: str, unit: str) -> int:
+        if name in self.vars:
+            raise self.err(table, key, f"joint variable '{name}' is already defined")
+        self.vars.append(name)
+        self.var_units.append(unit)
+        return len(self.vars) - 1
+
+    def on_link(self, point: str, link: str):
+        links = self.point_links.setdefault(point, [])
+        if link not in links:
+            links.append(link)
+
+    def add_row(self, uidx: int, row: list[int]):
+        self.rows.append(row + [0] * (K.UNIT_COLS - len(row)))
+        self.row_unit.append(uidx)
+
+    # -- passes
+    def compile(self) -> Machine:
+        spec = self.spec
+        for name, p in spec.points.items():
+            i = self.new_point(f"points.{name}", "", name, (FRAME,))
+            self.add_row(-1, [K.OP_FIXED, i, self.param(f"{name}.x", p.x, "mm"),
+                              self.param(f"{name}.y", p.y, "mm")])
+        self.inputs = {}
+        for name, inp in spec.inputs.items():
+            self.inputs[name] = self.param(f"input.{name}", math.radians(inp.default_deg), "rad")
+        for ui, u in enumerate(spec.units):
+            table = f'units[{ui}] "{u.name}"'
+            getattr(self, f"unit_{u.type}")(ui, table, u)
+        for name, cam in spec.cams.items():
+            if name not in self.cam_index:
+                self.compile_cam(f"cams.{name}", name, cam)  # unused cams are still checked
+        names = [u.name for u in spec.units]
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            n = sorted(dup)[0]
+            raise self.err(f'units[{names.index(n)}] "{n}"', "name",
+                           f"unit name '{n}' is used twice; unit names must be unique")
+
+        def arr(rows, cols):
+            a = np.asarray(rows, dtype=np.int64).reshape(-1, cols)
+            a.setflags(write=False)
+            return a
+
+        defaults = np.asarray(self.pvalues, dtype=float)
+        defaults.setflags(write=False)
+        return Machine(
+            spec=spec,
+            file=self.file,
+            point_names=tuple(self.points),
+            link_names=tuple(self.links),
+            variable_names=tuple(self.vars),
+            variable_units=tuple(self.var_units),
+            parameter_names=tuple(self.pnames),
+            parameter_units=tuple(self.punits),
+            defaults=defaults,
+            unit_names=tuple(u.name for u in spec.units),
+            unit_types=tuple(u.type for u in spec.units),
+            branches=dict(self.branches),
+            point_links={k: tuple(v) for k, v in self.point_links.items()},
+            program=arr(self.rows, K.UNIT_COLS),
+            groups=arr(self.groups, 5),
+            unknowns=arr(self.unk, 4),
+            terms=arr(self.terms, K.TERM_COLS),
+            cams=arr(self.cams, 4),
+            arcs=arr(self.arcs, 5),
+            kernel_unit_of_row=tuple(self.row_unit),
+        )
+
+    def unit_crank(self, ui, table, u: CrankUnit):
+        pivot = self.known_point(table, "pivot", u.pivot)
+        if FRAME not in self.point_links[u.pivot]:
+            raise self.err(table, "pivot", f"a crank turns about a frame point; '{u.pivot}' is"
+                           " not in [points]")
+        link = self.new_link(table, "link", u.link or u.name)
+        if u.input == SHAFT:
+            setting = -1
+        elif u.input in self.inputs:
+            setting = self.inputs[u.input]
+        else:
+            raise self.err(table, "input", f"unknown input '{u.input}'; use 'shaft' or a name"
+                           f" from [inputs] ({', '.join(self.inputs) or 'none defined'})")
+        lname = self.links[link]
+        self.on_link(u.pivot, lname)
+        self.add_row(ui, [K.OP_CRANK, link, self.param(f"{u.name}.phase",
+                                                       math.radians(u.phase_deg), "rad"),
+                          self.param(f"{u.name}.ratio", u.ratio, "1"), setting])
+        for pname, (uu, vv) in u.points.items():
+            i = self.new_point(table, f"points.{pname}", pname, (lname,))
+            self.add_row(ui, [K.OP_POINT, i, link, pivot, self.param(f"{pname}.u", uu, "mm"),
+                              self.param(f"{pname}.v", vv, "mm")])
+
+    def unit_point(self, ui, table, u: PointUnit):
+        link = self.known_link(table, "link", u.link)
+        origin = self.known_point(table, "origin", u.origin)
+        if u.link not in self.point_links[u.origin]:
+            raise self.err(table, "origin", f"origin '{u.origin}' is not a point of link"
+                           f" '{u.link}' (it is on: {', '.join(self.point_links[u.origin])})")
+        for pname, (uu, vv) in u.points.items():
+            i = self.new_point(table, f"points.{pname}", pname, (u.link,))
+            self.add_row(ui, [K.OP_POINT, i, link, origin, self.param(f"{pname}.u", uu, "mm"),
+                              self.param(f"{pname}.v", vv, "mm")])
+
+    def unit_rrr(self, ui, table, u: RRRUnit):
+        p1 = self.known_point(table, "joints", u.joints[0])
+        p2 = self.known_point(table, "joints", u.joints[1])
+        l1 = self.new_link(table, "links", u.links[0])
+        l2 = self.new_link(table, "links", u.links[1])
+        c = self.new_point(table, "new", u.new, u.links)
+        self.on_link(u.joints[0], u.links[0])
+        self.on_link(u.joints[1], u.links[1])
+        self.branches[u.name] = u.branch
+        self.add_row(ui, [K.OP_RRR, p1, p2, c, l1, l2,
+                          self.param(f"{u.name}.length1", u.lengths[0], "mm"),
+                          self.param(f"{u.name}.length2", u.lengths[1], "mm"), u.branch])
+
+    def unit_rrp(self, ui, table, u: RRPUnit):
+        pin = self.known_point(table, "pin", u.pin)
+        gl = self.known_link(table, "guide_link", u.guide_link)
+        gp = self.known_point(table, "guide_point", u.guide_point)
+        if u.guide_link not in self.point_links[u.guide_point]:
+            raise self.err(table, "guide_point", f"guide point '{u.guide_point}' is not on the"
+                           f" guide link '{u.guide_link}'")
+        rod = self.new_link(table, "rod", u.rod)
+        slider = self.new_link(table, "slider", u.slider)
+        c = self.new_point(table, "new", u.new, (u.rod, u.slider))
+        self.on_link(u.pin, u.rod)
+        var = self.new_var(table, "variable", u.variable or u.name, "mm")
+        self.branches[u.name] = u.branch
+        self.add_row(ui, [K.OP_RRP, pin, gp, gl, c, rod, slider,
+                          self.param(f"{u.name}.length", u.length, "mm"),
+                          self.param(f"{u.name}.guide_angle", math.radians(u.guide_angle_deg),
+                                     "rad"),
+                          self.param(f"{u.name}.offset", u.offset, "mm"), u.branch, var])
+
+    def unit_rpr(self, ui, table, u: RPRUnit):
+        pin = self.known_point(table, "pin", u.pin)
+        pivot = self.known_point(table, "pivot", u.pivot)
+        link = self.new_link(table, "link", u.link)
+        block = self.new_link(table, "block", u.block) if u.block else -1
+        self.on_link(u.pivot, u.link)
+        if u.block:
+            self.on_link(u.pin, u.block)
+        var = self.new_var(table, "variable", u.variable or u.name, "mm")
+        self.branches[u.name] = u.branch
+        self.add_row(ui, [K.OP_RPR, pin, pivot, link, block,
+                          self.param(f"{u.name}.offset", u.offset, "mm"), u.branch, var])
+
+    def compile_cam(self, table, name, cam) -> int:
+        link = self.known_link(table, "link", cam.link)
+        pivot = self.known_point(table, "pivot", cam.pivot)
+        if cam.link not in self.point_links[cam.pivot]:
+            raise self.err(table, "pivot", f"pivot '{cam.pivot}' is not a point of the cam link"
+                           f" '{cam.link}'")
+        # the arcs must cover the normal directions once, in order, and join without gaps
+        arcs = cam.arcs
+        start = arcs[0].normal_from_deg
+        for k, arc in enumerate(arcs):
+            nxt = arcs[(k + 1) % len(arcs)]
+            to = arc.normal_to_deg
+            frm = nxt.normal_from_deg + (360.0 if k == len(arcs) - 1 else 0.0)
+            if abs(to - frm) > 1e-9:
+                raise self.err(table, f"arcs[{k}].normal_to_deg",
+                               f"arc {k} ends at normal {to} deg but the next arc starts at"
+                               f" {frm} deg; the arcs must cover 360 deg of normal directions"
+                               " in order")
+            t = math.radians(to)
+            p_end = np.add(arc.center, arc.radius * np.array([math.cos(t), math.sin(t)]))
+            p_next = np.add(nxt.center, nxt.radius * np.array([math.cos(t), math.sin(t)]))
+            gap = float(np.hypot(*(p_end - p_next)))
+            if gap > 1e-6:
+                raise self.err(table, f"arcs[{k}]", f"arc {k} and arc {(k + 1) % len(arcs)} do"
+                               f" not meet: gap {gap:.3g} mm at their common normal {to} deg")
+        if abs(arcs[-1].normal_to_deg - start - 360.0) > 1e-9:
+            raise self.err(table, "arcs", "the arcs must cover exactly 360 deg of normals")
+        a0 = len(self.arcs)
+        for k, arc in enumerate(arcs):
+            pre = f"{name}.arc{k}"
+            self.arcs.append([self.param(f"{pre}.cx", arc.center[0], "mm"),
+                              self.param(f"{pre}.cy", arc.center[1], "mm"),
+                              self.param(f"{pre}.radius", arc.radius, "mm"),
+                              self.param(f"{pre}.normal_from", math.radians(arc.normal_from_deg),
+                                         "rad"),
+                              self.param(f"{pre}.normal_to", math.radians(arc.normal_to_deg),
+                                         "rad")])
+        self.cams.append([link, pivot, a0, len(arcs)])
+        self.cam_index[name] = len(self.cams) - 1
+        return self.cam_index[name]
+
+    def unit_loop(self, ui, table, u: LoopUnit):
+        n_unknown = len(u.unknown_links_deg) + len(u.unknown_lengths_mm) + len(u.unknown_angles_deg)
+        if n_unknown != 2 * len(u.loops):
+            raise self.err(table, "loops", f"{len(u.loops)} loop(s) give {2 * len(u.loops)}"
+                           f" equations but the unit has {n_unknown} unknowns; each loop fixes"
+                           " two unknowns")
+        u0 = len(self.unk)
+        cols: dict[tuple[str, str], int] = {}
+        for name, init in u.unknown_links_deg.items():
+            li = self.new_link(table, f"unknown_links_deg.{name}", name)
+            cols[("link", name)] = len(cols)
+            self.unk.append([0, li, 1, self.param(f"{u.name}.init.{name}", math.radians(init),
+                                                  "rad")])
+        for name, init in u.unknown_lengths_mm.items():
+            vi = self.new_var(table, f"unknown_lengths_mm.{name}", name, "mm")
+            cols[("len", name)] = len(cols)
+            self.unk.append([1, vi, 0, self.param(f"{u.name}.init.{name}", init, "mm")])
+        for name, init in u.unknown_angles_deg.items():
+            vi = self.new_var(table, f"unknown_angles_deg.{name}", name, "rad")
+            cols[("ang", name)] = len(cols)
+            self.unk.append([1, vi, 1, self.param(f"{u.name}.init.{name}", math.radians(init),
+                                                  "rad")])
+        used: set[int] = set()
+        t0 = len(self.terms)
+        for li, loop in enumerate(u.loops):
+            for ti, term in enumerate(loop.terms):
+                key = f"loops[{li}].terms[{ti}]"
+                pre = f"{u.name}.{loop.name}.{ti}"
+                row = [0] * K.TERM_COLS
+                row[1] = li
+                row[2] = term.sign
+                row[7] = row[9] = row[10] = row[11] = -1
+                row[8] = -1
+                kind = term.kind
+                if kind == "point":
+                    row[0] = K.TERM_POINT
+                    row[4] = self.known_point(table, key + ".point", term.point)
+                    self.terms.append(row)
+                    continue
+                if kind in ("link", "angle"):
+                    row[0] = K.TERM_VEC
+                    # length
+                    if isinstance(term.length, str):
+                        if ("len", term.length) in cols:
+                            row[10] = cols[("len", term.length)]
+                            row[4] = self.vars.index(term.length)
+                        elif term.length in self.vars and self.var_units[
+                                self.vars.index(term.length)] == "mm":
+                            row[4] = self.vars.index(term.length)
+                        else:
+                            raise self.err(table, key + ".length", f"'{term.length}' is neither"
+                                           " a length unknown of this unit nor a known slider"
+                                           " variable")
+                        row[3] = K.SRC_VAR
+                    else:
+                        row[3] = K.SRC_PARAM
+                        row[4] = self.param(f"{pre}.length", term.length, "mm")
+                    if kind == "link":
+                        self._angle_source(table, key + ".link", row, cols, term.link, "link")
+                    else:
+                        self._angle_source(table, key + ".angle", row, cols, term.angle, "angle")
+                    if term.angle_deg != 0.0:
+                        row[7] = self.param(f"{pre}.angle", math.radians(term.angle_deg), "rad")
+                else:
+                    row[0] = K.TERM_CAM
+                    if term.cam not in self.spec.cams:
+                        raise self.err(table, key + ".cam", f"unknown cam '{term.cam}'; define it"
+                                       f" in [cams] ({', '.join(self.spec.cams) or 'none'})")
+                    if term.cam not in self.cam_index:
+                        self.compile_cam(f"cams.{term.cam}", term.cam, self.spec.cams[term.cam])
+                    row[8] = self.cam_index[term.cam]
+                    cam_link = self.spec.cams[term.cam].link
+                    if ("link", cam_link) in cols:
+                        raise self.err(table, key + ".cam", f"the cam's link '{cam_link}' must be"
+                                       " moved by an earlier unit, not be an unknown here")
+                    if term.normal_link is not None:
+                        self._angle_source(table, key + ".normal_link", row, cols,
+                                           term.normal_link, "link")
+                    else:
+                        self._angle_source(table, key + ".normal_angle", row, cols,
+                                           term.normal_angle, "angle")
+                    if term.normal_deg != 0.0:
+                        row[7] = self.param(f"{pre}.normal", math.radians(term.normal_deg), "rad")
+                    if term.offset != 0.0:
+                        row[9] = self.param(f"{pre}.offset", term.offset, "mm")
+                used.update(c for c in (row[10], row[11]) if c >= 0)
+                self.terms.append(row)
+        names = list(cols)
+        for c, (kind, name) in enumerate(names):
+            if c not in used:
+                raise self.err(table, "loops", f"unknown '{name}' appears in no loop term; the"
+                               " loop equations cannot determine it")
+        g = len(self.groups)
+        self.groups.append([n_unknown, u0, 0, t0, len(self.terms) - t0])
+        self.add_row(ui, [K.OP_LOOP, g])
+
+    def _angle_source(self, table, key, row, cols, name, kind):
+        if kind == "link":
+            row[5] = K.SRC_LINK
+            if ("link", name) in cols:
+                row[6] = self.links.index(name)
+                row[11] = cols[("link", name)]
+            else:
+                row[6] = self.known_link(table, key, name)
+        else:
+            row[5] = K.SRC_VAR
+            if ("ang", name) in cols:
+                row[6] = self.vars.index(name)
+                row[11] = cols[("ang", name)]
+            elif name in self.vars and self.var_units[self.vars.index(name)] == "rad":
+                row[6] = self.vars.index(name)
+            else:
+                raise self.err(table, key, f"'{name}' is neither an angle unknown of this unit"
+                               " nor a known angle variable")
+
+
+def compile_machine(spec: MachineSpec, file: str = "<string>") -> Machine:
+    """Resolve names and build the index arrays of a machine (see :class:`Machine`)."""
+    return _Compiler(spec, file).compile()
+
+
+def shipped_machines() -> dict[str, Path]:
+    """Machine files shipped with sewmech: name -> path."""
+    root = resources.files(MACHINES_PACKAGE)
+    return {Path(p.name).stem: Path(str(p)) for p in root.iterdir() if p.name.endswith(".toml")}
+
+
+def load_machine(name_or_path: str | Path) -> Machine:
+    """Load and compile a shipped machine by name (``"jb1-3"``) or a machine file by path."""
+    path = Path(name_or_path)
+    shipped = shipped_machines()
+    if str(name_or_path) in shipped and not path.exists():
+        path = shipped[str(name_or_path)]
+    elif not path.exists():
+        known = ", ".join(sorted(shipped))
+        raise MachineFileError(str(name_or_path), "", "", "no such file and no shipped machine of"
+                               f" that name; shipped machines: {known}")
+    return compile_machine(load_machine_spec(path), str(path))
+
+
+def machine_from_toml(text: str, file: str = "<string>") -> Machine:
+    """Parse and compile machine-file text."""
+    return compile_machine(parse_machine(text, file), file)

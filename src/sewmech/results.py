@@ -1,0 +1,211 @@
+"""Result objects of the kinematics: frozen, named, with an explicit feasibility mask.
+
+Array convention (docs/notation.md): leading batch axes for designs, then the crank-angle axis,
+then coordinates. Nothing is squeezed: a single design has batch shape ``()``, and the phi axis
+is always present.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# channel prefix -> (array attribute, unit, derivative prefix wrt phi at omega = 1 rad/s)
+CHANNEL_KINDS = {
+    "p": ("p", "mm", "v"),
+    "v": ("v", "mm/s", "a"),
+    "a": ("a", "mm/s^2", None),
+    "theta": ("theta", "rad", "omega"),
+    "omega": ("omega", "rad/s", "epsilon"),
+    "epsilon": ("epsilon", "rad/s^2", None),
+    "q": ("q", None, "qd"),
+    "qd": ("q_dot", None, "qdd"),
+    "qdd": ("q_ddot", None, None),
+}
+
+
+@dataclass(frozen=True)
+class PointMotion:
+    """Position (mm), velocity (mm/s), acceleration (mm/s^2) of one point; (..., n_phi, 2)."""
+
+    p: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+
+
+@dataclass(frozen=True)
+class LinkMotion:
+    """Angle (rad), angular velocity (rad/s), angular acceleration (rad/s^2); (..., n_phi)."""
+
+    theta: np.ndarray
+    omega: np.ndarray
+    epsilon: np.ndarray
+
+
+@dataclass(frozen=True)
+class VariableMotion:
+    """A joint variable (slider displacement in mm, or a free angle in rad) and its rates."""
+
+    q: np.ndarray
+    q_dot: np.ndarray
+    q_ddot: np.ndarray
+    unit: str
+
+
+@dataclass(frozen=True, eq=False)
+class KinematicsResult:
+    """Motion of every point, link and joint variable of a machine over crank angles.
+
+    Attributes
+    ----------
+    machine : str
+        Machine name.
+    phi : ndarray, shape (n_phi,)
+        Upper-shaft angle, rad, in the machine's angle convention.
+    omega_shaft, epsilon_shaft : ndarray, shape (n_phi,)
+        Shaft speed (rad/s) and angular acceleration (rad/s^2) used.
+    p, v, a : ndarray, shape batch + (n_phi, n_points, 2)
+        Point positions (mm), velocities (mm/s), accelerations (mm/s^2).
+    theta, omega, epsilon : ndarray, shape batch + (n_phi, n_links)
+        Link angles (rad), angular velocities (rad/s), accelerations (rad/s^2). Link 0 = frame.
+    q, q_dot, q_ddot : ndarray, shape batch + (n_phi, n_variables)
+        Joint variables (slider displacements mm, free angles rad) and time derivatives.
+    feasible : ndarray of bool, shape batch + (n_phi,)
+        False where some unit could not be assembled; only there are the values NaN.
+    failure_unit : ndarray of int, shape batch + (n_phi,)
+        Index into ``unit_names`` of the unit that failed, -1 where feasible.
+    loop_residual : ndarray, shape batch + (n_phi, n_loop_units)
+        Max-norm of the loop-closure residual (mm) of each loop unit after Newton.
+    branches : dict[str, int]
+        Assembly branch of each closed-form unit, as stated in the machine file.
+    """
+
+    machine: str
+    phi: np.ndarray
+    omega_shaft: np.ndarray
+    epsilon_shaft: np.ndarray
+    point_names: tuple[str, ...]
+    link_names: tuple[str, ...]
+    variable_names: tuple[str, ...]
+    variable_units: tuple[str, ...]
+    unit_names: tuple[str, ...]
+    p: np.ndarray = field(repr=False)
+    v: np.ndarray = field(repr=False)
+    a: np.ndarray = field(repr=False)
+    theta: np.ndarray = field(repr=False)
+    omega: np.ndarray = field(repr=False)
+    epsilon: np.ndarray = field(repr=False)
+    q: np.ndarray = field(repr=False)
+    q_dot: np.ndarray = field(repr=False)
+    q_ddot: np.ndarray = field(repr=False)
+    feasible: np.ndarray = field(repr=False)
+    failure_unit: np.ndarray = field(repr=False)
+    loop_residual: np.ndarray = field(repr=False)
+    branches: dict[str, int] = field(default_factory=dict)
+
+    def __post_init__(self):
+        for name in ("phi", "omega_shaft", "epsilon_shaft", "p", "v", "a", "theta", "omega",
+                     "epsilon", "q", "q_dot", "q_ddot", "feasible", "failure_unit",
+                     "loop_residual"):
+            getattr(self, name).setflags(write=False)
+
+    # ---- shapes -------------------------------------------------------------------------------
+    @property
+    def batch_shape(self) -> tuple[int, ...]:
+        return self.feasible.shape[:-1]
+
+    @property
+    def phi_deg(self) -> np.ndarray:
+        """Shaft angle in degrees (for display)."""
+        return np.degrees(self.phi)
+
+    @property
+    def all_feasible(self) -> bool:
+        return bool(self.feasible.all())
+
+    # ---- named access -------------------------------------------------------------------------
+    def point(self, name: str) -> PointMotion:
+        i = _find(self.point_names, name, "point")
+        return PointMotion(self.p[..., i, :], self.v[..., i, :], self.a[..., i, :])
+
+    def link(self, name: str) -> LinkMotion:
+        i = _find(self.link_names, name, "link")
+        return LinkMotion(self.theta[..., i], self.omega[..., i], self.epsilon[..., i])
+
+    def variable(self, name: str) -> VariableMotion:
+        i = _find(self.variable_names, name, "joint variable")
+        return VariableMotion(self.q[..., i], self.q_dot[..., i], self.q_ddot[..., i],
+                              self.variable_units[i])
+
+    def channel_names(self) -> list[str]:
+        """All channel names: ``p_B_x``, ``v_B_y``, ``theta_L``, ``q_V`` ... (see notation)."""
+        names = []
+        for kind in ("p", "v", "a"):
+            for pt in self.point_names:
+                names += [f"{kind}_{pt}_x", f"{kind}_{pt}_y"]
+        for kind in ("theta", "omega", "epsilon"):
+            names += [f"{kind}_{lk}" for lk in self.link_names[1:]]
+        for kind in ("q", "qd", "qdd"):
+            names += [f"{kind}_{var}" for var in self.variable_names]
+        return names
+
+    def channel(self, name: str) -> tuple[np.ndarray, str]:
+        """One channel by name: (values with shape batch + (n_phi,), unit)."""
+        kind, _, rest = name.partition("_")
+        if kind not in CHANNEL_KINDS or not rest:
+            raise KeyError(f"unknown channel '{name}'; channels look like p_B_x, v_B_y, a_B_x,"
+                           " theta_L, omega_L, epsilon_L, q_V, qd_V, qdd_V")
+        attr, unit, _ = CHANNEL_KINDS[kind]
+        if kind in ("p", "v", "a"):
+            pt, _, comp = rest.rpartition("_")
+            if comp not in ("x", "y"):
+                raise KeyError(f"channel '{name}': a point channel ends in _x or _y")
+            i = _find(self.point_names, pt, "point")
+            return getattr(self, attr)[..., i, "xy".index(comp)], unit
+        if kind in ("theta", "omega", "epsilon"):
+            i = _find(self.link_names, rest, "link")
+            return getattr(self, attr)[..., i], unit
+        i = _find(self.variable_names, rest, "joint variable")
+        base = self.variable_units[i]
+        unit = {"q": base, "qd": f"{base}/s", "qdd": f"{base}/s^2"}[kind]
+        return getattr(self, attr)[..., i], unit
+
+    def channels(self) -> dict[str, tuple[np.ndarray, str]]:
+        return {n: self.channel(n) for n in self.channel_names()}
+
+    # ---- export ---------------------------------------------------------------------------------
+    def to_pandas(self):
+        """A DataFrame with one row per (design, phi) and one column per channel.
+
+        Column names carry their unit (``p_B_x_mm``, ``omega_L_rad_s``); the first columns are
+        the design index (batches only), ``phi_deg`` and ``feasible``.
+        """
+        import pandas as pd
+
+        n_phi = self.phi.shape[0]
+        n_design = int(np.prod(self.batch_shape, dtype=int))
+        cols: dict[str, np.ndarray] = {}
+        if self.batch_shape:
+            cols["design"] = np.repeat(np.arange(n_design), n_phi)
+        cols["phi_deg"] = np.tile(self.phi_deg, n_design)
+        cols["feasible"] = self.feasible.reshape(-1)
+        for name, (values, unit) in self.channels().items():
+            cols[f"{name}_{unit_suffix(unit)}"] = values.reshape(-1)
+        return pd.DataFrame(cols)
+
+
+def unit_suffix(unit: str) -> str:
+    """'mm/s^2' -> 'mm_s2' for column names."""
+    return unit.replace("/", "_").replace("^", "")
+
+
+def _find(names: tuple[str, ...], name: str, what: str) -> int:
+    try:
+        return names.index(name)
+    except ValueError:
+        import difflib
+
+        close = difflib.get_close_matches(name, names, n=3)
+        hint = f"; did you mean {', '.join(close)}?" if close else ""
+        raise KeyError(f"no {what} '{name}'{hint}") from None

@@ -1,0 +1,402 @@
+"""Machine files: TOML text -> typed, validated, frozen :class:`MachineSpec`.
+
+Only structure and value ranges are checked here (unknown keys, types, positive lengths,
+branches of +1/-1). Name resolution (unknown points, a unit that uses a point not yet solved)
+happens once in :func:`sewmech.machine.compile_machine`, which raises the same
+:class:`~sewmech.errors.MachineFileError` with file, table and key.
+
+The format is documented in ``docs/machine-files.md``. Lengths are mm, angles degrees (keys end
+in ``_deg``), speeds rpm.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+import typing
+from pathlib import Path
+from typing import Annotated, Literal, Union
+
+from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError, field_validator
+from pydantic import model_validator
+
+from .errors import MachineFileError
+
+NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_.\-]*$")
+FRAME = "frame"
+SHAFT = "shaft"
+
+Name = Annotated[str, Field(pattern=NAME_RE.pattern, min_length=1)]
+Branch = Literal[1, -1]
+Vec2 = tuple[float, float]
+
+
+class _Spec(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class MachineInfo(_Spec):
+    """``[machine]``: identity of the machine."""
+
+    name: Name
+    title: str = ""
+    description: str = ""
+    format: Literal[1] = 1
+
+
+class Convention(_Spec):
+    """``[convention]``: what the shaft angle means.
+
+    ``reference_phi_deg`` is the shaft angle at which ``reference_event`` happens (e.g. 90 with
+    the needle bar at its top, as in the JB dynamics report). Loop units are assembled from
+    their initial guesses at ``assembly_phi_deg`` (default: the reference angle) and continued
+    forward from there.
+    """
+
+    reference_event: str
+    reference_phi_deg: float
+    description: str = ""
+    assembly_phi_deg: float | None = None
+
+
+class Speed(_Spec):
+    """``[speed]``: working speed of the upper shaft."""
+
+    rpm: PositiveFloat = 1000.0
+    note: str = ""
+
+
+class PointSpec(_Spec):
+    """``[points.NAME]``: a point fixed on the frame, mm."""
+
+    x: float
+    y: float
+    note: str = ""
+
+
+class InputSpec(_Spec):
+    """``[inputs.NAME]``: a setting input such as the stitch-length regulator angle, degrees."""
+
+    default_deg: float = 0.0
+    min_deg: float | None = None
+    max_deg: float | None = None
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _range(self):
+        if self.min_deg is not None and self.max_deg is not None and self.min_deg > self.max_deg:
+            raise ValueError(f"min_deg {self.min_deg} is larger than max_deg {self.max_deg}")
+        return self
+
+
+class CrankUnit(_Spec):
+    """A driver link rotating about a frame point: theta = phase + ratio * phi (or a setting)."""
+
+    type: Literal["crank"]
+    name: Name
+    link: Name | None = None
+    pivot: Name
+    phase_deg: float = 0.0
+    ratio: float = 1.0
+    input: Name = SHAFT
+    points: dict[Name, Vec2] = Field(default_factory=dict)
+    note: str = ""
+
+
+class PointUnit(_Spec):
+    """Points fixed on a moving link, local (u, v) mm in the link frame from a known origin."""
+
+    type: Literal["point"]
+    name: Name
+    link: Name
+    origin: Name
+    points: dict[Name, Vec2] = Field(min_length=1)
+    note: str = ""
+
+
+class RRRUnit(_Spec):
+    """Two-link dyad: links[0] of lengths[0] from joints[0], links[1] from joints[1], meet at new."""
+
+    type: Literal["rrr"]
+    name: Name
+    joints: tuple[Name, Name]
+    new: Name
+    links: tuple[Name, Name]
+    lengths: tuple[PositiveFloat, PositiveFloat]
+    branch: Branch
+    note: str = ""
+
+
+class RRPUnit(_Spec):
+    """Slider dyad: rod from pin to a slider on a guide line of guide_link (frame or moving)."""
+
+    type: Literal["rrp"]
+    name: Name
+    pin: Name
+    rod: Name
+    length: PositiveFloat
+    new: Name
+    slider: Name
+    guide_point: Name
+    guide_link: Name = FRAME
+    guide_angle_deg: float = 90.0
+    offset: float = 0.0
+    variable: Name | None = None
+    branch: Branch
+    note: str = ""
+
+
+class RPRUnit(_Spec):
+    """Rotating guide: the slot of link (pivoting at pivot) passes through a block pinned at pin."""
+
+    type: Literal["rpr"]
+    name: Name
+    pin: Name
+    pivot: Name
+    link: Name
+    offset: float = 0.0
+    block: Name | None = None
+    variable: Name | None = None
+    branch: Branch
+    note: str = ""
+
+
+class LoopTerm(_Spec):
+    """One vector of a loop: exactly one of point, link, angle, cam.
+
+    - ``{point = "A"}``: the position of a known point;
+    - ``{link = "L", length = 12.0, angle_deg = 0}``: length * e^{i(theta_L + angle)};
+      ``length`` may name a length unknown of the unit (a slider variable);
+    - ``{angle = "psi", length = ...}``: as above with a free angle unknown;
+    - ``{cam = "C", normal_link = "L" | normal_angle = "psi", normal_deg = 90, offset = 0}``:
+      the point of cam C's profile whose outward normal points along the given direction,
+      pushed out by ``offset`` (a roller radius).
+    """
+
+    point: Name | None = None
+    link: Name | None = None
+    angle: Name | None = None
+    cam: Name | None = None
+    length: PositiveFloat | Name | None = None
+    angle_deg: float = 0.0
+    normal_link: Name | None = None
+    normal_angle: Name | None = None
+    normal_deg: float = 0.0
+    offset: float = 0.0
+    sign: Literal[1, -1] = 1
+
+    @model_validator(mode="after")
+    def _one_kind(self):
+        kinds = [k for k in ("point", "link", "angle", "cam") if getattr(self, k) is not None]
+        if len(kinds) != 1:
+            raise ValueError(
+                "a loop term needs exactly one of 'point', 'link', 'angle', 'cam'"
+                f" (found {kinds or 'none'})"
+            )
+        kind = kinds[0]
+        if kind in ("link", "angle") and self.length is None:
+            raise ValueError(f"a '{kind}' term needs 'length' (mm, or a length unknown's name)")
+        if kind == "cam" and (self.normal_link is None) == (self.normal_angle is None):
+            raise ValueError("a 'cam' term needs exactly one of 'normal_link', 'normal_angle'")
+        return self
+
+    @property
+    def kind(self) -> str:
+        for k in ("point", "link", "angle", "cam"):
+            if getattr(self, k) is not None:
+                return k
+        raise AssertionError
+
+
+class Loop(_Spec):
+    """A closed vector loop: the terms sum to zero."""
+
+    name: Name
+    terms: list[LoopTerm] = Field(min_length=2)
+
+
+class LoopUnit(_Spec):
+    """Unknowns solved together by Newton-Raphson on vector loop-closure equations."""
+
+    type: Literal["loop"]
+    name: Name
+    unknown_links_deg: dict[Name, float] = Field(default_factory=dict)
+    unknown_lengths_mm: dict[Name, float] = Field(default_factory=dict)
+    unknown_angles_deg: dict[Name, float] = Field(default_factory=dict)
+    loops: list[Loop] = Field(min_length=1)
+    note: str = ""
+
+
+Unit = Annotated[
+    Union[CrankUnit, PointUnit, RRRUnit, RRPUnit, RPRUnit, LoopUnit], Field(discriminator="type")
+]
+
+
+class CamArc(_Spec):
+    """One circular arc of a cam profile in the cam link's frame (origin at the pivot).
+
+    ``normal_from_deg`` .. ``normal_to_deg``: the range of outward-normal directions the arc
+    covers, degrees in the cam frame, counter-clockwise.
+    """
+
+    center: Vec2
+    radius: PositiveFloat
+    normal_from_deg: float
+    normal_to_deg: float
+
+    @model_validator(mode="after")
+    def _range(self):
+        if not self.normal_to_deg > self.normal_from_deg:
+            raise ValueError("normal_to_deg must be larger than normal_from_deg (counter-clockwise)")
+        return self
+
+
+class CamSpec(_Spec):
+    """``[cams.NAME]``: a convex cam made of circular arcs, fixed on a link turning about pivot."""
+
+    link: Name
+    pivot: Name
+    arcs: list[CamArc] = Field(min_length=1)
+    note: str = ""
+
+
+class MachineSpec(_Spec):
+    """The whole machine file."""
+
+    machine: MachineInfo
+    convention: Convention
+    speed: Speed = Speed()
+    points: dict[Name, PointSpec] = Field(min_length=1)
+    inputs: dict[Name, InputSpec] = Field(default_factory=dict)
+    cams: dict[Name, CamSpec] = Field(default_factory=dict)
+    units: list[Unit] = Field(min_length=1)
+
+    @field_validator("points")
+    @classmethod
+    def _no_frame(cls, v):
+        if FRAME in v:
+            raise ValueError(f"'{FRAME}' is reserved for the frame link")
+        return v
+
+
+# ---- loading ------------------------------------------------------------------------------------
+
+
+def _allowed_keys(model: type[BaseModel]) -> list[str]:
+    return sorted(model.model_fields)
+
+
+def _model_at(loc: tuple, raw) -> tuple[type[BaseModel] | None, list[str]]:
+    """Walk MachineSpec along a pydantic error location; return the innermost model and the
+    human-readable table path."""
+    model: type[BaseModel] | None = MachineSpec
+    path: list[str] = []
+    node = raw
+    i = 0
+    ann = None
+    while i < len(loc) and model is not None:
+        part = loc[i]
+        if part not in model.model_fields:
+            break
+        path.append(str(part))
+        ann = model.model_fields[part].annotation
+        node = node.get(part) if isinstance(node, dict) else None
+        i += 1
+        model = None
+        # unwrap containers: dict[str, M], list[M], list[Union[...]], M | None
+        while ann is not None:
+            origin = typing.get_origin(ann)
+            args = typing.get_args(ann)
+            if origin is Annotated:
+                ann = args[0]
+                continue
+            if origin in (dict, list) and i < len(loc):
+                key = loc[i]
+                if origin is list:
+                    label = f"[{key}]"
+                    if isinstance(node, list) and isinstance(key, int) and key < len(node):
+                        node = node[key]
+                        if isinstance(node, dict) and "name" in node:
+                            label += f' "{node["name"]}"'
+                    else:
+                        node = None
+                    path[-1] += label
+                else:
+                    path.append(str(key))
+                    node = node.get(key) if isinstance(node, dict) else None
+                i += 1
+                ann = args[-1]
+                continue
+            if origin is Union or origin is typing.Union or str(origin) == "types.UnionType":
+                members = [a for a in args if isinstance(a, type) and issubclass(a, BaseModel)]
+                if i < len(loc) and any(
+                    m.model_fields.get("type") is not None
+                    and loc[i] in typing.get_args(m.model_fields["type"].annotation)
+                    for m in members
+                ):
+                    for m in members:
+                        if loc[i] in typing.get_args(m.model_fields["type"].annotation):
+                            ann = m
+                    i += 1
+                    continue
+                ann = members[0] if len(members) == 1 else None
+                continue
+            if isinstance(ann, type) and issubclass(ann, BaseModel):
+                model = ann
+            ann = None
+    return model, path
+
+
+def _explain(err: dict, raw: dict, file: str) -> MachineFileError:
+    loc = tuple(err["loc"])
+    model, path = _model_at(loc, raw)
+    table = ".".join(path[:-1]) if path else ""
+    key = path[-1] if path else ""
+    etype = err["type"]
+    if etype == "extra_forbidden":
+        key = str(loc[-1])
+        table = ".".join(path) if path else ""
+        allowed = ", ".join(_allowed_keys(model)) if model is not None else "?"
+        msg = f"unknown key '{key}'; expected one of: {allowed}"
+    elif etype == "missing":
+        key = str(loc[-1])
+        table = ".".join(path[:-1]) if len(path) > 1 else (path[0] if path and path[0] != key else "")
+        msg = f"missing required key '{key}'"
+    elif etype == "literal_error" and key == "branch":
+        msg = (f"branch must be +1 or -1 (the assembly branch of the unit), got {err['input']!r}")
+    elif etype in ("greater_than", "greater_than_equal") and "length" in key:
+        msg = f"must be a positive length in mm, got {err['input']!r}"
+    elif etype == "union_tag_invalid":
+        msg = (f"unknown unit type {err['input'].get('type')!r}; expected one of: crank, point,"
+               " rrr, rrp, rpr, loop") if isinstance(err.get("input"), dict) else err["msg"]
+    else:
+        msg = f"{err['msg']} (got {err.get('input')!r})"
+    return MachineFileError(file, table, key, msg)
+
+
+def parse_machine(text: str, file: str = "<string>") -> MachineSpec:
+    """Parse machine-file TOML text into a validated :class:`MachineSpec`.
+
+    Raises
+    ------
+    MachineFileError
+        With file, table and key of the first problem found.
+    """
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise MachineFileError(file, "", "", f"not valid TOML: {exc}") from None
+    try:
+        return MachineSpec.model_validate(raw)
+    except ValidationError as exc:
+        raise _explain(exc.errors()[0], raw, file) from None
+
+
+def load_machine_spec(path: str | Path) -> MachineSpec:
+    """Read and validate a machine file (TOML)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise MachineFileError(str(path), "", "", f"cannot read the file: {exc.strerror}") from None
+    return parse_machine(text, str(path))
