@@ -1,0 +1,193 @@
+"""The ``sewmech`` command line (typer + rich)."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from enum import Enum
+from pathlib import Path
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from .errors import SewmechError
+from .machine import Machine, load_machine, shipped_machines
+
+DEFAULT_MACHINE = "jb1-3"
+
+app = typer.Typer(add_completion=False, no_args_is_help=True,
+                  help="sewmech: kinematics of sewing-machine mechanisms (mm, s, rad inside; "
+                       "degrees at the edges).")
+console = Console()
+err_console = Console(stderr=True)
+
+
+class Format(str, Enum):
+    csv = "csv"
+    json = "json"
+
+
+def _fail(exc: Exception) -> None:
+    err_console.print(f"[bold red]error:[/] {exc}", markup=True, highlight=False)
+    raise typer.Exit(code=2)
+
+
+def _load(machine: str) -> Machine:
+    try:
+        return load_machine(machine)
+    except SewmechError as exc:
+        _fail(exc)
+
+
+def _phi_grid(machine: Machine, step_deg: float) -> np.ndarray:
+    if not (0 < step_deg <= 90):
+        _fail(ValueError(f"--step-deg must be in (0, 90], got {step_deg}"))
+    n = int(round(360.0 / step_deg))
+    if not math.isclose(n * step_deg, 360.0, rel_tol=1e-9):
+        _fail(ValueError(f"--step-deg {step_deg} does not divide 360"))
+    return np.radians(np.arange(n) * step_deg)
+
+
+@app.command("machines")
+def machines_cmd():
+    """List the machine files shipped with sewmech."""
+    table = Table(title="shipped machines")
+    for col in ("name", "title", "units", "file"):
+        table.add_column(col)
+    for name, path in sorted(shipped_machines().items()):
+        m = load_machine(path)
+        table.add_row(name, m.spec.machine.title, str(len(m.unit_names)), str(path))
+    console.print(table)
+
+
+@app.command("check")
+def check_cmd(file: Path = typer.Argument(..., help="machine file (TOML) or shipped name"),
+              step_deg: float = typer.Option(5.0, help="angle step of the assembly check, deg")):
+    """Validate a machine file and assemble it over one revolution."""
+    from .kinematics import kinematics
+
+    m = _load(str(file))
+    try:
+        res = kinematics(m, _phi_grid(m, step_deg))
+    except SewmechError as exc:
+        _fail(exc)
+    table = Table(title=f"{m.name}: valid", show_header=False)
+    table.add_row("file", m.file)
+    table.add_row("angle convention", f"phi = {m.spec.convention.reference_phi_deg:g} deg: "
+                  f"{m.spec.convention.reference_event}")
+    table.add_row("points / links / variables", f"{len(m.point_names)} / "
+                  f"{len(m.link_names) - 1} / {len(m.variable_names)}")
+    table.add_row("units", ", ".join(f"{n} ({t})" for n, t in zip(m.unit_names, m.unit_types)))
+    table.add_row("branches", ", ".join(f"{k}: {v:+d}" for k, v in m.branches.items()) or "-")
+    table.add_row("parameters", str(len(m.parameter_names)))
+    table.add_row("assembles", f"at all {res.phi.size} positions (step {step_deg:g} deg)")
+    console.print(table)
+
+
+def _summary(res) -> Table:
+    table = Table(title=f"{res.machine}: kinematics over {res.phi.size} positions "
+                        f"({res.omega_shaft[0] * 60 / (2 * math.pi):g} rpm)")
+    for col in ("channel", "unit", "min", "max", "max |rate|", "max |accel|"):
+        table.add_column(col, justify="right" if col not in ("channel", "unit") else "left")
+    for pt in res.point_names:
+        m = res.point(pt)
+        for c, ax in (("x", 0), ("y", 1)):
+            if np.ptp(m.p[:, ax]) < 1e-12:
+                continue
+            table.add_row(f"{pt}.{c}", "mm, mm/s, mm/s^2", f"{m.p[:, ax].min():.4f}",
+                          f"{m.p[:, ax].max():.4f}", f"{np.abs(m.v[:, ax]).max():.4g}",
+                          f"{np.abs(m.a[:, ax]).max():.4g}")
+    for lk in res.link_names[1:]:
+        m = res.link(lk)
+        th = np.degrees(np.unwrap(m.theta))
+        table.add_row(f"theta {lk}", "deg, rad/s, rad/s^2", f"{th.min():.3f}", f"{th.max():.3f}",
+                      f"{np.abs(m.omega).max():.4g}", f"{np.abs(m.epsilon).max():.4g}")
+    return table
+
+
+@app.command("kinematics")
+def kinematics_cmd(
+    machine: str = typer.Argument(DEFAULT_MACHINE, help="shipped machine name or TOML file"),
+    step_deg: float = typer.Option(5.0, help="shaft-angle step, deg"),
+    rpm: float = typer.Option(None, help="shaft speed, rev/min (default: the file's)"),
+    out: Path = typer.Option(None, help="write the channels into this directory"),
+    format: Format = typer.Option(Format.csv, "--format", help="file format with --out"),
+    as_json: bool = typer.Option(False, "--json", help="print every channel as JSON to stdout"),
+):
+    """Positions, velocities and accelerations of every point, link and joint variable."""
+    from .io import kinematics_to_dict, write_kinematics_csv, write_kinematics_json
+    from .kinematics import kinematics
+
+    m = _load(machine)
+    try:
+        res = kinematics(m, _phi_grid(m, step_deg), rpm=rpm)
+    except SewmechError as exc:
+        _fail(exc)
+    if as_json:
+        json.dump(kinematics_to_dict(res), sys.stdout)
+        sys.stdout.write("\n")
+        return
+    console.print(_summary(res))
+    if out is not None:
+        path = out / f"{m.name}-kinematics.{format.value}"
+        (write_kinematics_csv if format is Format.csv else write_kinematics_json)(res, path)
+        console.print(f"written: {path}")
+
+
+@app.command("demo")
+def demo_cmd(out: Path = typer.Option(Path("out/demo"), help="output directory"),
+             machine: str = typer.Option(DEFAULT_MACHINE, help="machine name or file")):
+    """The main job on the default machine: kinematics tables and motion diagrams."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from rich.progress import Progress
+
+    from .io import atomic_write, write_kinematics_csv, write_kinematics_json
+    from .kinematics import kinematics
+    from .plot import plot_motion, plot_path
+
+    m = _load(machine)
+    with Progress(console=console, transient=True) as progress:
+        task = progress.add_task("kinematics", total=4)
+        try:
+            res = kinematics(m, _phi_grid(m, 1.0))
+        except SewmechError as exc:
+            _fail(exc)
+        progress.advance(task)
+        written = [write_kinematics_csv(res, out / f"{m.name}-kinematics.csv"),
+                   write_kinematics_json(res, out / f"{m.name}-kinematics.json")]
+        progress.advance(task)
+        for var in m.variable_names:
+            fig_axes = plot_motion(res, f"var:{var}")
+            fig = fig_axes[0].figure
+            fig.suptitle(f"{m.name}: {var} (phi = {m.spec.convention.reference_phi_deg:g} deg: "
+                         f"{m.spec.convention.reference_event})")
+            path = out / f"{m.name}-motion-{var}.png"
+            with atomic_write(path, "wb", encoding=None) as fh:
+                fig.savefig(fh, format="png", dpi=110)
+            plt.close(fig)
+            written.append(path)
+        progress.advance(task)
+        for pt in m.point_names:
+            if np.ptp(res.point(pt).p, axis=0).max() > 1e-9 and "eye" in pt:
+                ax = plot_path(res, pt)
+                ax.set_title(f"{m.name}: path of {pt}")
+                path = out / f"{m.name}-path-{pt}.png"
+                with atomic_write(path, "wb", encoding=None) as fh:
+                    ax.figure.savefig(fh, format="png", dpi=110)
+                plt.close(ax.figure)
+                written.append(path)
+        progress.advance(task)
+    console.print(_summary(res))
+    console.print(f"[bold]output:[/] {out.resolve()}")
+    for p in written:
+        console.print(f"  {p}")
+
+
+def main():  # pragma: no cover - entry point
+    app()

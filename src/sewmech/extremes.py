@@ -1,0 +1,152 @@
+"""Extremes of any channel over the cycle, and dead centres, located to 1e-9 rad of crank angle.
+
+The derivative of a channel with respect to the shaft angle is the kinematics' own analytic rate
+evaluated at omega = 1 rad/s (then d/dt = d/dphi): position -> velocity, angle -> angular
+velocity, slider displacement -> its rate. Sign changes of that derivative on a grid bracket
+every stationary point; Brent's method then refines each bracket.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import brentq
+
+from .kinematics import kinematics
+from .machine import Machine
+from .results import CHANNEL_KINDS
+
+
+@dataclass(frozen=True)
+class Extremum:
+    """A stationary point of a channel over the cycle.
+
+    Attributes
+    ----------
+    kind : str
+        "max" or "min" (local).
+    phi : float
+        Shaft angle, rad, in [phi0, phi0 + 2 pi).
+    value : float
+        Channel value there (unit of the channel).
+    """
+
+    kind: str
+    phi: float
+    value: float
+
+    @property
+    def phi_deg(self) -> float:
+        return math.degrees(self.phi)
+
+
+@dataclass(frozen=True)
+class ExtremesResult:
+    """All local extrema of one channel over one revolution, plus the global max and min."""
+
+    channel: str
+    unit: str
+    extrema: tuple[Extremum, ...]
+
+    @property
+    def maximum(self) -> Extremum:
+        return max((e for e in self.extrema if e.kind == "max"), key=lambda e: e.value)
+
+    @property
+    def minimum(self) -> Extremum:
+        return min((e for e in self.extrema if e.kind == "min"), key=lambda e: e.value)
+
+
+def _derivative_channel(name: str) -> str:
+    kind, _, rest = name.partition("_")
+    if kind not in CHANNEL_KINDS or CHANNEL_KINDS[kind][2] is None:
+        raise ValueError(f"extremes of '{name}' need its derivative, which sewmech does not"
+                         " compute (channels of kind a_, epsilon_ and qdd_ have none)")
+    return f"{CHANNEL_KINDS[kind][2]}_{rest}"
+
+
+def extremes(
+    machine: Machine,
+    channel: str,
+    *,
+    params=None,
+    inputs=None,
+    n_grid: int = 720,
+    phi0: float = 0.0,
+    xtol: float = 1e-12,
+) -> ExtremesResult:
+    """Local maxima and minima of a channel over one revolution of the shaft.
+
+    Parameters
+    ----------
+    machine : Machine
+    channel : str
+        Channel name, e.g. ``"p_needle_y"``, ``"theta_rocker"``, ``"q_needle_bar"``.
+    params, inputs
+        One design (as for :func:`sewmech.kinematics`); batches are not accepted here.
+    n_grid : int
+        Grid of the bracketing scan; extrema closer than 2 pi / n_grid may merge.
+    phi0 : float
+        Start of the revolution scanned, rad.
+    xtol : float
+        Absolute tolerance on the crank angle, rad (default 1e-12; the guarantee is 1e-9).
+
+    Returns
+    -------
+    ExtremesResult
+        Extrema sorted by crank angle; positions where the mechanism fails raise.
+    """
+    if params is not None and np.ndim(params) != 1:
+        raise ValueError("extremes() takes one design: params must have shape (n_parameters,)")
+    deriv = _derivative_channel(channel)
+    # with omega = 1 rad/s and epsilon = 0 every time derivative is a derivative in phi
+    kw = dict(params=params, inputs=inputs, omega=1.0, epsilon=0.0)
+    grid = phi0 + np.linspace(0.0, 2.0 * math.pi, n_grid, endpoint=False)
+    res = kinematics(machine, grid, **kw)
+    _, unit = res.channel(channel)
+    slope, _ = res.channel(deriv)
+
+    def f(x):
+        r = kinematics(machine, np.array([x]), **kw)
+        return float(r.channel(deriv)[0][0])
+
+    found: list[Extremum] = []
+    s = slope
+    for i in range(n_grid):
+        j = (i + 1) % n_grid
+        x0 = grid[i]
+        x1 = grid[j] if j else grid[0] + 2.0 * math.pi
+        if s[i] == 0.0:
+            root = x0
+        elif s[i] * s[j] < 0.0:
+            root = brentq(f, x0, x1, xtol=xtol, rtol=4 * np.finfo(float).eps, maxiter=200)
+        else:
+            continue
+        kind = "max" if s[i] > 0 or (s[i] == 0 and s[j] < 0) else "min"
+        r = kinematics(machine, np.array([root]), **kw)
+        found.append(Extremum(kind, float(root), float(r.channel(channel)[0][0])))
+    return ExtremesResult(channel, unit, tuple(sorted(found, key=lambda e: e.phi)))
+
+
+def dead_centres(machine: Machine, unit: str, **kw) -> ExtremesResult:
+    """Dead centres of a unit: where its output stands still (extremes of the output).
+
+    Output of an ``rrp`` or ``rpr`` unit: its slider variable; of an ``rrr`` dyad: the angle of
+    its second link (the rocker); of a ``loop``: its first unknown link.
+    """
+    try:
+        ui = machine.unit_names.index(unit)
+    except ValueError:
+        raise KeyError(f"machine '{machine.name}' has no unit '{unit}'") from None
+    spec = machine.spec.units[ui]
+    if spec.type in ("rrp", "rpr"):
+        ch = f"q_{spec.variable or spec.name}"
+    elif spec.type == "rrr":
+        ch = f"theta_{spec.links[1]}"
+    elif spec.type == "loop" and spec.unknown_links_deg:
+        ch = f"theta_{next(iter(spec.unknown_links_deg))}"
+    else:
+        raise ValueError(f"unit '{unit}' ({spec.type}) has no output that can stand still")
+    return extremes(machine, ch, **kw)
