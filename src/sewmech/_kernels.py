@@ -573,6 +573,9 @@ def evaluate_program(
     n_vars,
     tol,
     max_iter,
+    pt_sel,
+    lk_sel,
+    var_sel,
     P,
     V,
     A,
@@ -590,7 +593,9 @@ def evaluate_program(
     """Evaluate the program for every design (axis 0 of params) along the march of shaft angles.
 
     march_store[k] is the output row for march step k, or -1 for an intermediate continuation
-    step. Output arrays are (n_design, n_out, ...); fail_unit is -1 where all units assembled.
+    step. Output arrays are (n_design, n_out, n_selected, ...) for the selected points, links
+    and variables (pt_sel, lk_sel, var_sel); fail_unit is -1 where all units assembled, and a
+    failed row is NaN throughout.
     """
     n_design = params.shape[0]
     n_units = units.shape[0]
@@ -625,15 +630,8 @@ def evaluate_program(
             phi = march_phi[k]
             ws = march_omega[k]
             es = march_eps[k]
-            p[:] = np.nan
-            v[:] = np.nan
-            a[:] = np.nan
-            th[:] = np.nan
-            om[:] = np.nan
-            ep[:] = np.nan
-            s[:] = np.nan
-            sd[:] = np.nan
-            sdd[:] = np.nan
+            # every unit writes its outputs before any later unit reads them, so the state
+            # needs no reset between angles; a failed angle is written out as NaN below
             th[0] = 0.0  # link 0 is the frame
             om[0] = 0.0
             ep[0] = 0.0
@@ -787,16 +785,30 @@ def evaluate_program(
             if row >= 0:
                 fail_unit[d, row] = fu
                 fail_code[d, row] = fc
-                for i in range(n_points):
+                if fc != FAIL_NONE:
+                    P[d, row] = np.nan
+                    V[d, row] = np.nan
+                    A[d, row] = np.nan
+                    TH[d, row] = np.nan
+                    OM[d, row] = np.nan
+                    EP[d, row] = np.nan
+                    S[d, row] = np.nan
+                    SD[d, row] = np.nan
+                    SDD[d, row] = np.nan
+                    continue
+                for j in range(pt_sel.shape[0]):
+                    i = pt_sel[j]
                     for c in range(2):
-                        P[d, row, i, c] = p[i, c]
-                        V[d, row, i, c] = v[i, c]
-                        A[d, row, i, c] = a[i, c]
-                for i in range(n_links):
-                    TH[d, row, i] = th[i]
-                    OM[d, row, i] = om[i]
-                    EP[d, row, i] = ep[i]
-                for i in range(n_vars):
-                    S[d, row, i] = s[i]
-                    SD[d, row, i] = sd[i]
-                    SDD[d, row, i] = sdd[i]
+                        P[d, row, j, c] = p[i, c]
+                        V[d, row, j, c] = v[i, c]
+                        A[d, row, j, c] = a[i, c]
+                for j in range(lk_sel.shape[0]):
+                    i = lk_sel[j]
+                    TH[d, row, j] = th[i]
+                    OM[d, row, j] = om[i]
+                    EP[d, row, j] = ep[i]
+                for j in range(var_sel.shape[0]):
+                    i = var_sel[j]
+                    S[d, row, j] = s[i]
+                    SD[d, row, j] = sd[i]
+                    SDD[d, row, j] = sdd[i]

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from .errors import SewmechError
@@ -31,7 +32,8 @@ class Format(str, Enum):
 
 
 def _fail(exc: Exception) -> None:
-    err_console.print(f"[bold red]error:[/] {exc}", markup=True, highlight=False)
+    err_console.print(f"[bold red]error:[/] {escape(str(exc))}", markup=True, highlight=False,
+                      soft_wrap=True)
     raise typer.Exit(code=2)
 
 
@@ -100,7 +102,9 @@ def _summary(res) -> Table:
             table.add_row(f"{pt}.{c}", "mm, mm/s, mm/s^2", f"{m.p[:, ax].min():.4f}",
                           f"{m.p[:, ax].max():.4f}", f"{np.abs(m.v[:, ax]).max():.4g}",
                           f"{np.abs(m.a[:, ax]).max():.4g}")
-    for lk in res.link_names[1:]:
+    for lk in res.link_names:
+        if lk == "frame":
+            continue
         m = res.link(lk)
         th = np.degrees(np.unwrap(m.theta))
         table.add_row(f"theta {lk}", "deg, rad/s, rad/s^2", f"{th.min():.3f}", f"{th.max():.3f}",

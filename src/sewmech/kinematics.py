@@ -8,7 +8,7 @@ a :class:`~sewmech.results.KinematicsResult`.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Literal
 
 import numpy as np
@@ -66,6 +66,15 @@ def _march(phi: np.ndarray, start: float, max_step: float):
     return np.asarray(march), np.asarray(store, dtype=np.int64), np.asarray(where, dtype=np.int64)
 
 
+def _select(names: tuple[str, ...], wanted, index) -> tuple[tuple[str, ...], np.ndarray]:
+    if wanted is None:
+        return names, np.arange(len(names), dtype=np.int64)
+    if isinstance(wanted, str):
+        wanted = [wanted]
+    idx = np.asarray([index(n) for n in wanted], dtype=np.int64)
+    return tuple(names[i] for i in idx), idx
+
+
 def kinematics(
     machine: Machine,
     phi: ArrayLike,
@@ -76,6 +85,9 @@ def kinematics(
     omega: ArrayLike | None = None,
     epsilon: ArrayLike = 0.0,
     on_failure: Literal["raise", "mask"] = "raise",
+    points: Sequence[str] | None = None,
+    links: Sequence[str] | None = None,
+    variables: Sequence[str] | None = None,
     max_step_deg: float = 5.0,
     tol: float = 1e-10,
     max_iter: int = 25,
@@ -101,6 +113,9 @@ def kinematics(
     on_failure : {"raise", "mask"}
         "raise": an :class:`AssemblyError` names the unit and the crank angle of the first
         failure. "mask": return with ``feasible`` False (and NaN values) where it failed.
+    points, links, variables : sequence of str, optional
+        Return only these (default: all). Large sweeps that need a few channels save the memory
+        and time of the rest; every unit is still solved.
     max_step_deg : float
         Largest continuation step of the loop solver, degrees.
     tol : float
@@ -112,18 +127,22 @@ def kinematics(
     -------
     KinematicsResult
     """
-    phi = np.atleast_1d(np.asarray(phi, dtype=float))
+    phi = np.array(phi, dtype=float, ndmin=1)  # a private copy: the result freezes it
     if phi.ndim != 1:
         raise ValueError(f"phi must be one-dimensional (n_phi,), got shape {phi.shape}")
-    if not np.all(np.isfinite(phi)):
+    if not np.isfinite(phi).all():
         raise ValueError("phi contains NaN or infinite angles")
     n_phi = phi.shape[0]
     if omega is None:
         omega = rpm_to_rad_s(machine.rpm if rpm is None else rpm)
-    omega_arr = np.broadcast_to(np.asarray(omega, dtype=float), (n_phi,)).copy()
-    eps_arr = np.broadcast_to(np.asarray(epsilon, dtype=float), (n_phi,)).copy()
+    omega_arr = np.empty(n_phi)
+    omega_arr[:] = omega
+    eps_arr = np.empty(n_phi)
+    eps_arr[:] = epsilon
 
-    if params is None:
+    if params is None and not inputs:
+        P0 = machine.defaults
+    elif params is None:
         P0 = machine.parameters(inputs=inputs)
     else:
         P0 = np.asarray(params, dtype=float)
@@ -142,11 +161,15 @@ def kinematics(
 
     if machine.has_loops:
         march, store, where = _march(phi, machine.assembly_phi, math.radians(max_step_deg))
+        march_omega, march_eps = omega_arr[where], eps_arr[where]
     else:
-        march, store, where = phi, np.arange(n_phi, dtype=np.int64), np.arange(n_phi)
-    n_pt = len(machine.point_names)
-    n_l = len(machine.link_names)
-    n_v = len(machine.variable_names)
+        march, store = phi, np.arange(n_phi, dtype=np.int64)
+        march_omega, march_eps = omega_arr, eps_arr
+    pt_names, pt_sel = _select(machine.point_names, points, machine.point_index)
+    lk_names, lk_sel = _select(machine.link_names, links, machine.link_index)
+    var_names, var_sel = _select(machine.variable_names, variables, machine.variable_index)
+    var_units = tuple(machine.variable_units[i] for i in var_sel)
+    n_pt, n_l, n_v = len(pt_sel), len(lk_sel), len(var_sel)
     n_g = machine.groups.shape[0]
     P = np.empty((n_design, n_phi, n_pt, 2))
     V = np.empty_like(P)
@@ -157,15 +180,15 @@ def kinematics(
     S = np.empty((n_design, n_phi, n_v))
     SD = np.empty_like(S)
     SDD = np.empty_like(S)
-    fail_unit = np.full((n_design, n_phi), -1, dtype=np.int64)
-    fail_code = np.zeros((n_design, n_phi), dtype=np.int64)
+    fail_unit = np.empty((n_design, n_phi), dtype=np.int64)
+    fail_code = np.empty((n_design, n_phi), dtype=np.int64)
     loop_res = np.full((n_design, n_phi, n_g), np.nan)
     loop_worst = np.zeros((n_design, n_phi, n_g), dtype=np.int64)
     K.evaluate_program(
-        machine.program, flat, np.ascontiguousarray(march), store, omega_arr[where],
-        eps_arr[where], machine.groups, machine.unknowns, machine.terms, machine.cams,
-        machine.arcs, n_pt, n_l, n_v, tol, max_iter,
-        P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst,
+        machine.program, flat, march, store, march_omega, march_eps, machine.groups,
+        machine.unknowns, machine.terms, machine.cams, machine.arcs, len(machine.point_names),
+        len(machine.link_names), len(machine.variable_names), tol, max_iter, pt_sel, lk_sel,
+        var_sel, P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst,
     )
     feasible = fail_unit < 0
     if on_failure == "raise" and not feasible.all():
@@ -184,10 +207,10 @@ def kinematics(
         phi=phi,
         omega_shaft=omega_arr,
         epsilon_shaft=eps_arr,
-        point_names=machine.point_names,
-        link_names=machine.link_names,
-        variable_names=machine.variable_names,
-        variable_units=machine.variable_units,
+        point_names=pt_names,
+        link_names=lk_names,
+        variable_names=var_names,
+        variable_units=var_units,
         unit_names=machine.unit_names,
         p=shape(P, (n_pt, 2)), v=shape(V, (n_pt, 2)), a=shape(A, (n_pt, 2)),
         theta=shape(TH, (n_l,)), omega=shape(OM, (n_l,)), epsilon=shape(EP, (n_l,)),

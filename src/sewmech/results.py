@@ -145,7 +145,7 @@ class KinematicsResult:
             for pt in self.point_names:
                 names += [f"{kind}_{pt}_x", f"{kind}_{pt}_y"]
         for kind in ("theta", "omega", "epsilon"):
-            names += [f"{kind}_{lk}" for lk in self.link_names[1:]]
+            names += [f"{kind}_{lk}" for lk in self.link_names if lk != "frame"]
         for kind in ("q", "qd", "qdd"):
             names += [f"{kind}_{var}" for var in self.variable_names]
         return names

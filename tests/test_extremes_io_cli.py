@@ -1,0 +1,114 @@
+"""Extremes to 1e-9 rad against closed forms; io round trips and atomicity; the CLI."""
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+import sewmech
+from conftest import PHI, fourbar, slider_crank
+from sewmech.cli import app
+from sewmech.extremes import dead_centres, extremes
+from sewmech.io import atomic_write, write_kinematics_csv, write_kinematics_json
+
+
+def test_offset_slider_crank_dead_centres_closed_form():
+    """Dead centres of an offset slider-crank: crank and rod collinear, so the crank angle is
+    asin(e / (l + r)) (extended) and pi + asin(e / (l - r)) (folded), horizontal guide."""
+    r, l, e = 15.0, 44.0, 5.0
+    m = slider_crank(r=r, l=l, e=e, alpha=0.0)
+    res = dead_centres(m, "slider")
+    assert len(res.extrema) == 2
+    far = math.asin(e / (l + r))
+    near = math.pi + math.asin(e / (l - r))
+    assert abs(res.maximum.phi - far) < 1e-9
+    assert abs(res.minimum.phi - near) < 1e-9
+    assert res.maximum.value == pytest.approx(math.sqrt((l + r) ** 2 - e * e), abs=1e-12)
+    assert res.minimum.value == pytest.approx(math.sqrt((l - r) ** 2 - e * e), abs=1e-12)
+
+
+def test_rocker_extremes_are_toggle_positions():
+    """A crank-rocker's rocker stands still when crank and coupler are collinear: there
+    |A C| = BC +/- AB, independent of the package's solver."""
+    m = fourbar()
+    res = dead_centres(m, "dyad")
+    assert {e.kind for e in res.extrema} == {"max", "min"} and len(res.extrema) == 2
+    for ex in res.extrema:
+        r = sewmech.kinematics(m, np.array([ex.phi]))
+        ac = np.hypot(*r.point("C").p[0])
+        assert min(abs(ac - 55.0), abs(ac - 25.0)) < 1e-7  # 1e-9 rad of crank -> ~1e-7 mm
+
+
+def test_extremes_of_a_point_channel_and_bad_channel():
+    m = fourbar()
+    res = extremes(m, "p_P_y")
+    g = sewmech.kinematics(m, np.radians(np.arange(0, 360, 0.01))).point("P").p[:, 1]
+    assert res.maximum.value >= g.max() - 1e-12 and res.maximum.value - g.max() < 1e-6
+    with pytest.raises(ValueError, match="derivative"):
+        extremes(m, "a_P_y")
+
+
+def test_csv_and_json_round_trip(tmp_path):
+    r = sewmech.kinematics(fourbar(), PHI)
+    csv = write_kinematics_csv(r, tmp_path / "k.csv")
+    df = pd.read_csv(csv)
+    np.testing.assert_allclose(df["p_C_x_mm"], r.point("C").p[:, 0], rtol=1e-9)
+    np.testing.assert_allclose(df["phi_deg"], np.degrees(PHI), rtol=1e-12)
+    js = json.loads(write_kinematics_json(r, tmp_path / "k.json").read_text())
+    assert js["channels"]["omega_rocker"]["unit"] == "rad/s"
+    np.testing.assert_allclose(js["channels"]["omega_rocker"]["values"], r.link("rocker").omega)
+
+
+def test_atomic_write_leaves_nothing_half_written(tmp_path):
+    target = tmp_path / "out.csv"
+    target.write_text("old")
+    with pytest.raises(RuntimeError):
+        with atomic_write(target) as fh:
+            fh.write("half")
+            raise RuntimeError("disk full")
+    assert target.read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.csv"]
+
+
+def test_json_has_null_for_infeasible(tmp_path):
+    m = fourbar()
+    params = m.parameters({"dyad.length1": np.array([40.0, 5.0]),
+                           "dyad.length2": np.array([35.0, 5.0])})
+    r = sewmech.kinematics(m, PHI, params=params, on_failure="mask")
+    js = json.loads(write_kinematics_json(r, tmp_path / "k.json").read_text())
+    assert js["feasible"][1][0] is False and js["channels"]["p_C_x"]["values"][1][0] is None
+
+
+runner = CliRunner()
+
+
+def test_cli_machines_check_kinematics(tmp_path):
+    out = runner.invoke(app, ["machines"])
+    assert out.exit_code == 0 and "jb1-3" in out.stdout
+    out = runner.invoke(app, ["check", "jb1-3"])
+    assert out.exit_code == 0 and "assembles" in out.stdout
+    out = runner.invoke(app, ["kinematics", "jb1-3", "--json", "--step-deg", "10"])
+    data = json.loads(out.stdout)
+    assert len(data["phi_deg"]) == 36 and "p_take_up.eye_y" in data["channels"]
+    out = runner.invoke(app, ["kinematics", "jb1-3", "--out", str(tmp_path), "--format", "json"])
+    assert out.exit_code == 0 and (tmp_path / "jb1-3-kinematics.json").exists()
+
+
+def test_cli_check_reports_file_errors(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[machine]\nname = 'x'\n[convention]\nreference_event='top'\n"
+                   "reference_phi_deg=0\n[points.A]\nx=0\ny=0\nz=1\n"
+                   "[[units]]\ntype='crank'\nname='c'\npivot='A'\n")
+    out = runner.invoke(app, ["check", str(bad)])
+    assert out.exit_code == 2
+    assert "bad.toml" in out.stderr and "points.A" in out.stderr and "unknown key 'z'" in out.stderr
+
+
+def test_cli_demo_writes_outputs(tmp_path):
+    out = runner.invoke(app, ["demo", "--out", str(tmp_path)])
+    assert out.exit_code == 0, out.stdout
+    assert (tmp_path / "jb1-3-kinematics.csv").exists()
+    assert (tmp_path / "jb1-3-path-take_up.eye.png").stat().st_size > 1000
