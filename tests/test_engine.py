@@ -312,3 +312,36 @@ def test_rotating_guide_closed_form():
     th = np.arctan2(d[:, 1], d[:, 0]) - np.arctan2(e, s)
     assert np.abs(np.angle(np.exp(1j * (r.link("slotted").theta - th)))).max() < 1e-12
     np.testing.assert_allclose(r.variable("guide").q, s, atol=1e-12)
+
+
+@pytest.mark.parametrize("loop", [False, True])
+def test_threaded_kernel_equals_serial(rng, monkeypatch, loop):
+    """Big batches run on the threaded kernel (designs in chunks over the cores); it must give
+    bit-for-bit the serial answer, infeasible designs and masks included."""
+    import importlib
+
+    kin = importlib.import_module("sewmech.kinematics")
+    if loop:
+        m = sewmech.machine_from_toml(FOURBAR_LOOP.format(**BENCH, assembly=0.0,
+                                                          g_coupler=60.0, g_rocker=95.0))
+        params = m.parameters({"fourbar.ABCD.1.length": rng.uniform(39, 41, 9)})
+    else:
+        m = fourbar()
+        f = rng.uniform(0.97, 1.03, size=(9, 4))
+        f[4, 0] = 2.6  # a crank of 39 mm: this design cannot turn fully
+        params = m.parameters({"B.u": 15 * f[:, 0], "dyad.length1": 40 * f[:, 1],
+                               "dyad.length2": 35 * f[:, 2], "D.x": 38 * f[:, 3]})
+    calls = []
+    for name in ("evaluate_program", "evaluate_program_parallel"):
+        orig = getattr(kin.K, name)
+        monkeypatch.setattr(kin.K, name, lambda *a, _o=orig, _n=name: (calls.append(_n), _o(*a)))
+    monkeypatch.setattr(kin, "_PARALLEL_MIN_WORK", 10**12)
+    serial = sewmech.kinematics(m, PHI, params=params, on_failure="mask")
+    monkeypatch.setattr(kin, "_PARALLEL_MIN_WORK", 0)
+    threaded = sewmech.kinematics(m, PHI, params=params, on_failure="mask")
+    assert calls == ["evaluate_program", "evaluate_program_parallel"]
+    if not loop:
+        assert 0 < (~serial.feasible).sum() < serial.feasible.size
+    for name in ("p", "v", "a", "theta", "omega", "epsilon", "q", "feasible", "failure_unit",
+                 "loop_residual"):
+        np.testing.assert_array_equal(getattr(threaded, name), getattr(serial, name))

@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 # ---- opcodes (column 0 of the unit table) -----------------------------------------------------
 OP_FIXED = 0  # point, x_param, y_param
@@ -59,20 +59,20 @@ TWO_PI = 2.0 * math.pi
 _TOGGLE_REL = 1e-12
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _par(params, d, idx, default):
     if idx < 0:
         return default
     return params[d, idx]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _solve2(m11, m12, m21, m22, b1, b2):
     det = m11 * m22 - m12 * m21
     return (b1 * m22 - m12 * b2) / det, (m11 * b2 - m21 * b1) / det, det
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _gauss_solve(M, b, n):
     """Solve M x = b in place (partial pivoting). Returns (x in b, smallest |pivot| / scale)."""
     scale = 0.0
@@ -118,11 +118,9 @@ def _gauss_solve(M, b, n):
 # ---- closed-form units ---------------------------------------------------------------------------
 
 
-@njit(cache=True)
-def rigid_point(px, py, vx, vy, ax, ay, th, om, ep, u, v):
-    """Point at local (u, v) mm on a link with origin (px, py) and angle th (rad)."""
-    c = math.cos(th)
-    s = math.sin(th)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
+def rigid_point(px, py, vx, vy, ax, ay, c, s, om, ep, u, v):
+    """Point at local (u, v) mm on a link with origin (px, py), angle cos c, sin s."""
     rx = c * u - s * v
     ry = s * u + c * v
     return (
@@ -135,71 +133,78 @@ def rigid_point(px, py, vx, vy, ax, ay, th, om, ep, u, v):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def rrr_dyad(p1x, p1y, v1x, v1y, a1x, a1y, p2x, p2y, v2x, v2y, a2x, a2y, l1, l2, branch, out):
     """Two links l1 (from point 1) and l2 (from point 2) meeting at a new joint C.
 
-    out[0:6] = C position, velocity, acceleration; out[6:12] = theta1, omega1, eps1, theta2,
-    omega2, eps2 (angles of the vectors 1->C and 2->C). Returns a failure code.
+    out[0:6] = C position, velocity, acceleration; out[6:10] = omega1, eps1, omega2, eps2 of the
+    vectors 1->C and 2->C, out[10:14] = those vectors (x1, y1, x2, y2), from which the caller
+    takes the link orientation without trigonometry. Returns a failure code.
     ``branch`` +1 puts C to the left of the directed line 1 -> 2.
     """
+    # one division and two roots along the dependency chain: the unit is latency-bound
     dx = p2x - p1x
     dy = p2y - p1y
-    dd = math.sqrt(dx * dx + dy * dy)
-    if dd == 0.0:
+    dd2 = dx * dx + dy * dy
+    if dd2 == 0.0:
         return FAIL_ASSEMBLY
-    a = (l1 * l1 - l2 * l2 + dd * dd) / (2.0 * dd)
+    inv = 1.0 / math.sqrt(dd2)
+    ex = dx * inv
+    ey = dy * inv
+    a = (l1 * l1 - l2 * l2 + dd2) * (0.5 * inv)
     h2 = l1 * l1 - a * a
     if h2 < 0.0:
         if h2 > -_TOGGLE_REL * l1 * l1:
             h2 = 0.0
         else:
             return FAIL_ASSEMBLY
-    h = math.sqrt(h2)
-    ex = dx / dd
-    ey = dy / dd
-    cx = p1x + a * ex - branch * h * ey
-    cy = p1y + a * ey + branch * h * ex
-    r1x = cx - p1x
-    r1y = cy - p1y
-    r2x = cx - p2x
-    r2y = cy - p2y
-    # omega1 x r1 - omega2 x r2 = v2 - v1
-    w1, w2, det = _solve2(-r1y, r2y, r1x, -r2x, v2x - v1x, v2y - v1y)
+    bh = branch * math.sqrt(h2)
+    r1x = a * ex - bh * ey
+    r1y = a * ey + bh * ex
+    cx = p1x + r1x
+    cy = p1y + r1y
+    r2x = r1x - dx
+    r2y = r1y - dy
+    # omega1 x r1 - omega2 x r2 = v2 - v1, and the same matrix for the accelerations
+    det = r1y * r2x - r2y * r1x
     if abs(det) <= 1e-13 * l1 * l2:
         return FAIL_SINGULAR
-    e1, e2, det = _solve2(
-        -r1y,
-        r2y,
-        r1x,
-        -r2x,
-        a2x - a1x - w2 * w2 * r2x + w1 * w1 * r1x,
-        a2y - a1y - w2 * w2 * r2y + w1 * w1 * r1y,
-    )
+    idet = 1.0 / det
+    b1 = v2x - v1x
+    b2 = v2y - v1y
+    w1 = -(r2x * b1 + r2y * b2) * idet
+    w2 = -(r1x * b1 + r1y * b2) * idet
+    b1 = a2x - a1x - w2 * w2 * r2x + w1 * w1 * r1x
+    b2 = a2y - a1y - w2 * w2 * r2y + w1 * w1 * r1y
+    e1 = -(r2x * b1 + r2y * b2) * idet
+    e2 = -(r1x * b1 + r1y * b2) * idet
     out[0] = cx
     out[1] = cy
     out[2] = v1x - w1 * r1y
     out[3] = v1y + w1 * r1x
     out[4] = a1x - e1 * r1y - w1 * w1 * r1x
     out[5] = a1y + e1 * r1x - w1 * w1 * r1y
-    out[6] = math.atan2(r1y, r1x)
-    out[7] = w1
-    out[8] = e1
-    out[9] = math.atan2(r2y, r2x)
-    out[10] = w2
-    out[11] = e2
+    out[6] = w1
+    out[7] = e1
+    out[8] = w2
+    out[9] = e2
+    out[10] = r1x
+    out[11] = r1y
+    out[12] = r2x
+    out[13] = r2y
     return FAIL_NONE
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def rrp_dyad(
     bx, by, bvx, bvy, bax, bay, gx, gy, gvx, gvy, gax, gay, tg, wg, eg, l, alpha, e, branch, out
 ):
     """Rod of length l from pin B to a slider C on a guide line of a (possibly moving) link.
 
     The guide passes through point G of the guide link, direction tg + alpha, shifted e to the
-    left. s is the slider position along the guide from the foot G + e*n. out[0:6] = C; out[6:9]
-    = rod angle, omega, eps; out[9:12] = s, s_dot, s_ddot. ``branch`` +1 takes the larger s.
+    left. s is the slider position along the guide from the foot G + e*n. out[0:6] = C; out[6:8]
+    = rod omega, eps; out[8:10] = the rod vector B->C; out[10:12] = cos, sin of the guide
+    direction; out[12:15] = s, s_dot, s_ddot. ``branch`` +1 takes the larger s.
     """
     beta = tg + alpha
     ux = math.cos(beta)
@@ -237,22 +242,26 @@ def rrp_dyad(
     out[3] = bvy + w1 * r1x
     out[4] = bax - e1 * r1y - w1 * w1 * r1x
     out[5] = bay + e1 * r1x - w1 * w1 * r1y
-    out[6] = math.atan2(r1y, r1x)
-    out[7] = w1
-    out[8] = e1
-    out[9] = s
-    out[10] = sd
-    out[11] = sdd
+    out[6] = w1
+    out[7] = e1
+    out[8] = r1x
+    out[9] = r1y
+    out[10] = ux
+    out[11] = uy
+    out[12] = s
+    out[13] = sd
+    out[14] = sdd
     return FAIL_NONE
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def rpr_guide(bx, by, bvx, bvy, bax, bay, ax_, ay_, avx, avy, aax, aay, e, branch, out):
     """Rotating guide: a slot link pivoting at A passes through the block pinned at B.
 
     The slot line lies e to the left of A; the link angle is the slot direction; s is the
     block position along the slot from the foot A + e*n. out[0:3] = link angle, omega, eps;
-    out[3:6] = s, s_dot, s_ddot. ``branch`` +1 takes s > 0.
+    out[3:6] = s, s_dot, s_ddot; out[6:8] = cos, sin of the link angle. ``branch`` +1 takes
+    s > 0.
     """
     dx = bx - ax_
     dy = by - ay_
@@ -280,13 +289,15 @@ def rpr_guide(bx, by, bvx, bvy, bax, bay, ax_, ay_, avx, avy, aax, aay, e, branc
     out[3] = s
     out[4] = sd
     out[5] = sdd
+    out[6] = ux
+    out[7] = uy
     return FAIL_NONE
 
 
 # ---- loop groups ---------------------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _arc_of(arcs_i, params, d, start, n, rho):
     """Index of the arc whose normal-angle range (cam frame) contains rho, or -1."""
     for k in range(start, start + n):
@@ -302,7 +313,7 @@ def _arc_of(arcs_i, params, d, start, n, rho):
     return -1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _term_value(t, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd, level, res):
     """Evaluate one loop term's vector (level 0), its known-rate part (1) or known accel part (2).
 
@@ -426,7 +437,7 @@ def _term_value(t, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd,
     return 0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _assemble(g, grp, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd, level,
               F, J, res):
     """Fill F (level 0: residual; 1: known velocity part; 2: known acceleration part) and J."""
@@ -457,7 +468,7 @@ def _assemble(g, grp, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, 
     return 0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _set_unknowns(g, grp, unk, q, th, s, which, om, ep, sd, sdd):
     """Write q into the state slots of group g's unknowns (which: 0 value, 1 rate, 2 accel)."""
     u0 = grp[g, 1]
@@ -481,17 +492,15 @@ def _set_unknowns(g, grp, unk, q, th, s, which, om, ep, sd, sdd):
                 sdd[idx] = q[j]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _solve_group(g, grp, unk, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd,
-                 q, tol, max_iter, F, J, res, info):
+                 q, tol, max_iter, F, J, dq, Jw, res, info):
     """Newton-Raphson from q (updated in place); then rates and accelerations.
 
-    info[0] = residual max-norm (mm), info[1] = iterations, info[2] = the loop with the largest
-    residual. Returns a failure code.
+    F, J, dq, Jw are scratch of at least the group's size. info[0] = residual max-norm (mm),
+    info[1] = iterations, info[2] = the loop with the largest residual. Returns a failure code.
     """
     n = grp[g, 0]
-    dq = np.empty(n)
-    Jw = np.empty((n, n))
     resid = np.inf
     it = 0
     while True:
@@ -555,49 +564,20 @@ def _solve_group(g, grp, unk, terms, cams_i, arcs_i, params, d, p, v, a, th, om,
 # ---- the interpreter -------------------------------------------------------------------------------
 
 
-@njit(cache=True)
-def evaluate_program(
-    units,
-    params,
-    march_phi,
-    march_store,
-    march_omega,
-    march_eps,
-    grp,
-    unk,
-    terms,
-    cams_i,
-    arcs_i,
-    n_points,
-    n_links,
-    n_vars,
-    tol,
-    max_iter,
-    pt_sel,
-    lk_sel,
-    var_sel,
-    P,
-    V,
-    A,
-    TH,
-    OM,
-    EP,
-    S,
-    SD,
-    SDD,
-    fail_unit,
-    fail_code,
-    loop_res,
-    loop_worst,
-):
-    """Evaluate the program for every design (axis 0 of params) along the march of shaft angles.
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
+def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_omega, march_eps, grp,
+                 unk,
+                 terms, cams_i, arcs_i, n_points, n_links, n_vars, tol, max_iter, need_th,
+                 pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code,
+                 loop_res, loop_worst):
+    """Walk the program along the march for designs d0 <= d < d1 (see :func:`evaluate_program`).
 
-    march_store[k] is the output row for march step k, or -1 for an intermediate continuation
-    step. Output arrays are (n_design, n_out, n_selected, ...) for the selected points, links
-    and variables (pt_sel, lk_sel, var_sel); fail_unit is -1 where all units assembled, and a
-    failed row is NaN throughout.
+    Link orientation is carried as (cos, sin) next to the angle, so that rigid points and dyads
+    need no trigonometry; the angle itself (an atan2) is computed only for links with
+    ``need_th`` set (returned, or read as an angle by a later unit). mc, ms are cos and sin of
+    the march angles, shared by all designs: a crank at ratio 1 turns them by its phase with
+    four products instead of evaluating cos and sin per design and angle.
     """
-    n_design = params.shape[0]
     n_units = units.shape[0]
     n_groups = grp.shape[0]
     n_unk = unk.shape[0]
@@ -605,67 +585,94 @@ def evaluate_program(
     for g in range(n_groups):
         if grp[g, 0] > max_n:
             max_n = grp[g, 0]
-    out = np.empty(12)
+    out = np.empty(16)
     res = np.empty(6)
     info = np.zeros(3)
     F = np.empty(max_n)
     J = np.empty((max_n, max_n))
-    for d in range(n_design):
-        p = np.empty((n_points, 2))
-        v = np.empty((n_points, 2))
-        a = np.empty((n_points, 2))
-        th = np.empty(n_links)
-        om = np.empty(n_links)
-        ep = np.empty(n_links)
-        s = np.empty(n_vars)
-        sd = np.empty(n_vars)
-        sdd = np.empty(n_vars)
-        q_prev = np.empty(n_unk)
-        q_prev2 = np.empty(n_unk)
-        phi_prev = np.empty(n_groups)
-        phi_prev2 = np.empty(n_groups)
-        n_hist = np.zeros(n_groups, dtype=np.int64)
-        lost = np.zeros(n_groups, dtype=np.bool_)
+    q = np.empty(max_n)
+    dq = np.empty(max_n)
+    Jw = np.empty((max_n, max_n))
+    p = np.empty((n_points, 2))
+    v = np.empty((n_points, 2))
+    a = np.empty((n_points, 2))
+    th = np.zeros(n_links)
+    om = np.zeros(n_links)
+    ep = np.zeros(n_links)
+    lc = np.ones(n_links)  # cos theta; link 0 (the frame) keeps theta = 0
+    ls = np.zeros(n_links)  # sin theta
+    s = np.empty(n_vars)
+    sd = np.empty(n_vars)
+    sdd = np.empty(n_vars)
+    q_prev = np.empty(n_unk)
+    q_prev2 = np.empty(n_unk)
+    phi_prev = np.empty(n_groups)
+    phi_prev2 = np.empty(n_groups)
+    n_hist = np.zeros(n_groups, dtype=np.int64)
+    lost = np.zeros(n_groups, dtype=np.bool_)
+    pc = np.empty(n_units)  # cos and sin of each crank's phase
+    psn = np.empty(n_units)
+    moving = np.empty(n_units, dtype=np.int64)  # units that depend on the shaft angle
+    n_moving = 0
+    for u in range(n_units):
+        if units[u, 0] != OP_FIXED:
+            moving[n_moving] = u
+            n_moving += 1
+    for d in range(d0, d1):
+        n_hist[:] = 0
+        lost[:] = False
+        for u in range(n_units):
+            op = units[u, 0]
+            if op == OP_FIXED:  # frame points: once per design, no unit overwrites them
+                i = units[u, 1]
+                p[i, 0] = params[d, units[u, 2]]
+                p[i, 1] = params[d, units[u, 3]]
+                v[i, 0] = 0.0
+                v[i, 1] = 0.0
+                a[i, 0] = 0.0
+                a[i, 1] = 0.0
+            elif op == OP_CRANK:
+                pc[u] = math.cos(params[d, units[u, 2]])
+                psn[u] = math.sin(params[d, units[u, 2]])
         for k in range(march_phi.shape[0]):
             phi = march_phi[k]
             ws = march_omega[k]
             es = march_eps[k]
-            # every unit writes its outputs before any later unit reads them, so the state
-            # needs no reset between angles; a failed angle is written out as NaN below
-            th[0] = 0.0  # link 0 is the frame
-            om[0] = 0.0
-            ep[0] = 0.0
+            # every unit writes its outputs before any later unit reads them, so the state needs
+            # no reset between angles; a failed angle is written out as NaN below
             fu = -1
             fc = FAIL_NONE
-            for u in range(n_units):
+            for ui in range(n_moving):
+                u = moving[ui]
                 op = units[u, 0]
                 code = FAIL_NONE
-                if op == OP_FIXED:
-                    i = units[u, 1]
-                    p[i, 0] = params[d, units[u, 2]]
-                    p[i, 1] = params[d, units[u, 3]]
-                    v[i, 0] = 0.0
-                    v[i, 1] = 0.0
-                    a[i, 0] = 0.0
-                    a[i, 1] = 0.0
-                elif op == OP_CRANK:
+                if op == OP_CRANK:
                     L = units[u, 1]
                     phase = params[d, units[u, 2]]
                     if units[u, 4] >= 0:
-                        th[L] = phase + params[d, units[u, 4]]
+                        t = phase + params[d, units[u, 4]]
                         om[L] = 0.0
                         ep[L] = 0.0
+                        lc[L] = math.cos(t)
+                        ls[L] = math.sin(t)
                     else:
                         ratio = params[d, units[u, 3]]
-                        th[L] = phase + ratio * phi
+                        t = phase + ratio * phi
                         om[L] = ratio * ws
                         ep[L] = ratio * es
+                        if ratio == 1.0:
+                            lc[L] = pc[u] * mc[k] - psn[u] * ms[k]
+                            ls[L] = psn[u] * mc[k] + pc[u] * ms[k]
+                        else:
+                            lc[L] = math.cos(t)
+                            ls[L] = math.sin(t)
+                    th[L] = t
                 elif op == OP_POINT:
                     i = units[u, 1]
                     L = units[u, 2]
                     o = units[u, 3]
                     r = rigid_point(p[o, 0], p[o, 1], v[o, 0], v[o, 1], a[o, 0], a[o, 1],
-                                    th[L], om[L], ep[L],
+                                    lc[L], ls[L], om[L], ep[L],
                                     params[d, units[u, 4]], params[d, units[u, 5]])
                     p[i, 0] = r[0]
                     p[i, 1] = r[1]
@@ -676,10 +683,11 @@ def evaluate_program(
                 elif op == OP_RRR:
                     i1 = units[u, 1]
                     i2 = units[u, 2]
+                    l1 = params[d, units[u, 6]]
+                    l2 = params[d, units[u, 7]]
                     code = rrr_dyad(p[i1, 0], p[i1, 1], v[i1, 0], v[i1, 1], a[i1, 0], a[i1, 1],
                                     p[i2, 0], p[i2, 1], v[i2, 0], v[i2, 1], a[i2, 0], a[i2, 1],
-                                    params[d, units[u, 6]], params[d, units[u, 7]],
-                                    float(units[u, 8]), out)
+                                    l1, l2, float(units[u, 8]), out)
                     if code == FAIL_NONE:
                         i = units[u, 3]
                         for c in range(2):
@@ -688,20 +696,27 @@ def evaluate_program(
                             a[i, c] = out[4 + c]
                         L1 = units[u, 4]
                         L2 = units[u, 5]
-                        th[L1] = out[6]
-                        om[L1] = out[7]
-                        ep[L1] = out[8]
-                        th[L2] = out[9]
-                        om[L2] = out[10]
-                        ep[L2] = out[11]
+                        om[L1] = out[6]
+                        ep[L1] = out[7]
+                        om[L2] = out[8]
+                        ep[L2] = out[9]
+                        lc[L1] = out[10] / l1
+                        ls[L1] = out[11] / l1
+                        lc[L2] = out[12] / l2
+                        ls[L2] = out[13] / l2
+                        if need_th[L1]:
+                            th[L1] = math.atan2(out[11], out[10])
+                        if need_th[L2]:
+                            th[L2] = math.atan2(out[13], out[12])
                 elif op == OP_RRP:
                     b = units[u, 1]
                     gp = units[u, 2]
                     gl = units[u, 3]
+                    l = params[d, units[u, 7]]
+                    alpha = params[d, units[u, 8]]
                     code = rrp_dyad(p[b, 0], p[b, 1], v[b, 0], v[b, 1], a[b, 0], a[b, 1],
                                     p[gp, 0], p[gp, 1], v[gp, 0], v[gp, 1], a[gp, 0], a[gp, 1],
-                                    th[gl], om[gl], ep[gl],
-                                    params[d, units[u, 7]], params[d, units[u, 8]],
+                                    th[gl], om[gl], ep[gl], l, alpha,
                                     params[d, units[u, 9]], float(units[u, 10]), out)
                     if code == FAIL_NONE:
                         i = units[u, 4]
@@ -710,17 +725,22 @@ def evaluate_program(
                             v[i, c] = out[2 + c]
                             a[i, c] = out[4 + c]
                         L1 = units[u, 5]
-                        th[L1] = out[6]
-                        om[L1] = out[7]
-                        ep[L1] = out[8]
+                        om[L1] = out[6]
+                        ep[L1] = out[7]
+                        lc[L1] = out[8] / l
+                        ls[L1] = out[9] / l
+                        if need_th[L1]:
+                            th[L1] = math.atan2(out[9], out[8])
                         Ls = units[u, 6]
-                        th[Ls] = th[gl] + params[d, units[u, 8]]
+                        th[Ls] = th[gl] + alpha
                         om[Ls] = om[gl]
                         ep[Ls] = ep[gl]
+                        lc[Ls] = out[10]
+                        ls[Ls] = out[11]
                         var = units[u, 11]
-                        s[var] = out[9]
-                        sd[var] = out[10]
-                        sdd[var] = out[11]
+                        s[var] = out[12]
+                        sd[var] = out[13]
+                        sdd[var] = out[14]
                 elif op == OP_RPR:
                     b = units[u, 1]
                     pv = units[u, 2]
@@ -732,11 +752,15 @@ def evaluate_program(
                         th[L] = out[0]
                         om[L] = out[1]
                         ep[L] = out[2]
+                        lc[L] = out[6]
+                        ls[L] = out[7]
                         Lb = units[u, 4]
                         if Lb >= 0:
                             th[Lb] = out[0]
                             om[Lb] = out[1]
                             ep[Lb] = out[2]
+                            lc[Lb] = out[6]
+                            ls[Lb] = out[7]
                         var = units[u, 7]
                         s[var] = out[3]
                         sd[var] = out[4]
@@ -748,7 +772,6 @@ def evaluate_program(
                     if lost[g]:
                         code = FAIL_LOST
                     else:
-                        q = np.empty(n)
                         if n_hist[g] == 0:
                             for j in range(n):
                                 q[j] = params[d, unk[u0 + j, 3]]
@@ -764,7 +787,7 @@ def evaluate_program(
                             iters = max_iter
                         code = _solve_group(g, grp, unk, terms, cams_i, arcs_i, params, d,
                                             p, v, a, th, om, ep, s, sd, sdd, q, tol, iters,
-                                            F, J, res, info)
+                                            F, J, dq, Jw, res, info)
                         if march_store[k] >= 0:
                             loop_res[d, march_store[k], g] = info[0]
                             loop_worst[d, march_store[k], g] = int(info[2])
@@ -772,6 +795,10 @@ def evaluate_program(
                             for j in range(n):
                                 q_prev2[u0 + j] = q_prev[u0 + j]
                                 q_prev[u0 + j] = q[j]
+                                if unk[u0 + j, 0] == 0:
+                                    L = unk[u0 + j, 1]
+                                    lc[L] = math.cos(th[L])
+                                    ls[L] = math.sin(th[L])
                             phi_prev2[g] = phi_prev[g]
                             phi_prev[g] = phi
                             n_hist[g] += 1
@@ -782,33 +809,79 @@ def evaluate_program(
                     fc = code
                     break
             row = march_store[k]
-            if row >= 0:
-                fail_unit[d, row] = fu
-                fail_code[d, row] = fc
-                if fc != FAIL_NONE:
-                    P[d, row] = np.nan
-                    V[d, row] = np.nan
-                    A[d, row] = np.nan
-                    TH[d, row] = np.nan
-                    OM[d, row] = np.nan
-                    EP[d, row] = np.nan
-                    S[d, row] = np.nan
-                    SD[d, row] = np.nan
-                    SDD[d, row] = np.nan
-                    continue
-                for j in range(pt_sel.shape[0]):
-                    i = pt_sel[j]
-                    for c in range(2):
-                        P[d, row, j, c] = p[i, c]
-                        V[d, row, j, c] = v[i, c]
-                        A[d, row, j, c] = a[i, c]
-                for j in range(lk_sel.shape[0]):
-                    i = lk_sel[j]
-                    TH[d, row, j] = th[i]
-                    OM[d, row, j] = om[i]
-                    EP[d, row, j] = ep[i]
-                for j in range(var_sel.shape[0]):
-                    i = var_sel[j]
-                    S[d, row, j] = s[i]
-                    SD[d, row, j] = sd[i]
-                    SDD[d, row, j] = sdd[i]
+            if row < 0:
+                continue
+            fail_unit[d, row] = fu
+            fail_code[d, row] = fc
+            if fc != FAIL_NONE:
+                P[d, row] = np.nan
+                V[d, row] = np.nan
+                A[d, row] = np.nan
+                TH[d, row] = np.nan
+                OM[d, row] = np.nan
+                EP[d, row] = np.nan
+                S[d, row] = np.nan
+                SD[d, row] = np.nan
+                SDD[d, row] = np.nan
+                continue
+            for j in range(pt_sel.shape[0]):
+                i = pt_sel[j]
+                for c in range(2):
+                    P[d, row, j, c] = p[i, c]
+                    V[d, row, j, c] = v[i, c]
+                    A[d, row, j, c] = a[i, c]
+            for j in range(lk_sel.shape[0]):
+                i = lk_sel[j]
+                TH[d, row, j] = th[i]
+                OM[d, row, j] = om[i]
+                EP[d, row, j] = ep[i]
+            for j in range(var_sel.shape[0]):
+                i = var_sel[j]
+                S[d, row, j] = s[i]
+                SD[d, row, j] = sd[i]
+                SDD[d, row, j] = sdd[i]
+
+
+_DOC = """Evaluate the program for every design (axis 0 of params) along the march of shaft angles.
+
+    march_store[k] is the output row for march step k, or -1 for an intermediate continuation
+    step. need_th[link] says whether that link's angle is returned or read by a later unit.
+    Output arrays are (n_design, n_out, n_selected, ...) for the selected points, links and
+    variables (pt_sel, lk_sel, var_sel); fail_unit is -1 where all units assembled, and a failed
+    row is NaN throughout. {which}
+    """
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
+def evaluate_program(units, params, march_phi, march_store, march_omega, march_eps, grp, unk,
+                     terms, cams_i, arcs_i, n_points, n_links, n_vars, tol, max_iter, need_th,
+                     pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD, fail_unit,
+                     fail_code, loop_res, loop_worst):
+    mc = np.cos(march_phi)
+    ms = np.sin(march_phi)
+    _eval_designs(0, params.shape[0], units, params, march_phi, mc, ms, march_store,
+                  march_omega, march_eps, grp, unk, terms, cams_i, arcs_i, n_points, n_links,
+                  n_vars, tol, max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP,
+                  S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst)
+
+
+@njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
+def evaluate_program_parallel(units, params, march_phi, march_store, march_omega, march_eps,
+                              grp, unk, terms, cams_i, arcs_i, n_points, n_links, n_vars, tol,
+                              max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP,
+                              S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst, n_chunks):
+    mc = np.cos(march_phi)
+    ms = np.sin(march_phi)
+    n = params.shape[0]
+    for c in prange(n_chunks):
+        _eval_designs(c * n // n_chunks, (c + 1) * n // n_chunks, units, params, march_phi, mc,
+                      ms, march_store, march_omega, march_eps, grp, unk, terms, cams_i, arcs_i,
+                      n_points, n_links, n_vars, tol, max_iter, need_th, pt_sel, lk_sel,
+                      var_sel, P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res,
+                      loop_worst)
+
+
+evaluate_program.__doc__ = _DOC.format(which="One design after the other (small batches).")
+evaluate_program_parallel.__doc__ = _DOC.format(
+    which="Designs are split into n_chunks contiguous chunks run on the CPU cores (numba prange);"
+    " worth it for large batches.")

@@ -11,6 +11,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Literal
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -31,6 +32,10 @@ _REASONS = {
                     " (unknown_*) at the assembly angle and the loop terms"),
     K.FAIL_LOST: ("continuation was lost after the loop failed at an earlier angle", ""),
 }
+
+
+# designs x march steps below which the single-threaded kernel is used
+_PARALLEL_MIN_WORK = 20_000
 
 
 def rpm_to_rad_s(rpm: float) -> float:
@@ -64,15 +69,6 @@ def _march(phi: np.ndarray, start: float, max_step: float):
         where.append(int(i))
         last = target
     return np.asarray(march), np.asarray(store, dtype=np.int64), np.asarray(where, dtype=np.int64)
-
-
-def _select(names: tuple[str, ...], wanted, index) -> tuple[tuple[str, ...], np.ndarray]:
-    if wanted is None:
-        return names, np.arange(len(names), dtype=np.int64)
-    if isinstance(wanted, str):
-        wanted = [wanted]
-    idx = np.asarray([index(n) for n in wanted], dtype=np.int64)
-    return tuple(names[i] for i in idx), idx
 
 
 def kinematics(
@@ -127,6 +123,8 @@ def kinematics(
     -------
     KinematicsResult
     """
+    if on_failure not in ("raise", "mask"):
+        raise ValueError(f"on_failure must be 'raise' or 'mask', got {on_failure!r}")
     phi = np.array(phi, dtype=float, ndmin=1)  # a private copy: the result freezes it
     if phi.ndim != 1:
         raise ValueError(f"phi must be one-dimensional (n_phi,), got shape {phi.shape}")
@@ -136,9 +134,9 @@ def kinematics(
     if omega is None:
         omega = rpm_to_rad_s(machine.rpm if rpm is None else rpm)
     omega_arr = np.empty(n_phi)
-    omega_arr[:] = omega
+    omega_arr[...] = omega
     eps_arr = np.empty(n_phi)
-    eps_arr[:] = epsilon
+    eps_arr[...] = epsilon
 
     if params is None and not inputs:
         P0 = machine.defaults
@@ -165,9 +163,8 @@ def kinematics(
     else:
         march, store = phi, np.arange(n_phi, dtype=np.int64)
         march_omega, march_eps = omega_arr, eps_arr
-    pt_names, pt_sel = _select(machine.point_names, points, machine.point_index)
-    lk_names, lk_sel = _select(machine.link_names, links, machine.link_index)
-    var_names, var_sel = _select(machine.variable_names, variables, machine.variable_index)
+    pt_names, pt_sel, lk_names, lk_sel, var_names, var_sel, need_th = machine.selection(
+        points, links, variables)
     var_units = tuple(machine.variable_units[i] for i in var_sel)
     n_pt, n_l, n_v = len(pt_sel), len(lk_sel), len(var_sel)
     n_g = machine.groups.shape[0]
@@ -182,22 +179,25 @@ def kinematics(
     SDD = np.empty_like(S)
     fail_unit = np.empty((n_design, n_phi), dtype=np.int64)
     fail_code = np.empty((n_design, n_phi), dtype=np.int64)
-    loop_res = np.full((n_design, n_phi, n_g), np.nan)
+    loop_res = np.full((n_design, n_phi, n_g), np.nan) if n_g else np.empty((n_design, n_phi, 0))
     loop_worst = np.zeros((n_design, n_phi, n_g), dtype=np.int64)
-    K.evaluate_program(
-        machine.program, flat, march, store, march_omega, march_eps, machine.groups,
-        machine.unknowns, machine.terms, machine.cams, machine.arcs, len(machine.point_names),
-        len(machine.link_names), len(machine.variable_names), tol, max_iter, pt_sel, lk_sel,
-        var_sel, P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst,
-    )
+    args = (machine.program, flat, march, store, march_omega, march_eps, machine.groups,
+            machine.unknowns, machine.terms, machine.cams, machine.arcs,
+            len(machine.point_names), len(machine.link_names), len(machine.variable_names), tol,
+            max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD,
+            fail_unit, fail_code, loop_res, loop_worst)
+    if n_design >= 4 and n_design * march.shape[0] >= _PARALLEL_MIN_WORK:
+        # the threaded kernel pays some tens of microseconds to start; worth it for big batches.
+        # A few contiguous chunks per thread balance the load (measured: 4 per thread is best)
+        K.evaluate_program_parallel(*args, min(n_design, 4 * numba.get_num_threads()))
+    else:
+        K.evaluate_program(*args)
     feasible = fail_unit < 0
-    if on_failure == "raise" and not feasible.all():
+    all_ok = feasible.all()
+    if on_failure == "raise" and not all_ok:
         _raise_first(machine, phi, store, batch, fail_unit, fail_code, loop_res, loop_worst)
-    elif on_failure not in ("raise", "mask"):
-        raise ValueError(f"on_failure must be 'raise' or 'mask', got {on_failure!r}")
-
-    unit_of = np.asarray(machine.kernel_unit_of_row + (-1,), dtype=np.int64)
-    failure_unit = np.where(feasible, -1, unit_of[fail_unit])
+    # fail_unit holds kernel rows; the result names units (fixed points have none: -1)
+    failure_unit = fail_unit if all_ok else machine.unit_of_row[fail_unit]
 
     def shape(x, tail):
         return x.reshape(batch + (n_phi,) + tail)

@@ -12,6 +12,7 @@ import difflib
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 from importlib import resources
 from pathlib import Path
 
@@ -93,6 +94,20 @@ class Machine:
     def has_loops(self) -> bool:
         return self.groups.shape[0] > 0
 
+    @cached_property
+    def angle_readers(self) -> np.ndarray:
+        """Mask over links whose angle (not only its cos/sin) a later unit reads."""
+        need = np.zeros(len(self.link_names), dtype=np.bool_)
+        rrp = self.program[self.program[:, 0] == K.OP_RRP]
+        need[rrp[:, 3]] = True  # the guide link of a slider
+        t = self.terms
+        vec = t[(t[:, 0] != K.TERM_POINT) & (t[:, 5] == K.SRC_LINK)]
+        need[vec[:, 6]] = True  # angles in loop terms
+        need[self.cams[:, 0]] = True  # cam links
+        need[0] = True  # the frame: theta = 0 always
+        need.setflags(write=False)
+        return need
+
     @property
     def rpm(self) -> float:
         """Working speed of the upper shaft from the file, rev/min."""
@@ -129,6 +144,44 @@ class Machine:
 
     def parameter_index(self, name: str) -> int:
         return self._index(self.parameter_names, name, "parameter")
+
+    def selection(self, points=None, links=None, variables=None):
+        """Names and indices of the returned points, links and joint variables (None: all).
+
+        Returns ``(pt_names, pt_sel, lk_names, lk_sel, var_names, var_sel, need_th)`` where
+        ``need_th`` marks the links whose angle the kernel must compute. Cached per selection:
+        optimisation loops call kinematics thousands of times with the same selection.
+        """
+        key = tuple(None if w is None else (w,) if isinstance(w, str) else tuple(w)
+                    for w in (points, links, variables))
+        hit = self._selections.get(key)
+        if hit is not None:
+            return hit
+        out = []
+        for names, wanted, index in ((self.point_names, key[0], self.point_index),
+                                     (self.link_names, key[1], self.link_index),
+                                     (self.variable_names, key[2], self.variable_index)):
+            idx = (np.arange(len(names), dtype=np.int64) if wanted is None else
+                   np.asarray([index(n) for n in wanted], dtype=np.int64).reshape(-1))
+            idx.setflags(write=False)
+            out += [tuple(names[i] for i in idx), idx]
+        need = self.angle_readers.copy()
+        need[out[3]] = True
+        need.setflags(write=False)
+        out.append(need)
+        self._selections[key] = hit = tuple(out)
+        return hit
+
+    @cached_property
+    def _selections(self) -> dict:
+        return {}
+
+    @cached_property
+    def unit_of_row(self) -> np.ndarray:
+        """Unit index (into unit_names) of each kernel row; -1 for fixed points; last = -1."""
+        a = np.asarray(self.kernel_unit_of_row + (-1,), dtype=np.int64)
+        a.setflags(write=False)
+        return a
 
     # ---- designs -----------------------------------------------------------------------------
     def parameters(
