@@ -150,3 +150,56 @@ def dead_centres(machine: Machine, unit: str, **kw) -> ExtremesResult:
     else:
         raise ValueError(f"unit '{unit}' ({spec.type}) has no output that can stand still")
     return extremes(machine, ch, **kw)
+
+
+@dataclass(frozen=True)
+class Crossing:
+    """Where a channel passes a level: shaft angle (rad) and direction (+1 rising, -1 falling)."""
+
+    phi: float
+    direction: int
+
+    @property
+    def phi_deg(self) -> float:
+        return math.degrees(self.phi)
+
+
+def crossings(
+    machine: Machine,
+    channel: str,
+    level: float,
+    *,
+    params=None,
+    inputs=None,
+    n_grid: int = 720,
+    phi0: float = 0.0,
+    xtol: float = 1e-12,
+) -> tuple[Crossing, ...]:
+    """Shaft angles in [phi0, phi0 + 2 pi) where ``channel`` equals ``level`` (its unit).
+
+    Sign changes of channel - level on a grid bracket each crossing; Brent's method refines it
+    to ``xtol`` rad. Angle channels are compared as returned (in (-pi, pi]); use a point or
+    variable channel for levels near the wrap.
+    """
+    if params is not None and np.ndim(params) != 1:
+        raise ValueError("crossings() takes one design: params must have shape (n_parameters,)")
+    kw = dict(params=params, inputs=inputs)
+    grid = phi0 + np.linspace(0.0, 2.0 * math.pi, n_grid, endpoint=False)
+    g = kinematics(machine, grid, **kw).channel(channel)[0] - level
+
+    def f(x):
+        return float(kinematics(machine, np.array([x]), **kw).channel(channel)[0][0]) - level
+
+    found = []
+    for i in range(n_grid):
+        j = (i + 1) % n_grid
+        x0 = grid[i]
+        x1 = grid[j] if j else grid[0] + 2.0 * math.pi
+        if g[i] == 0.0:
+            root = x0
+        elif g[i] * g[j] < 0.0:
+            root = brentq(f, x0, x1, xtol=xtol, rtol=4 * np.finfo(float).eps, maxiter=200)
+        else:
+            continue
+        found.append(Crossing(float(root), 1 if g[j] > g[i] else -1))
+    return tuple(found)

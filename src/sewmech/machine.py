@@ -344,6 +344,17 @@ class _Compiler:
         for name, cam in spec.cams.items():
             if name not in self.cam_index:
                 self.compile_cam(f"cams.{name}", name, cam)  # unused cams are still checked
+        if spec.sewing is not None:  # roles must name parts that exist
+            sew = spec.sewing
+            for key in ("needle_point", "needle_eye", "take_up_eye", "shuttle_point"):
+                if getattr(sew, key) is not None:
+                    self.known_point("sewing", key, getattr(sew, key))
+            if sew.shuttle_link is not None:
+                self.known_link("sewing", "shuttle_link", sew.shuttle_link)
+            if sew.hook_crank is not None and not any(
+                    u.name == sew.hook_crank and u.type == "crank" for u in spec.units):
+                raise self.err("sewing", "hook_crank", f"'{sew.hook_crank}' is not the name of a"
+                               " crank unit; name the upper-shaft crank that drives the hook")
         names = [u.name for u in spec.units]
         dup = {n for n in names if names.count(n) > 1}
         if dup:

@@ -17,7 +17,8 @@ import typing
 from pathlib import Path
 from typing import Annotated, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, PositiveFloat, ValidationError, field_validator
+from pydantic import (BaseModel, ConfigDict, Field, NonNegativeFloat, PositiveFloat, ValidationError,
+                      field_validator)
 from pydantic import model_validator
 
 from .errors import MachineFileError
@@ -63,6 +64,24 @@ class Speed(_Spec):
     """``[speed]``: working speed of the upper shaft."""
 
     rpm: PositiveFloat = 1000.0
+    note: str = ""
+
+
+class SewingSpec(_Spec):
+    """``[sewing]``: which parts of the machine do which job in stitch formation.
+
+    The timing checks, the timing diagram and the report read the machine through these roles,
+    so they work for any lockstitch machine file. Heights are frame y, mm.
+    """
+
+    plate_y: float  # top surface of the throat plate, mm
+    fabric_thickness: NonNegativeFloat = 1.0  # mm, for the "needle in fabric" window
+    needle_point: Name
+    needle_eye: Name
+    take_up_eye: Name | None = None
+    shuttle_link: Name | None = None  # the link that carries the shuttle (hook) point
+    shuttle_point: Name | None = None
+    hook_crank: Name | None = None  # the crank unit on the upper shaft that drives the hook
     note: str = ""
 
 
@@ -270,6 +289,7 @@ class MachineSpec(_Spec):
     inputs: dict[Name, InputSpec] = Field(default_factory=dict)
     cams: dict[Name, CamSpec] = Field(default_factory=dict)
     units: list[Unit] = Field(min_length=1)
+    sewing: SewingSpec | None = None
 
     @field_validator("points")
     @classmethod
