@@ -18,7 +18,7 @@ $(STAMP): pyproject.toml
 install: $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/sewmech demo --out $(OUT)
+	$(BIN)/sewmech report jb1-3 --out $(OUT)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

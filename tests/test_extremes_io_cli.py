@@ -107,8 +107,35 @@ def test_cli_check_reports_file_errors(tmp_path):
     assert "bad.toml" in out.stderr and "points.A" in out.stderr and "unknown key 'z'" in out.stderr
 
 
-def test_cli_demo_writes_outputs(tmp_path):
-    out = runner.invoke(app, ["demo", "--out", str(tmp_path)])
+def test_cli_report_writes_page_figures_and_tables(tmp_path):
+    out_dir = tmp_path / "rep"
+    out = runner.invoke(app, ["report", "jb1-3", "--out", str(out_dir), "--step-deg", "2"])
     assert out.exit_code == 0, out.stdout
-    assert (tmp_path / "jb1-3-kinematics.csv").exists()
-    assert (tmp_path / "jb1-3-path-take_up.eye.png").stat().st_size > 1000
+    page = (out_dir / "index.html").read_text()
+    assert "All 4 checks pass" in page and page.count("data:image/png;base64,") == 3
+    for fig in ("motion", "eye-path", "timing-diagram"):
+        for ext in ("png", "svg", "csv"):
+            assert (out_dir / f"jb1-3-{fig}.{ext}").stat().st_size > 500, (fig, ext)
+    timing = pd.read_csv(out_dir / "jb1-3-timing-diagram.csv")
+    assert timing["phi_deg"].iloc[-1] == 360.0 and len(timing) == 181
+    # the figure data are the kinematics at those angles
+    r = sewmech.kinematics(sewmech.load_machine("jb1-3"), np.radians(timing["phi_deg"]))
+    np.testing.assert_allclose(timing["needle_point_y_mm"], r.point("needle.point").p[:, 1],
+                               rtol=1e-9)
+    checks = pd.read_csv(out_dir / "jb1-3-checks.csv")
+    assert set(checks["result"]) == {"pass"}
+    assert (out_dir / "jb1-3.toml").exists()  # the machine data travel with the report
+    # demo is the same job on the default machine
+    assert runner.invoke(app, ["demo", "--out", str(tmp_path / "demo")]).exit_code == 0
+    assert (tmp_path / "demo" / "index.html").exists()
+
+
+def test_cli_report_failure_leaves_previous_report(tmp_path):
+    out_dir = tmp_path / "rep"
+    out_dir.mkdir()
+    (out_dir / "index.html").write_text("previous")
+    out = runner.invoke(app, ["report", "fourbar-benchmark", "--out", str(out_dir)])
+    assert out.exit_code == 2
+    assert "[sewing]" in out.stderr and "fourbar-benchmark" in out.stderr
+    assert (out_dir / "index.html").read_text() == "previous"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rep"]  # no staging left behind

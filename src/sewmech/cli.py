@@ -141,56 +141,45 @@ def kinematics_cmd(
         console.print(f"written: {path}")
 
 
-@app.command("demo")
-def demo_cmd(out: Path = typer.Option(Path("out/demo"), help="output directory"),
-             machine: str = typer.Option(DEFAULT_MACHINE, help="machine name or file")):
-    """The main job on the default machine: kinematics tables and motion diagrams."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+@app.command("report")
+def report_cmd(
+    machine: str = typer.Argument(DEFAULT_MACHINE, help="machine name or TOML file"),
+    out: Path = typer.Option(Path("out/report"), help="output directory (replaced as a whole)"),
+    step_deg: float = typer.Option(1.0, help="shaft-angle step of the diagrams, degrees"),
+):
+    """The main job: DIR/index.html with checks, timing, figures (PNG, SVG) and tables (CSV)."""
     from rich.progress import Progress
 
-    from .io import atomic_write, write_kinematics_csv, write_kinematics_json
-    from .kinematics import kinematics
-    from .plot import plot_motion, plot_path
+    from .report import write_report
 
     m = _load(machine)
+    _phi_grid(m, step_deg)  # validates the step
+    steps = ("kinematics", "timing checks", "figures", "tables", "page")
     with Progress(console=console, transient=True) as progress:
-        task = progress.add_task("kinematics", total=4)
+        task = progress.add_task(f"report {m.name}", total=len(steps))
         try:
-            res = kinematics(m, _phi_grid(m, 1.0))
-        except SewmechError as exc:
+            index = write_report(m, out, step_deg=step_deg,
+                                 advance=lambda name: progress.update(task, advance=1,
+                                                                      description=name))
+        except (SewmechError, ValueError) as exc:
             _fail(exc)
-        progress.advance(task)
-        written = [write_kinematics_csv(res, out / f"{m.name}-kinematics.csv"),
-                   write_kinematics_json(res, out / f"{m.name}-kinematics.json")]
-        progress.advance(task)
-        for var in m.variable_names:
-            fig_axes = plot_motion(res, f"var:{var}")
-            fig = fig_axes[0].figure
-            fig.suptitle(f"{m.name}: {var} (phi = {m.spec.convention.reference_phi_deg:g} deg: "
-                         f"{m.spec.convention.reference_event})")
-            path = out / f"{m.name}-motion-{var}.png"
-            with atomic_write(path, "wb", encoding=None) as fh:
-                fig.savefig(fh, format="png", dpi=110)
-            plt.close(fig)
-            written.append(path)
-        progress.advance(task)
-        for pt in m.point_names:
-            if np.ptp(res.point(pt).p, axis=0).max() > 1e-9 and "eye" in pt:
-                ax = plot_path(res, pt)
-                ax.set_title(f"{m.name}: path of {pt}")
-                path = out / f"{m.name}-path-{pt}.png"
-                with atomic_write(path, "wb", encoding=None) as fh:
-                    ax.figure.savefig(fh, format="png", dpi=110)
-                plt.close(ax.figure)
-                written.append(path)
-        progress.advance(task)
-    console.print(_summary(res))
-    console.print(f"[bold]output:[/] {out.resolve()}")
-    for p in written:
-        console.print(f"  {p}")
+    from . import timing
+
+    table = Table(title=f"{m.name}: checks")
+    for col in ("check", "value", "expected", "result"):
+        table.add_column(col)
+    for c in timing.check_timing(m):
+        table.add_row(c.name, f"{c.value:.4g} {c.unit}", c.expected,
+                      "[green]pass[/]" if c.passed else "[red]FAIL[/]")
+    console.print(table)
+    console.print(f"[bold]report:[/] {index.resolve()}")
+    console.print(f"  figures (PNG, SVG) and tables (CSV) in {index.parent.resolve()}")
+
+
+@app.command("demo")
+def demo_cmd(out: Path = typer.Option(Path("out/demo"), help="output directory")):
+    """Same as `sewmech report jb1-3 --out DIR` (the main job on the default machine)."""
+    report_cmd(DEFAULT_MACHINE, out, 1.0)
 
 
 def main():  # pragma: no cover - entry point

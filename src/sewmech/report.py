@@ -1,0 +1,307 @@
+"""The main job: one self-contained HTML report of a machine's kinematics and timing.
+
+``write_report(machine, out_dir)`` writes ``out_dir/index.html`` (figures embedded, so the page
+can be mailed to a colleague), every figure also as PNG and SVG, and every figure's data and
+every table as CSV. The directory is built beside the target and swapped in at the end, so a
+failed run leaves the previous report untouched and never a half-written one.
+
+Sections so far: machine and convention, computed checks, motion diagrams (needle, shuttle,
+take-up eye), the take-up eye path, the timing diagram, the parameter table and the machine file
+itself. The feed, thread and dynamics sections join as those analyses land.
+"""
+
+from __future__ import annotations
+
+import base64
+import contextlib
+import html
+import io
+import math
+import os
+import shutil
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import timing as T
+from .kinematics import kinematics
+from .machine import Machine
+
+MM_TO_M = 1e-3
+
+
+class _Figures:
+    """Collects figures: saves PNG + SVG + CSV into the staging directory, keeps HTML blocks."""
+
+    def __init__(self, root: Path, machine: str):
+        self.root = root
+        self.machine = machine
+        self.blocks: list[str] = []
+
+    def add(self, fig, name: str, title: str, caption: str, data: pd.DataFrame):
+        import matplotlib.pyplot as plt
+
+        stem = f"{self.machine}-{name}"
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=120)
+        (self.root / f"{stem}.png").write_bytes(buf.getvalue())
+        fig.savefig(self.root / f"{stem}.svg", format="svg")
+        plt.close(fig)
+        data.to_csv(self.root / f"{stem}.csv", index=False, float_format="%.10g")
+        b64 = base64.b64encode(buf.getvalue()).decode("ascii")
+        self.blocks.append(
+            f'<figure id="{name}"><h3>{html.escape(title)}</h3>'
+            f'<img alt="{html.escape(title)}" src="data:image/png;base64,{b64}">'
+            f"<figcaption>{html.escape(caption)} Files: "
+            f'<a href="{stem}.png">PNG</a>, <a href="{stem}.svg">SVG</a>, '
+            f'<a href="{stem}.csv">data (CSV)</a>.</figcaption></figure>')
+
+
+def _table_html(df: pd.DataFrame, classes: str = "") -> str:
+    return df.to_html(index=False, classes=classes, border=0, float_format=lambda x: f"{x:.6g}",
+                      escape=True)
+
+
+@contextlib.contextmanager
+def _staging(out_dir: Path):
+    """A fresh directory beside ``out_dir``; swapped in on success, removed on failure."""
+    out_dir = Path(out_dir)
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
+    try:
+        yield tmp
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    old = None
+    if out_dir.exists():
+        old = out_dir.with_name(f".{out_dir.name}.old-{os.getpid()}")
+        os.replace(out_dir, old)
+    os.replace(tmp, out_dir)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0,
+                 advance: Callable[[str], None] | None = None) -> Path:
+    """Compute everything and write the report; returns the path of ``index.html``.
+
+    step_deg: shaft-angle step of the diagrams, deg. advance: called with a step name after
+    each step (progress display). Requires the machine's ``[sewing]`` roles.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    step = advance or (lambda name: None)
+    s = T.roles(machine)
+    conv = machine.spec.convention
+    n = int(round(360.0 / step_deg))
+    phi_deg = np.arange(n + 1) * step_deg  # closed cycle for the plots
+    res = kinematics(machine, np.radians(phi_deg))
+    step("kinematics")
+
+    checks = T.check_timing(machine)
+    ns = T.needle_stroke(machine)
+    w_in, w_below = T.needle_windows(machine)
+    ll = T.loop_lift(machine) if s.shuttle_point else None
+    sw = T.shuttle_swing(machine) if s.shuttle_link else None
+    step("timing checks")
+
+    with _staging(Path(out_dir)) as root:
+        figs = _Figures(root, machine.name)
+        ref = f"phi = {conv.reference_phi_deg:g} deg: {conv.reference_event}"
+
+        # ---- motion diagrams ---------------------------------------------------------------
+        cols = [("needle point", s.needle_point, "point")]
+        if s.shuttle_link:
+            cols.append(("shuttle", s.shuttle_link, "link"))
+        if s.take_up_eye:
+            cols.append(("take-up eye", s.take_up_eye, "point"))
+        fig, axs = plt.subplots(3, len(cols), figsize=(4.2 * len(cols), 7.5), sharex=True,
+                                constrained_layout=True, squeeze=False)
+        data = {"phi_deg": phi_deg}
+        for j, (title, name, kind) in enumerate(cols):
+            if kind == "point":
+                pm = res.point(name)
+                series = [(pm.p[:, 1], "height y [mm]"), (pm.v[:, 1] * MM_TO_M, "v_y [m/s]"),
+                          (pm.a[:, 1] * MM_TO_M, "a_y [m/s^2]")]
+            else:
+                lm = res.link(name)
+                series = [(np.degrees(np.unwrap(lm.theta)), "angle [deg]"),
+                          (lm.omega, "omega [rad/s]"), (lm.epsilon, "epsilon [rad/s^2]")]
+            for i, (y, label) in enumerate(series):
+                ax = axs[i, j]
+                ax.plot(phi_deg, y, lw=1.4)
+                ax.set_ylabel(label)
+                ax.grid(True, alpha=0.3)
+                data[f"{name} {label}"] = y
+            axs[0, j].set_title(title)
+            axs[-1, j].set_xlabel("shaft angle phi [deg]")
+            axs[-1, j].set_xticks(np.arange(0, 361, 90))
+        fig.suptitle(f"{machine.name}: motion diagrams at {machine.rpm:g} rpm ({ref})")
+        figs.add(fig, "motion", "Motion diagrams",
+                 f"Position, velocity and acceleration over one revolution at {machine.rpm:g}"
+                 " rpm (velocities in m/s, accelerations in m/s^2).", pd.DataFrame(data))
+
+        # ---- take-up eye path ----------------------------------------------------------------
+        if s.take_up_eye:
+            p = res.point(s.take_up_eye).p
+            fig, ax = plt.subplots(figsize=(5.5, 5.5), constrained_layout=True)
+            ax.plot(p[:, 0], p[:, 1], lw=1.6)
+            for k in range(0, n, max(1, int(round(30 / step_deg)))):
+                ax.plot(p[k, 0], p[k, 1], "o", ms=3, color="C1")
+                ax.annotate(f"{phi_deg[k]:.0f}", p[k], textcoords="offset points", xytext=(4, 2),
+                            fontsize=7)
+            ax.set_aspect("equal", adjustable="datalim")
+            ax.set_xlabel("x [mm]")
+            ax.set_ylabel("y [mm]")
+            ax.grid(True, alpha=0.3)
+            ax.set_title(f"{machine.name}: take-up eye path (labels: phi in deg)")
+            figs.add(fig, "eye-path", "Take-up eye path",
+                     "The thread eye's coupler curve (the report's 'big knife'); dots every"
+                     " 30 deg of shaft angle.",
+                     pd.DataFrame({"phi_deg": phi_deg, "x_mm": p[:, 0], "y_mm": p[:, 1]}))
+
+        # ---- timing diagram ------------------------------------------------------------------
+        rows = 1 + bool(s.shuttle_link) + bool(s.take_up_eye)
+        fig, axs = plt.subplots(rows, 1, figsize=(9, 2.3 * rows + 0.6), sharex=True,
+                                constrained_layout=True, squeeze=False)
+        axs = axs[:, 0]
+        tdata = {"phi_deg": phi_deg}
+        y_needle = res.point(s.needle_point).p[:, 1]
+        ax = axs[0]
+        ax.plot(phi_deg, y_needle, label="needle point")
+        ax.axhline(s.plate_y, color="k", lw=1, label="throat plate")
+        ax.axhline(s.plate_y + s.fabric_thickness, color="0.5", lw=1, ls="--", label="fabric top")
+        ax.set_ylabel("height y [mm]")
+        tdata["needle_point_y_mm"] = y_needle
+        i = 1
+        if s.shuttle_link:
+            th = np.degrees(np.unwrap(res.link(s.shuttle_link).theta))
+            axs[i].plot(phi_deg, th, color="C2", label="shuttle angle")
+            axs[i].set_ylabel("shuttle [deg]")
+            tdata["shuttle_deg"] = th
+            i += 1
+        if s.take_up_eye:
+            ye = res.point(s.take_up_eye).p[:, 1]
+            axs[i].plot(phi_deg, ye, color="C3", label="take-up eye")
+            axs[i].set_ylabel("eye y [mm]")
+            tdata["take_up_eye_y_mm"] = ye
+        inside = w_in.contains(phi_deg)
+        tdata["needle_in_fabric"] = inside
+        for ax in axs:
+            _shade(ax, phi_deg, inside, "C0", "needle in fabric")
+            ax.axvline(ns.top_phi_deg, color="0.3", lw=0.8, ls=":")
+            if ll is not None:
+                ax.axvline(ll.phi_deg, color="C2", lw=0.8, ls="--")
+            ax.grid(True, alpha=0.3)
+            ax.legend(loc="upper right", fontsize=7)
+        if ll is not None:
+            axs[0].annotate(f"shuttle meets needle\nphi = {ll.phi_deg:.1f} deg, lift"
+                            f" {ll.rise_mm:.2f} mm", (ll.phi_deg, ns.bottom_y),
+                            textcoords="offset points", xytext=(8, 8), fontsize=7)
+        axs[-1].set_xlabel("shaft angle phi [deg]")
+        axs[-1].set_xticks(np.arange(0, 361, 30))
+        fig.suptitle(f"{machine.name}: timing diagram ({ref}; dotted: needle top)")
+        figs.add(fig, "timing-diagram", "Timing diagram",
+                 "Needle height with the throat plate and the fabric top, shuttle angle and"
+                 " take-up eye height over one revolution; shaded: needle in the fabric;"
+                 " dashed: the shuttle point meets the needle.", pd.DataFrame(tdata))
+        step("figures")
+
+        # ---- tables --------------------------------------------------------------------------
+        chk = pd.DataFrame([{"check": c.name, "value": c.value, "unit": c.unit,
+                             "expected": c.expected, "result": "pass" if c.passed else "FAIL",
+                             "source": c.source} for c in checks])
+        chk.to_csv(root / f"{machine.name}-checks.csv", index=False, float_format="%.10g")
+        timing_rows = [("needle top dead centre", ns.top_phi_deg, "deg"),
+                       ("needle bottom dead centre", ns.bottom_phi_deg, "deg"),
+                       ("needle stroke", ns.stroke, "mm"),
+                       ("needle enters fabric", w_in.start_deg % 360, "deg"),
+                       ("needle leaves fabric", w_in.end_deg % 360, "deg"),
+                       ("needle below plate from", w_below.start_deg % 360, "deg"),
+                       ("needle below plate to", w_below.end_deg % 360, "deg")]
+        if ll is not None:
+            timing_rows += [("shuttle point meets needle", ll.phi_deg, "deg"),
+                            ("  after needle bottom dead centre", ll.after_bdc_deg, "deg")]
+        if sw is not None:
+            timing_rows += [("shuttle angle min", sw.min_deg, "deg"),
+                            ("shuttle angle max", sw.max_deg, "deg")]
+        tim = pd.DataFrame(timing_rows, columns=["event", "value", "unit"])
+        tim.to_csv(root / f"{machine.name}-timing-events.csv", index=False,
+                   float_format="%.10g")
+        par = pd.DataFrame({"parameter": machine.parameter_names,
+                            "value": [_display(v, u) for v, u in
+                                      zip(machine.defaults, machine.parameter_units)],
+                            "unit": [("deg" if u == "rad" else u)
+                                     for u in machine.parameter_units]})
+        par.to_csv(root / f"{machine.name}-parameters.csv", index=False, float_format="%.10g")
+        src = Path(machine.file)
+        text = src.read_text(encoding="utf-8") if src.is_file() else ""
+        if text:
+            (root / src.name).write_text(text, encoding="utf-8")
+        step("tables")
+
+        page = _page(machine, ref, chk, tim, par, figs.blocks, text, src.name)
+        (root / "index.html").write_text(page, encoding="utf-8")
+        step("page")
+    return Path(out_dir) / "index.html"
+
+
+def _display(value: float, unit: str) -> float:
+    return math.degrees(value) if unit == "rad" else float(value)
+
+
+def _shade(ax, x, mask, color, label):
+    ax.fill_between(x, 0, 1, where=mask, transform=ax.get_xaxis_transform(), color=color,
+                    alpha=0.10, lw=0, label=label)
+
+
+_CSS = """
+body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
+h1{margin-bottom:0.2em} .sub{color:#555;margin-top:0}
+table{border-collapse:collapse;margin:0.5em 0 1.5em 0;font-size:0.9em}
+th,td{padding:0.25em 0.7em;border-bottom:1px solid #ddd;text-align:left}
+td:nth-child(2){font-variant-numeric:tabular-nums}
+.checks td:nth-child(5){font-weight:bold}
+figure{margin:1.5em 0} figure img{max-width:100%} figcaption{color:#444;font-size:0.9em}
+pre{background:#f6f6f6;padding:1em;overflow-x:auto;font-size:0.8em}
+.pass{color:#1a7f37} .fail{color:#cf222e}
+"""
+
+
+def _page(machine, ref, chk, tim, par, blocks, file_text, file_name) -> str:
+    info = machine.spec.machine
+    n_fail = int((chk["result"] != "pass").sum()) if len(chk) else 0
+    verdict = (f'<p class="pass">All {len(chk)} checks pass.</p>' if n_fail == 0 else
+               f'<p class="fail">{n_fail} of {len(chk)} checks fail.</p>')
+    chk_html = _table_html(chk, "checks").replace("<td>pass</td>", '<td class="pass">pass</td>')
+    chk_html = chk_html.replace("<td>FAIL</td>", '<td class="fail">FAIL</td>')
+    e = html.escape
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<title>sewmech report: {e(info.name)}</title><style>{_CSS}</style></head><body>
+<h1>{e(info.title or info.name)}</h1>
+<p class="sub">{e(info.description)}</p>
+<p>Angle convention: {e(ref)}. {e(machine.spec.convention.description)} Working speed
+{machine.rpm:g} rpm. Lengths in mm. Machine file: <a href="{e(file_name)}">{e(file_name)}</a>.</p>
+<h2>Checks</h2>{verdict}{chk_html}
+<p>Data: <a href="{e(info.name)}-checks.csv">checks (CSV)</a>.</p>
+<h2>Timing</h2>{_table_html(tim)}
+<p>Data: <a href="{e(info.name)}-timing-events.csv">timing events (CSV)</a>.</p>
+<h2>Figures</h2>
+{''.join(blocks)}
+<h2>Machine data</h2>
+<p>Every value of the machine file as a named parameter (angles shown in degrees). Sources and
+estimates are recorded beside each value in the file below.
+<a href="{e(info.name)}-parameters.csv">parameters (CSV)</a>.</p>
+{_table_html(par)}
+<details><summary>Machine file {e(file_name)}</summary><pre>{e(file_text)}</pre></details>
+<p class="sub">Written by sewmech.</p>
+</body></html>
+"""
