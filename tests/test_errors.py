@@ -140,3 +140,20 @@ def test_unknown_names_in_api():
 def test_unreadable_file_and_unknown_machine(tmp_path):
     with pytest.raises(MachineFileError, match="shipped machines: .*jb1-3"):
         sewmech.load_machine(tmp_path / "nope.toml")
+
+
+def test_sewing_roles_must_name_existing_parts():
+    sew = '\n[sewing]\nplate_y = -10.0\nneedle_point = "{pt}"\nneedle_eye = "P"\n{extra}'
+    e = bad(base() + sew.format(pt="Px", extra=""))
+    assert e.table == "sewing" and e.key == "needle_point" and "unknown point 'Px'" in str(e)
+    e = bad(base() + sew.format(pt="P", extra='shuttle_link = "rockr"\n'))
+    assert e.key == "shuttle_link" and "Did you mean rocker" in str(e)
+    e = bad(base() + sew.format(pt="P", extra='hook_crank = "dyad"\n'))
+    assert e.key == "hook_crank" and "not the name of a crank unit" in str(e)
+    e = bad(base() + sew.format(pt="P", extra="fabric_thickness = -1.0\n"))
+    assert e.table == "sewing" and e.key == "fabric_thickness"
+    # a machine without [sewing] gets a clear message from the timing analyses
+    from sewmech import timing
+
+    with pytest.raises(ValueError, match=r"no \[sewing\] table"):
+        timing.loop_lift(fourbar())

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import re
 import tomllib
+import types
 import typing
 from pathlib import Path
 from typing import Annotated, Literal, Union
@@ -347,7 +348,7 @@ def _model_at(loc: tuple, raw) -> tuple[type[BaseModel] | None, list[str]]:
                 i += 1
                 ann = args[-1]
                 continue
-            if origin is Union or origin is typing.Union or str(origin) == "types.UnionType":
+            if origin is Union or origin is typing.Union or origin is types.UnionType:
                 members = [a for a in args if isinstance(a, type) and issubclass(a, BaseModel)]
                 if i < len(loc) and any(
                     m.model_fields.get("type") is not None
