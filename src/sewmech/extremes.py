@@ -67,6 +67,21 @@ def _derivative_channel(name: str) -> str:
     return f"{CHANNEL_KINDS[kind][2]}_{rest}"
 
 
+def _roots_on_grid(values, grid, f, xtol):
+    """Yield (root, i, j) at each sign change of ``values`` over the periodic ``grid`` (rad):
+    grid[i] itself where values[i] == 0, otherwise Brent's root of f between grid[i] and
+    grid[j] (the next point, wrapping to grid[0] + 2 pi)."""
+    n = len(grid)
+    for i in range(n):
+        j = (i + 1) % n
+        x0 = grid[i]
+        x1 = grid[j] if j else grid[0] + 2.0 * math.pi
+        if values[i] == 0.0:
+            yield x0, i, j
+        elif values[i] * values[j] < 0.0:
+            yield brentq(f, x0, x1, xtol=xtol, rtol=4 * np.finfo(float).eps, maxiter=200), i, j
+
+
 def extremes(
     machine: Machine,
     channel: str,
@@ -114,16 +129,7 @@ def extremes(
 
     found: list[Extremum] = []
     s = slope
-    for i in range(n_grid):
-        j = (i + 1) % n_grid
-        x0 = grid[i]
-        x1 = grid[j] if j else grid[0] + 2.0 * math.pi
-        if s[i] == 0.0:
-            root = x0
-        elif s[i] * s[j] < 0.0:
-            root = brentq(f, x0, x1, xtol=xtol, rtol=4 * np.finfo(float).eps, maxiter=200)
-        else:
-            continue
+    for root, i, j in _roots_on_grid(s, grid, f, xtol):
         kind = "max" if s[i] > 0 or (s[i] == 0 and s[j] < 0) else "min"
         r = kinematics(machine, np.array([root]), **kw)
         found.append(Extremum(kind, float(root), float(r.channel(channel)[0][0])))
@@ -191,15 +197,6 @@ def crossings(
         return float(kinematics(machine, np.array([x]), **kw).channel(channel)[0][0]) - level
 
     found = []
-    for i in range(n_grid):
-        j = (i + 1) % n_grid
-        x0 = grid[i]
-        x1 = grid[j] if j else grid[0] + 2.0 * math.pi
-        if g[i] == 0.0:
-            root = x0
-        elif g[i] * g[j] < 0.0:
-            root = brentq(f, x0, x1, xtol=xtol, rtol=4 * np.finfo(float).eps, maxiter=200)
-        else:
-            continue
+    for root, i, j in _roots_on_grid(g, grid, f, xtol):
         found.append(Crossing(float(root), 1 if g[j] > g[i] else -1))
     return tuple(found)
