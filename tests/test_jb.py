@@ -110,13 +110,33 @@ def test_needle_window_against_grid(jb):
     assert w_below.start_deg > w_in.start_deg and w_below.end_deg < w_in.end_deg
 
 
+def _feed_cam_switches(jb, r):
+    """Grid steps in which the fork's contact passes from one arc of the feed cam to the next
+    (computed here from the fork and cam angles and the arcs' normal ranges)."""
+    rho = r.link("feed_fork").theta + np.pi / 2 - r.link("feed_cam").theta  # contact normal
+    bounds = np.array([jb.defaults[jb.parameter_index(f"feed_cam.arc{k}.normal_from")]
+                       for k in range(6)])
+    span = np.diff(np.append(bounds, bounds[0] + 2 * np.pi))
+    arc = np.array([np.nonzero(np.mod(x - bounds, 2 * np.pi) < span)[0][0] for x in rho])
+    return np.nonzero(np.diff(np.append(arc, arc[0])))[0]
+
+
 def test_every_channel_continuous(jb):
-    """No branch jumps: every channel changes by little between neighbouring angles."""
+    """No branch jumps: every channel changes by little between neighbouring angles. Only
+    accelerations may jump, and only where the fork's contact passes between two arcs of the
+    feed cam (the arcs' curvatures differ; positions and velocities of the parts stay
+    continuous there)."""
     phi = np.radians(np.arange(0.0, 360.0, 0.25))
     r = sewmech.kinematics(jb, phi)
+    switches = _feed_cam_switches(jb, r)
+    assert len(switches) == 6  # six arcs, each passed once per revolution
     for name, (x, unit) in r.channels().items():
         d = np.diff(np.concatenate([x, x[:1]]))  # closing the cycle too
         if name.startswith("theta_"):
             d = np.angle(np.exp(1j * d))  # a full turn is not a jump
         span = np.ptp(x) + 1e-12
+        # the contact point's place on the fork face is continuous, but it slides at a rate
+        # proportional to the arc radius, which jumps at a switch
+        if name.split("_")[0] in ("a", "epsilon", "qdd") or name == "qd_fork_on_cam":
+            d = np.delete(d, switches)
         assert np.abs(d).max() < 0.05 * span + 1e-9, name

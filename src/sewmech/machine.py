@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _kernels as K
+from .cams import CONSTANT_WIDTH_KEYS, constant_width_arcs
 from .errors import MachineFileError
 from .spec import (
     FRAME,
@@ -62,6 +63,9 @@ class Machine:
         The assembly branch (+1/-1) of every closed-form unit that has one.
     point_links : dict[str, tuple[str, ...]]
         The links each point belongs to (a joint belongs to two).
+    cam_designs : dict[str, dict[str, float]]
+        Design values (width, stroke mm; dwell, orientation rad) of every cam built from
+        ``constant_width``; ``Machine.parameters`` accepts them as ``CAM.width`` etc.
     """
 
     spec: MachineSpec
@@ -84,6 +88,7 @@ class Machine:
     cams: np.ndarray = field(repr=False)
     arcs: np.ndarray = field(repr=False)
     kernel_unit_of_row: tuple[int, ...] = field(repr=False)
+    cam_designs: dict[str, dict[str, float]] = field(default_factory=dict, repr=False)
 
     # ---- names -----------------------------------------------------------------------------
     @property
@@ -195,7 +200,9 @@ class Machine:
         Parameters
         ----------
         overrides : mapping of parameter name -> array_like
-            Values in internal units (mm, rad). All arrays broadcast to one batch shape.
+            Values in internal units (mm, rad). All arrays broadcast to one batch shape. The
+            design values of a constant-width cam (``CAM.width``, ``CAM.stroke`` in mm,
+            ``CAM.dwell``, ``CAM.orientation`` in rad) rebuild its six arcs.
         inputs : mapping of input name -> array_like
             Setting inputs (e.g. the stitch regulator), rad; shorthand for ``input.NAME``.
 
@@ -204,8 +211,18 @@ class Machine:
         ndarray, shape batch_shape + (n_parameters,)
         """
         items: dict[int, np.ndarray] = {}
+        designs: dict[str, dict[str, np.ndarray]] = {}
         for name, value in (overrides or {}).items():
+            cam, _, key = name.rpartition(".")
+            if cam in self.cam_designs and key in CONSTANT_WIDTH_KEYS:
+                designs.setdefault(cam, {})[key] = np.asarray(value, dtype=float)
+                continue
             items[self.parameter_index(name)] = np.asarray(value, dtype=float)
+        for cam, given in designs.items():  # a cam design value moves all six arcs
+            arcs = constant_width_arcs(**{**self.cam_designs[cam], **given})
+            for key, values in arcs.items():
+                for k in range(6):
+                    items[self.parameter_index(f"{cam}.arc{k}.{key}")] = values[..., k]
         for name, value in (inputs or {}).items():
             items[self.parameter_index(f"input.{name}")] = np.asarray(value, dtype=float)
         shape = np.broadcast_shapes(*(v.shape for v in items.values())) if items else ()
@@ -240,6 +257,7 @@ class _Compiler:
         self.cams: list[list[int]] = []
         self.arcs: list[list[int]] = []
         self.cam_index: dict[str, int] = {}
+        self.cam_designs: dict[str, dict[str, float]] = {}
         # every name any unit will define, to tell "unknown" from "not solved yet"
         self.all_points, self.all_links = self._scan()
 
@@ -351,10 +369,25 @@ class _Compiler:
                     self.known_point("sewing", key, getattr(sew, key))
             if sew.shuttle_link is not None:
                 self.known_link("sewing", "shuttle_link", sew.shuttle_link)
-            if sew.hook_crank is not None and not any(
-                    u.name == sew.hook_crank and u.type == "crank" for u in spec.units):
-                raise self.err("sewing", "hook_crank", f"'{sew.hook_crank}' is not the name of a"
-                               " crank unit; name the upper-shaft crank that drives the hook")
+            for key in ("hook_crank", "feed_cam"):
+                name = getattr(sew, key)
+                if name is not None and not any(u.name == name and u.type == "crank"
+                                                for u in spec.units):
+                    raise self.err("sewing", key, f"'{name}' is not the name of a crank unit;"
+                                   " name the upper-shaft crank that drives it")
+            if sew.feed_dog is not None:
+                self.known_point("sewing", "feed_dog", sew.feed_dog)
+            if sew.regulator is not None and sew.regulator not in self.inputs:
+                raise self.err("sewing", "regulator", f"unknown input '{sew.regulator}'; name one"
+                               f" of [inputs] ({', '.join(self.inputs) or 'none defined'})")
+            designs = {f"{c}.{k}" for c in self.cam_designs for k in CONSTANT_WIDTH_KEYS}
+            for label, names in sew.feed_parameters.items():
+                for pname in names:
+                    if pname not in self.pnames and pname not in designs:
+                        close = difflib.get_close_matches(pname, self.pnames, n=3)
+                        hint = f" Did you mean {', '.join(close)}?" if close else ""
+                        raise self.err("sewing", f"feed_parameters.{label}",
+                                       f"unknown parameter '{pname}'.{hint}")
         names = [u.name for u in spec.units]
         dup = {n for n in names if names.count(n) > 1}
         if dup:
@@ -390,6 +423,7 @@ class _Compiler:
             cams=arr(self.cams, 4),
             arcs=arr(self.arcs, 5),
             kernel_unit_of_row=tuple(self.row_unit),
+            cam_designs={k: dict(v) for k, v in self.cam_designs.items()},
         )
 
     def unit_crank(self, ui, table, u: CrankUnit):
@@ -477,37 +511,44 @@ class _Compiler:
         if cam.link not in self.point_links[cam.pivot]:
             raise self.err(table, "pivot", f"pivot '{cam.pivot}' is not a point of the cam link"
                            f" '{cam.link}'")
+        if cam.constant_width is not None:
+            cw = cam.constant_width
+            design = {"width": cw.width, "stroke": cw.stroke, "dwell": math.radians(cw.dwell_deg),
+                      "orientation": math.radians(cw.orientation_deg)}
+            self.cam_designs[name] = design
+            built = constant_width_arcs(**design)
+            arcs = [(built["cx"][k], built["cy"][k], built["radius"][k],
+                     math.degrees(built["normal_from"][k]), math.degrees(built["normal_to"][k]))
+                    for k in range(6)]
+        else:
+            arcs = [(a.center[0], a.center[1], a.radius, a.normal_from_deg, a.normal_to_deg)
+                    for a in cam.arcs]
         # the arcs must cover the normal directions once, in order, and join without gaps
-        arcs = cam.arcs
-        start = arcs[0].normal_from_deg
-        for k, arc in enumerate(arcs):
+        start = arcs[0][3]
+        for k, (cx, cy, radius, _, to) in enumerate(arcs):
             nxt = arcs[(k + 1) % len(arcs)]
-            to = arc.normal_to_deg
-            frm = nxt.normal_from_deg + (360.0 if k == len(arcs) - 1 else 0.0)
+            frm = nxt[3] + (360.0 if k == len(arcs) - 1 else 0.0)
             if abs(to - frm) > 1e-9:
                 raise self.err(table, f"arcs[{k}].normal_to_deg",
                                f"arc {k} ends at normal {to} deg but the next arc starts at"
                                f" {frm} deg; the arcs must cover 360 deg of normal directions"
                                " in order")
-            t = math.radians(to)
-            p_end = np.add(arc.center, arc.radius * np.array([math.cos(t), math.sin(t)]))
-            p_next = np.add(nxt.center, nxt.radius * np.array([math.cos(t), math.sin(t)]))
-            gap = float(np.hypot(*(p_end - p_next)))
+            n = np.array([math.cos(math.radians(to)), math.sin(math.radians(to))])
+            gap = float(np.hypot(*(np.array([cx, cy]) + radius * n
+                                   - np.array(nxt[:2]) - nxt[2] * n)))
             if gap > 1e-6:
                 raise self.err(table, f"arcs[{k}]", f"arc {k} and arc {(k + 1) % len(arcs)} do"
                                f" not meet: gap {gap:.3g} mm at their common normal {to} deg")
-        if abs(arcs[-1].normal_to_deg - start - 360.0) > 1e-9:
+        if abs(arcs[-1][4] - start - 360.0) > 1e-9:
             raise self.err(table, "arcs", "the arcs must cover exactly 360 deg of normals")
         a0 = len(self.arcs)
-        for k, arc in enumerate(arcs):
+        for k, (cx, cy, radius, frm, to) in enumerate(arcs):
             pre = f"{name}.arc{k}"
-            self.arcs.append([self.param(f"{pre}.cx", arc.center[0], "mm"),
-                              self.param(f"{pre}.cy", arc.center[1], "mm"),
-                              self.param(f"{pre}.radius", arc.radius, "mm"),
-                              self.param(f"{pre}.normal_from", math.radians(arc.normal_from_deg),
-                                         "rad"),
-                              self.param(f"{pre}.normal_to", math.radians(arc.normal_to_deg),
-                                         "rad")])
+            self.arcs.append([self.param(f"{pre}.cx", cx, "mm"),
+                              self.param(f"{pre}.cy", cy, "mm"),
+                              self.param(f"{pre}.radius", radius, "mm"),
+                              self.param(f"{pre}.normal_from", math.radians(frm), "rad"),
+                              self.param(f"{pre}.normal_to", math.radians(to), "rad")])
         self.cams.append([link, pivot, a0, len(arcs)])
         self.cam_index[name] = len(self.cams) - 1
         return self.cam_index[name]
@@ -534,6 +575,13 @@ class _Compiler:
             cols[("ang", name)] = len(cols)
             self.unk.append([1, vi, 1, self.param(f"{u.name}.init.{name}", math.radians(init),
                                                   "rad")])
+        for lname, pts in u.joints.items():
+            if ("link", lname) not in cols:
+                raise self.err(table, f"joints.{lname}", f"'{lname}' is not an unknown link of"
+                               " this unit (unknown_links_deg)")
+            for pt in pts:
+                self.known_point(table, f"joints.{lname}", pt)
+                self.on_link(pt, lname)
         used: set[int] = set()
         t0 = len(self.terms)
         for li, loop in enumerate(u.loops):

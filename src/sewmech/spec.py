@@ -11,6 +11,7 @@ in ``_deg``), speeds rpm.
 
 from __future__ import annotations
 
+import math
 import re
 import tomllib
 import types
@@ -83,6 +84,13 @@ class SewingSpec(_Spec):
     shuttle_link: Name | None = None  # the link that carries the shuttle (hook) point
     shuttle_point: Name | None = None
     hook_crank: Name | None = None  # the crank unit on the upper shaft that drives the hook
+    feed_dog: Name | None = None  # the feed dog's tooth-tip point
+    regulator: Name | None = None  # the stitch-regulator input
+    feed_cam: Name | None = None  # the crank unit that turns the feed cam on the upper shaft
+    forward: Literal["+x", "-x"] = "+x"  # direction the dog moves the fabric in forward feed
+    # structural parameters of the feed for the sensitivity study: label -> parameter names
+    # changed together (one physical dimension may appear in several loop terms)
+    feed_parameters: dict[str, list[str]] = Field(default_factory=dict)
     note: str = ""
 
 
@@ -243,6 +251,9 @@ class LoopUnit(_Spec):
     unknown_links_deg: dict[Name, float] = Field(default_factory=dict)
     unknown_lengths_mm: dict[Name, float] = Field(default_factory=dict)
     unknown_angles_deg: dict[Name, float] = Field(default_factory=dict)
+    # known points that an unknown link is pinned at (e.g. a rocker's frame pivot): later
+    # `point` units may use them as origins on that link
+    joints: dict[Name, list[Name]] = Field(default_factory=dict)
     loops: list[Loop] = Field(min_length=1)
     note: str = ""
 
@@ -271,13 +282,42 @@ class CamArc(_Spec):
         return self
 
 
+class ConstantWidthSpec(_Spec):
+    """``constant_width = {...}``: the six-arc constant-width dwell cam of a feed fork
+    (see :mod:`sewmech.cams`)."""
+
+    width: PositiveFloat  # gap between the fork's faces, mm
+    stroke: NonNegativeFloat  # fork travel between the dwells, mm
+    dwell_deg: Annotated[float, Field(ge=0.0, lt=180.0)]  # rest at each end of the stroke
+    orientation_deg: float = 0.0  # cam-frame normal at the middle of the inner dwell
+
+    @model_validator(mode="after")
+    def _convex(self):
+        from .cams import constant_width_arcs
+
+        if self.stroke >= self.width:
+            raise ValueError(f"stroke {self.stroke} mm must be smaller than width {self.width} mm")
+        constant_width_arcs(self.width, self.stroke, math.radians(self.dwell_deg))
+        return self
+
+
 class CamSpec(_Spec):
-    """``[cams.NAME]``: a convex cam made of circular arcs, fixed on a link turning about pivot."""
+    """``[cams.NAME]``: a convex cam made of circular arcs, fixed on a link turning about pivot.
+
+    Give either the arcs or ``constant_width`` (the arcs are then built from its design values).
+    """
 
     link: Name
     pivot: Name
-    arcs: list[CamArc] = Field(min_length=1)
+    arcs: list[CamArc] | None = Field(default=None, min_length=1)
+    constant_width: ConstantWidthSpec | None = None
     note: str = ""
+
+    @model_validator(mode="after")
+    def _one_profile(self):
+        if (self.arcs is None) == (self.constant_width is None):
+            raise ValueError("a cam needs exactly one of 'arcs' and 'constant_width'")
+        return self
 
 
 class MachineSpec(_Spec):

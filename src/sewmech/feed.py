@@ -1,0 +1,350 @@
+"""The feed: feed-dog trajectory, stitch length, scale-plate marks, feed timing, sensitivity.
+
+The feed dog's tooth tip (``[sewing] feed_dog``) moves in the plane of the machine frame; the
+fabric moves with it only while the tip is above the throat plate (``plate_y``). So the stitch
+length is the tip's horizontal travel between the moment it rises through the plate and the
+moment it drops through it, positive in the ``forward`` direction. The lift is the tip's
+highest point above the plate.
+
+Every quantity comes from one batched kinematics call over a uniform grid of shaft angles and
+any number of regulator settings (and designs); events between grid points are located on the
+cubic Hermite interpolant built from the exact positions and the exact analytic rates (kinematics
+at omega = 1 rad/s gives d/dphi), which is accurate to O(h^4) of the grid step h.
+
+Angles returned to people are degrees (``*_deg``) in the machine's shaft-angle convention;
+lengths mm.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.optimize import brentq
+
+from .kinematics import kinematics
+from .machine import Machine
+from .spec import SewingSpec
+
+FEED_DOG_RISE_MM = (1.2, 1.5)  # DOMAIN.md 1.1: Podolsk household machine, by fabric thickness
+MAX_STITCH_MM = (3.6, 4.2)  # DOMAIN.md 1.1: Singer 31-15 (3.6) .. measured class-15 clone (4.2)
+
+
+def _roles(machine: Machine) -> SewingSpec:
+    s = machine.spec.sewing
+    if s is None or s.feed_dog is None or s.regulator is None:
+        raise ValueError(f"machine '{machine.name}' ({machine.file}): the feed analyses need"
+                         " [sewing] feed_dog (the tooth-tip point) and regulator (the stitch"
+                         " regulator input)")
+    return s
+
+
+def regulator_range_deg(machine: Machine) -> tuple[float, float]:
+    """(min, max) of the stitch regulator input from the machine file, degrees."""
+    inp = machine.spec.inputs[_roles(machine).regulator]
+    if inp.min_deg is None or inp.max_deg is None:
+        raise ValueError(f"machine '{machine.name}': [inputs.{_roles(machine).regulator}] needs"
+                         " min_deg and max_deg (the regulator's travel)")
+    return inp.min_deg, inp.max_deg
+
+
+# ---- cubic Hermite events on a uniform periodic grid ---------------------------------------------
+
+
+def _herm(y0, y1, m0, m1, h, t):
+    """Cubic Hermite interpolant on [0, 1] (slopes m per unit of the abscissa, step h)."""
+    t2 = t * t
+    t3 = t2 * t
+    return ((2 * t3 - 3 * t2 + 1) * y0 + (t3 - 2 * t2 + t) * h * m0 + (-2 * t3 + 3 * t2) * y1
+            + (t3 - t2) * h * m1)
+
+
+def _herm_root(y0, y1, m0, m1, h):
+    """Fraction t in [0, 1] where the Hermite interpolant crosses zero (y0, y1 of opposite sign
+    or zero); bisection, 52 halvings = machine precision of the interval."""
+    lo = np.zeros_like(y0)
+    hi = np.ones_like(y0)
+    s0 = np.sign(y0)
+    for _ in range(52):
+        mid = 0.5 * (lo + hi)
+        same = np.sign(_herm(y0, y1, m0, m1, h, mid)) == s0
+        lo = np.where(same, mid, lo)
+        hi = np.where(same, hi, mid)
+    return np.where(y0 == 0.0, 0.0, 0.5 * (lo + hi))
+
+
+def _crossings(f, df, h):
+    """All zero crossings of periodic samples f (n,) with slopes df: (phi in rad from grid 0,
+    direction +1 up / -1 down, interval index)."""
+    n = f.shape[0]
+    g = np.roll(f, -1)
+    gd = np.roll(df, -1)
+    k = np.nonzero(((f < 0) & (g >= 0)) | ((f > 0) & (g <= 0)))[0]
+    t = _herm_root(f[k], g[k], df[k], gd[k], h)
+    return (k + t) * h, np.where(f[k] < 0, 1, -1), k, t, n
+
+
+def _at(values, slopes, k, t, h):
+    """Hermite value of periodic samples at interval k, fraction t."""
+    k1 = (k + 1) % values.shape[0]
+    return _herm(values[k], values[k1], slopes[k], slopes[k1], h, t)
+
+
+def _extreme(values, slopes, curv, h, kind):
+    """Global max (kind=+1) or min (-1) of periodic samples, refined where the slope changes
+    sign next to the best grid point: (phi rad, value)."""
+    i = int(np.argmax(kind * values))
+    n = values.shape[0]
+    best = (i * h, values[i])
+    for k in ((i - 1) % n, i):
+        k1 = (k + 1) % n
+        s0, s1 = kind * slopes[k], kind * slopes[k1]
+        if s0 >= 0.0 >= s1 and s0 != s1:
+            t = float(_herm_root(np.array([slopes[k]]), np.array([slopes[k1]]),
+                                 np.array([curv[k]]), np.array([curv[k1]]), h)[0])
+            v = float(_at(values, slopes, np.array([k]), np.array([t]), h)[0])
+            if kind * v >= kind * best[1]:
+                best = ((k + t) * h, v)
+    return best
+
+
+# ---- one cycle per setting -------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class FeedCycles:
+    """The feed dog over one revolution for a batch of regulator settings (and designs).
+
+    Batch arrays have the shape of ``regulator_deg``; trajectories add the shaft-angle axis.
+
+    Attributes
+    ----------
+    regulator_deg : ndarray
+        Regulator setting, degrees.
+    phi_deg : ndarray, (n_phi,)
+        Shaft angles of the trajectories, degrees.
+    x, y : ndarray, batch + (n_phi,)
+        Tooth-tip position, mm (frame); ``y`` is the height above the throat plate.
+    stitch_mm : ndarray
+        Signed stitch length (+ forward), mm.
+    lift_mm, drop_mm : ndarray
+        Highest tip height above the plate, lowest (negative: below), mm.
+    top_deg : ndarray
+        Shaft angle of the top of lift.
+    rise_deg, fall_deg : ndarray
+        Shaft angles where the tip rises through and drops through the plate.
+    stroke_mm : ndarray
+        Horizontal peak-to-peak travel of the tip, mm.
+    mid_feed_deg : ndarray
+        Shaft angle where the tip passes the middle of its horizontal stroke while feeding (in
+        the direction of the stitch); NaN without feed.
+    feasible : ndarray of bool
+        False where the mechanism could not be assembled for that setting (values NaN).
+    """
+
+    regulator_deg: np.ndarray
+    phi_deg: np.ndarray
+    x: np.ndarray = field(repr=False)
+    y: np.ndarray = field(repr=False)
+    stitch_mm: np.ndarray
+    lift_mm: np.ndarray
+    drop_mm: np.ndarray
+    top_deg: np.ndarray
+    rise_deg: np.ndarray
+    fall_deg: np.ndarray
+    stroke_mm: np.ndarray
+    mid_feed_deg: np.ndarray
+    feasible: np.ndarray
+
+    def to_pandas(self):
+        """One row per setting (flattened batch)."""
+        import pandas as pd
+
+        cols = ("regulator_deg", "stitch_mm", "lift_mm", "drop_mm", "top_deg", "rise_deg",
+                "fall_deg", "stroke_mm", "mid_feed_deg", "feasible")
+        return pd.DataFrame({c: np.asarray(getattr(self, c)).reshape(-1) for c in cols})
+
+
+def feed_cycles(machine: Machine, regulator_deg: ArrayLike, *, params: ArrayLike | None = None,
+                step_deg: float = 1.0, on_failure: str = "raise") -> FeedCycles:
+    """Trajectory and feed figures of the dog's tooth tip for regulator settings (degrees).
+
+    ``params`` (batch + (n_parameters,)) broadcasts against ``regulator_deg``; the grid of shaft
+    angles starts at 0 with ``step_deg`` spacing (360 must be a multiple of it).
+    """
+    s = _roles(machine)
+    n = round(360.0 / step_deg)
+    if n < 36 or abs(n * step_deg - 360.0) > 1e-9:
+        raise ValueError(f"step_deg must divide 360 into at least 36 steps, got {step_deg}")
+    h = 2.0 * math.pi / n
+    phi = np.arange(n) * h
+    reg = np.asarray(regulator_deg, dtype=float)
+    r = kinematics(machine, phi, params=params, inputs={s.regulator: np.radians(reg)},
+                   omega=1.0, points=[s.feed_dog], links=[], variables=[], on_failure=on_failure)
+    pm = r.point(s.feed_dog)
+    batch = r.batch_shape
+    fwd = 1.0 if s.forward == "+x" else -1.0
+    X = pm.p[..., 0].reshape(-1, n)
+    Y = (pm.p[..., 1] - s.plate_y).reshape(-1, n)
+    VX = pm.v[..., 0].reshape(-1, n)
+    VY = pm.v[..., 1].reshape(-1, n)
+    AX = pm.a[..., 0].reshape(-1, n)
+    AY = pm.a[..., 1].reshape(-1, n)
+    ok = r.feasible.reshape(-1, n).all(axis=1)
+    out = {k: np.full(X.shape[0], np.nan) for k in ("stitch_mm", "lift_mm", "drop_mm", "top_deg",
+                                                     "rise_deg", "fall_deg", "stroke_mm",
+                                                     "mid_feed_deg")}
+    for d in np.nonzero(ok)[0]:
+        x, y, vx, vy = X[d], Y[d], VX[d], VY[d]
+        top, lift = _extreme(y, vy, AY[d], h, +1)
+        out["top_deg"][d] = math.degrees(top)
+        out["lift_mm"][d] = lift
+        out["drop_mm"][d] = _extreme(y, vy, AY[d], h, -1)[1]
+        xmax = _extreme(x, vx, AX[d], h, +1)[1]
+        xmin = _extreme(x, vx, AX[d], h, -1)[1]
+        out["stroke_mm"][d] = xmax - xmin
+        ph, dirn, k, t, _ = _crossings(y, vy, h)
+        if not (dirn > 0).any():
+            continue  # never above the plate: no feed
+        # the window above the plate that contains the top of lift
+        ups = ph[dirn > 0]
+        downs = ph[dirn < 0]
+        rise = ups[np.argmin((top - ups) % (2 * math.pi))]
+        fall = downs[np.argmin((downs - top) % (2 * math.pi))]
+        ku, tu = k[dirn > 0][ups == rise], t[dirn > 0][ups == rise]
+        kd, td = k[dirn < 0][downs == fall], t[dirn < 0][downs == fall]
+        stitch = fwd * float(_at(x, vx, kd, td, h)[0] - _at(x, vx, ku, tu, h)[0])
+        out["rise_deg"][d] = math.degrees(rise)
+        out["fall_deg"][d] = math.degrees(fall)
+        out["stitch_mm"][d] = stitch
+        if stitch != 0.0:
+            pm_, dm_, _, _, _ = _crossings(x - 0.5 * (xmax + xmin), vx, h)
+            want = np.sign(stitch) * fwd
+            inside = ((pm_ - rise) % (2 * math.pi)) <= ((fall - rise) % (2 * math.pi))
+            sel = pm_[(dm_ == want) & inside]
+            if sel.size:
+                out["mid_feed_deg"][d] = math.degrees(sel[0])
+    shape = batch
+    return FeedCycles(
+        regulator_deg=np.broadcast_to(reg, shape).copy(),
+        phi_deg=np.degrees(phi),
+        x=X.reshape(shape + (n,)),
+        y=Y.reshape(shape + (n,)),
+        feasible=ok.reshape(shape),
+        **{k: v.reshape(shape) for k, v in out.items()},
+    )
+
+
+def stitch_length(machine: Machine, regulator_deg: float, *, params=None) -> float:
+    """Signed stitch length (mm, + forward) at one regulator setting (degrees)."""
+    return float(feed_cycles(machine, regulator_deg, params=params).stitch_mm)
+
+
+def stitch_curve(machine: Machine, n: int = 61, *, params=None) -> FeedCycles:
+    """Feed figures at ``n`` settings evenly over the regulator's travel."""
+    lo, hi = regulator_range_deg(machine)
+    return feed_cycles(machine, np.linspace(lo, hi, n), params=params)
+
+
+def zero_mark(machine: Machine, *, params=None) -> float:
+    """Regulator setting (degrees) where the stitch length is zero, to 1e-9 deg."""
+    lo, hi = regulator_range_deg(machine)
+    c = stitch_curve(machine, 21, params=params)
+    sgn = np.sign(c.stitch_mm)
+    k = np.nonzero(sgn[:-1] * sgn[1:] <= 0)[0]
+    if k.size == 0:
+        raise ValueError(f"machine '{machine.name}': the stitch length does not change sign over"
+                         f" the regulator travel {lo:g}..{hi:g} deg")
+    a, b = c.regulator_deg[k[0]], c.regulator_deg[k[0] + 1]
+    return brentq(lambda g: stitch_length(machine, g, params=params), a, b, xtol=1e-9)
+
+
+@dataclass(frozen=True)
+class ScaleMark:
+    """One mark of the stitch-length scale plate: stitch length (mm, - reverse), setting (deg)."""
+
+    stitch_mm: float
+    regulator_deg: float
+
+
+def scale_marks(machine: Machine, step_mm: float = 0.5, *, params=None) -> list[ScaleMark]:
+    """Regulator settings for every ``step_mm`` of stitch length, forward and reverse.
+
+    The marks are solved on the stitch-length curve (secant iterations from its interpolation)
+    to 1e-6 mm of stitch length; the curve must be monotonic over the regulator's travel.
+    """
+    c = stitch_curve(machine, 61, params=params)
+    st, rg = c.stitch_mm, c.regulator_deg
+    d = np.diff(st)
+    if not (np.all(d > 0) or np.all(d < 0)):
+        raise ValueError(f"machine '{machine.name}': the stitch length is not monotonic over the"
+                         " regulator travel, so a scale cannot be made")
+    order = np.argsort(st)
+    st_s, rg_s = st[order], rg[order]
+    lo = math.ceil(st_s[0] / step_mm - 1e-9)
+    hi = math.floor(st_s[-1] / step_mm + 1e-9)
+    targets = np.arange(lo, hi + 1) * step_mm
+    g0 = np.interp(targets, st_s, rg_s)
+    g1 = g0 + 0.01
+    f0 = feed_cycles(machine, g0, params=params).stitch_mm - targets
+    for _ in range(30):
+        f1 = feed_cycles(machine, g1, params=params).stitch_mm - targets
+        if np.all(np.abs(f1) < 1e-6):
+            break
+        den = np.where(f1 != f0, f1 - f0, 1.0)
+        g0, g1, f0 = g1, np.where(np.abs(f1) < 1e-6, g1, g1 - f1 * (g1 - g0) / den), f1
+    return [ScaleMark(float(t), float(g)) for t, g in zip(targets, g1)]
+
+
+# ---- relative position of the feed cam -------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class FeedTiming:
+    """Feed-cam phase that puts the middle of the feed stroke at the target shaft angle.
+
+    overrides: parameter values (internal units) for ``Machine.parameters``; phase_deg: the
+    feed cam's phase on the upper shaft; cycle: the feed figures at the timing setting with it.
+    """
+
+    overrides: dict
+    phase_deg: float
+    cycle: FeedCycles
+
+
+def set_feed_timing(machine: Machine, mid_feed_after_top_deg: float = 0.0, *,
+                    regulator_deg: float | None = None, params=None) -> FeedTiming:
+    """Phase the feed cam so that the dog is halfway through its feed stroke
+    ``mid_feed_after_top_deg`` after its top of lift (at the longest forward stitch unless
+    ``regulator_deg`` is given).
+
+    With the feed cam turning with the shaft at ratio 1, a phase change shifts the horizontal
+    motion along the shaft angle; the vertical motion depends on it only slightly (the feed bar
+    slides over the lift roller), so the shift is repeated until the target holds to 1e-6 deg.
+    The report's determination of the mechanisms' relative positions (各机构间相对位置的确定)
+    for the feed.
+    """
+    s = _roles(machine)
+    if s.feed_cam is None:
+        raise ValueError(f"machine '{machine.name}': [sewing] feed_cam (the crank unit of the feed"
+                         " cam) is not set")
+    spec = next(u for u in machine.spec.units if u.name == s.feed_cam)
+    if spec.ratio != 1.0 or spec.input != "shaft":
+        raise ValueError(f"feed cam crank '{s.feed_cam}' must turn with the shaft at ratio 1")
+    reg = regulator_range_deg(machine)[1] if regulator_deg is None else regulator_deg
+    p = np.array(machine.defaults if params is None else params, dtype=float)
+    i = machine.parameter_index(f"{s.feed_cam}.phase")
+    for _ in range(20):
+        c = feed_cycles(machine, reg, params=p)
+        if not np.isfinite(c.mid_feed_deg):
+            raise ValueError(f"no feed at regulator {reg:g} deg: choose a setting with a stitch")
+        err = ((float(c.mid_feed_deg - c.top_deg) - mid_feed_after_top_deg + 180.0) % 360.0
+               - 180.0)
+        if abs(err) < 1e-6:
+            break
+        p[i] += math.radians(err)  # x(phi) ~ x0(phi + phase): a later mid-feed needs more phase
+    else:
+        raise ValueError("the feed timing did not settle; check the feed mechanism")
+    return FeedTiming({f"{s.feed_cam}.phase": float(p[i])}, math.degrees(p[i]) % 360.0, c)
