@@ -112,8 +112,13 @@ def test_cli_report_writes_page_figures_and_tables(tmp_path):
     out = runner.invoke(app, ["report", "jb1-3", "--out", str(out_dir), "--step-deg", "2"])
     assert out.exit_code == 0, out.stdout
     page = (out_dir / "index.html").read_text()
-    assert "All 4 checks pass" in page and page.count("data:image/png;base64,") == 3
-    for fig in ("motion", "eye-path", "timing-diagram"):
+    checks = pd.read_csv(out_dir / "jb1-3-checks.csv")
+    assert f"All {len(checks)} checks pass" in page and len(checks) == 10
+    figures = ("motion", "eye-path", "timing-diagram", "feed-trajectories", "stitch-curve",
+               "feed-sensitivity", "comparison")
+    assert page.count("data:image/png;base64,") == len(figures)
+    assert "jb1-3 against jb8-2" in page  # the file's variant, side by side
+    for fig in figures:
         for ext in ("png", "svg", "csv"):
             assert (out_dir / f"jb1-3-{fig}.{ext}").stat().st_size > 500, (fig, ext)
     timing = pd.read_csv(out_dir / "jb1-3-timing-diagram.csv")
@@ -122,8 +127,9 @@ def test_cli_report_writes_page_figures_and_tables(tmp_path):
     r = sewmech.kinematics(sewmech.load_machine("jb1-3"), np.radians(timing["phi_deg"]))
     np.testing.assert_allclose(timing["needle_point_y_mm"], r.point("needle.point").p[:, 1],
                                rtol=1e-9)
-    checks = pd.read_csv(out_dir / "jb1-3-checks.csv")
     assert set(checks["result"]) == {"pass"}
+    marks = pd.read_csv(out_dir / "jb1-3-scale-marks.csv")
+    assert list(marks["stitch_mm"]) == [k * 0.5 for k in range(-8, 9)]
     assert (out_dir / "jb1-3.toml").exists()  # the machine data travel with the report
     # demo is the same job on the default machine
     assert runner.invoke(app, ["demo", "--out", str(tmp_path / "demo")]).exit_code == 0

@@ -206,7 +206,7 @@ def _reference(jb, reg_deg, params=None):
     x = p[:, 0]
     xu = x[ku[0]] + tu[0] * (x[(ku[0] + 1) % len(x)] - x[ku[0]])
     xd = x[kd[0]] + td[0] * (x[(kd[0] + 1) % len(x)] - x[kd[0]])
-    return dict(stitch=xd - xu + 0.0, lift=y.max(), rise=(ku[0] + tu[0]) * 0.01,
+    return dict(stitch=xd - xu, lift=y.max(), rise=(ku[0] + tu[0]) * 0.01,
                 fall=(kd[0] + td[0]) * 0.01, top=ph[np.argmax(y)], x=x, y=y, phi=ph)
 
 
@@ -270,3 +270,61 @@ def test_feed_needs_roles():
     m = sewmech.load_machine("fourbar-benchmark")
     with pytest.raises(ValueError, match="feed_dog"):
         F.feed_cycles(m, 0.0)
+
+
+def test_feed_checks_against_a_dense_grid(jb):
+    """Dog height as the needle point reaches the plate, and no angle with the needle in the
+    fabric and the dog above the plate, from a 0.01 deg grid of both points."""
+    from sewmech.timing import check_timing
+
+    checks = {c.name: c for c in check_timing(jb)}
+    phi = np.radians(np.arange(0.0, 360.0, 0.01))
+    for reg in (-30.0, 0.0, 30.0):
+        r = sewmech.kinematics(jb, phi, inputs={"regulator": math.radians(reg)},
+                               points=["needle.point", DOG], links=[], variables=[])
+        needle = r.point("needle.point").p[:, 1]
+        dog = r.point(DOG).p[:, 1]
+        assert not np.any((needle < PLATE + 1.0) & (dog > PLATE)), reg
+        if reg == 30.0:
+            k = np.nonzero((needle > PLATE) & (np.roll(needle, -1) <= PLATE))[0][0]
+            t = (needle[k] - PLATE) / (needle[k] - needle[k + 1])
+            h = dog[k] + t * (dog[k + 1] - dog[k]) - PLATE
+            assert checks["dog height when the needle point reaches the plate"].value == \
+                pytest.approx(h, abs=1e-6)
+    assert checks["overlap of 'needle in fabric' and 'dog above plate'"].value == 0.0
+    assert all(c.passed for c in checks.values())
+
+
+def test_jb8_2_variant():
+    """The second variant meets the same facts, and its file's feed-cam phase is the timing
+    setting; it differs from JB1-3 where its file says so."""
+    from sewmech.timing import check_timing
+
+    m = sewmech.load_machine("jb8-2")
+    assert all(c.passed for c in check_timing(m))
+    assert F.set_feed_timing(m, 0.0).phase_deg == pytest.approx(23.9054, abs=1e-3)
+    assert abs(F.stitch_length(m, 0.0)) <= 0.01
+    c = F.stitch_curve(m, 57)
+    assert np.all(np.diff(c.stitch_mm) > 0)
+    assert m.cam_designs["feed_cam"]["stroke"] == 6.5
+    assert m.spec.machine.variants == ["jb1-3"]
+
+
+def test_sensitivity_against_single_designs(jb):
+    """Each row of the batched study equals a separate evaluation of that changed design."""
+    sens = F.sensitivity(jb, 0.05)
+    assert sens.cycles.stitch_mm.shape == (len(jb.spec.sewing.feed_parameters), 3)
+    assert np.allclose(sens.cycles.stitch_mm[:, 1], F.stitch_length(jb, 30.0), atol=1e-12)
+    label = "slide block up the fork"
+    i = sens.labels.index(label)
+    p = jb.parameters({"feed_fork.slot.2.length": 125.0 * 1.05})
+    ref = _reference(jb, 30.0, p)
+    assert sens.cycles.stitch_mm[i, 2] == pytest.approx(ref["stitch"], abs=2e-5)
+    assert sens.cycles.lift_mm[i, 2] == pytest.approx(ref["lift"], abs=1e-6)
+    t = sens.table()
+    row = t[t["parameter"] == label].iloc[0]
+    assert row["stitch change +5% [mm]"] == pytest.approx(ref["stitch"] - F.stitch_length(jb, 30.0),
+                                                          abs=2e-5)
+    # the cam width moves the fork gap with it: nothing changes
+    w = t[t["parameter"] == "feed cam width (fork gap)"].iloc[0]
+    assert abs(w["stitch change +5% [mm]"]) < 1e-9 and abs(w["lift change -5% [mm]"]) < 1e-9

@@ -146,31 +146,39 @@ def report_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="machine name or TOML file"),
     out: Path = typer.Option(Path("out/report"), help="output directory (replaced as a whole)"),
     step_deg: float = typer.Option(1.0, help="shaft-angle step of the diagrams, degrees"),
+    compare: list[str] = typer.Option(None, help="machine (name or file) to compare side by"
+                                      " side; repeatable (default: the file's [machine] variants)"),
 ):
-    """The main job: DIR/index.html with checks, timing, figures (PNG, SVG) and tables (CSV)."""
+    """The main job: DIR/index.html with checks, timing, feed, figures (PNG, SVG), tables (CSV)."""
+    import pandas as pd
     from rich.progress import Progress
 
     from .report import write_report
 
     m = _load(machine)
     _phi_grid(m, step_deg)  # validates the step
-    steps = ("kinematics", "timing checks", "figures", "tables", "page")
+    variants = [_load(v) for v in (compare or m.spec.machine.variants)]
+    s = m.spec.sewing
+    steps = ["kinematics", "timing checks", "figures"]
+    if s is not None and s.feed_dog and s.regulator:
+        steps += ["feed trajectories", "stitch curve", "sensitivity"]
+    if variants:
+        steps.append("comparison")
+    steps += ["tables", "page"]
     with Progress(console=console, transient=True) as progress:
         task = progress.add_task(f"report {m.name}", total=len(steps))
         try:
-            index = write_report(m, out, step_deg=step_deg,
+            index = write_report(m, out, step_deg=step_deg, variants=variants,
                                  advance=lambda name: progress.update(task, advance=1,
                                                                       description=name))
         except (SewmechError, ValueError) as exc:
             _fail(exc)
-    from . import timing
-
     table = Table(title=f"{m.name}: checks")
     for col in ("check", "value", "expected", "result"):
         table.add_column(col)
-    for c in timing.check_timing(m):
-        table.add_row(c.name, f"{c.value:.4g} {c.unit}", c.expected,
-                      "[green]pass[/]" if c.passed else "[red]FAIL[/]")
+    for c in pd.read_csv(index.parent / f"{m.name}-checks.csv").itertuples():
+        table.add_row(c.check, f"{c.value:.4g} {c.unit}", c.expected,
+                      "[green]pass[/]" if c.result == "pass" else "[red]FAIL[/]")
     console.print(table)
     console.print(f"[bold]report:[/] {index.resolve()}")
     console.print(f"  figures (PNG, SVG) and tables (CSV) in {index.parent.resolve()}")
@@ -179,7 +187,7 @@ def report_cmd(
 @app.command("demo")
 def demo_cmd(out: Path = typer.Option(Path("out/demo"), help="output directory")):
     """Same as `sewmech report jb1-3 --out DIR` (the main job on the default machine)."""
-    report_cmd(DEFAULT_MACHINE, out, 1.0)
+    report_cmd(DEFAULT_MACHINE, out, 1.0, None)
 
 
 def main():  # pragma: no cover - entry point

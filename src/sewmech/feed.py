@@ -348,3 +348,122 @@ def set_feed_timing(machine: Machine, mid_feed_after_top_deg: float = 0.0, *,
     else:
         raise ValueError("the feed timing did not settle; check the feed mechanism")
     return FeedTiming({f"{s.feed_cam}.phase": float(p[i])}, math.degrees(p[i]) % 360.0, c)
+
+
+# ---- checks against the facts of the machine class ---------------------------------------------
+
+
+def _overlap_deg(a0, a1, b0, b1) -> float:
+    """Length (deg) of the overlap of two shaft-angle windows [a0, a1], [b0, b1] (may wrap)."""
+    a = (np.arange(0.0, 360.0, 0.01) - a0) % 360.0 <= (a1 - a0) % 360.0
+    b = (np.arange(0.0, 360.0, 0.01) - b0) % 360.0 <= (b1 - b0) % 360.0
+    return float(np.count_nonzero(a & b)) * 0.01
+
+
+def check_feed(machine: Machine, params=None) -> list:
+    """The feed checks (DOMAIN.md 1.1 and 3.2) as :class:`sewmech.timing.Check` rows."""
+    from .timing import Check, needle_windows
+
+    s = _roles(machine)
+    lo, hi = regulator_range_deg(machine)
+    zero = machine.spec.inputs[s.regulator].default_deg
+    c = feed_cycles(machine, [lo, zero, hi], params=params)
+    w_in, w_below = needle_windows(machine, params)
+    out = []
+    a, b = FEED_DOG_RISE_MM
+    lift = float(c.lift_mm[1])
+    out.append(Check("feed dog above the plate at the top of lift (zero mark)", lift, "mm",
+                     f"{a:g}-{b:g}", a <= lift <= b, "DOMAIN.md 1.1 (Podolsk household machine)"))
+    a, b = MAX_STITCH_MM
+    for name, v in (("longest forward stitch", float(c.stitch_mm[2])),
+                    ("longest reverse stitch", -float(c.stitch_mm[0]))):
+        out.append(Check(name, v, "mm", f"{a:g}-{b:g}", a <= v <= b,
+                         "DOMAIN.md 1.1 (class-15 machines measured; Singer 31-15)"))
+    z = float(c.stitch_mm[1])
+    out.append(Check("stitch at the regulator's zero mark", z, "mm", "|s| <= 0.01",
+                     abs(z) <= 0.01, "the JB kinematics report: no feed at the 0 mark"))
+    # the dog when the needle point reaches the plate, at the longest forward stitch
+    phi_plate = math.radians(w_below.start_deg)
+    r = kinematics(machine, np.array([phi_plate]), params=params,
+                   inputs={s.regulator: math.radians(hi)}, points=[s.feed_dog])
+    h = float(r.point(s.feed_dog).p[0, 1] - s.plate_y)
+    out.append(Check("dog height when the needle point reaches the plate", h, "mm",
+                     "<= 0 (level with or below the plate)", h <= 0.0,
+                     "DOMAIN.md 3.2 (Singer 31-15, Juki TL-2010Q, Brother S-7000DD)"))
+    worst = max(_overlap_deg(float(c.rise_deg[k]), float(c.fall_deg[k]), w_in.start_deg,
+                             w_in.end_deg) for k in range(3) if np.isfinite(c.rise_deg[k]))
+    out.append(Check("overlap of 'needle in fabric' and 'dog above plate'", worst, "deg",
+                     "0 (the dog feeds only while the needle is out)", worst == 0.0,
+                     "DOMAIN.md 3.2"))
+    return out
+
+
+# ---- sensitivity of the feed to its structural parameters --------------------------------------
+
+
+@dataclass(frozen=True)
+class Sensitivity:
+    """Feed figures with each structural parameter changed by -x %, 0, +x %.
+
+    ``cycles`` has batch shape (n_parameters, 3): columns -x, 0, +x (the middle column is the
+    machine as it is). ``table()`` gives the changes against it.
+    """
+
+    relative_change: float
+    regulator_deg: float
+    labels: tuple[str, ...]
+    names: tuple[tuple[str, ...], ...]
+    cycles: FeedCycles
+
+    def table(self):
+        """One row per parameter: changes of stitch length (mm), lift (mm) and feed timing
+        (mid-feed shaft angle, deg) at -x % and +x %."""
+        import pandas as pd
+
+        c = self.cycles
+        pct = 100.0 * self.relative_change
+        rows = []
+        for i, label in enumerate(self.labels):
+            row = {"parameter": label, "names": " ".join(self.names[i])}
+            for j, tag in ((0, f"-{pct:g}%"), (2, f"+{pct:g}%")):
+                row[f"stitch change {tag} [mm]"] = c.stitch_mm[i, j] - c.stitch_mm[i, 1]
+                row[f"lift change {tag} [mm]"] = c.lift_mm[i, j] - c.lift_mm[i, 1]
+                row[f"timing change {tag} [deg]"] = ((c.mid_feed_deg[i, j] - c.mid_feed_deg[i, 1]
+                                                      + 180.0) % 360.0 - 180.0)
+            row["feasible"] = bool(c.feasible[i].all())
+            rows.append(row)
+        return pd.DataFrame(rows)
+
+
+def _base_value(machine: Machine, name: str) -> float:
+    cam, _, key = name.rpartition(".")
+    if cam in machine.cam_designs and key in machine.cam_designs[cam]:
+        return machine.cam_designs[cam][key]
+    return float(machine.defaults[machine.parameter_index(name)])
+
+
+def sensitivity(machine: Machine, relative_change: float = 0.05, *,
+                parameters: dict[str, list[str]] | None = None,
+                regulator_deg: float | None = None, step_deg: float = 1.0) -> Sensitivity:
+    """Change each structural parameter of the feed by -x %, 0, +x % (one batch) and record
+    the dog's trajectory, stitch length, lift and feed timing.
+
+    parameters: label -> parameter names changed together (default: ``[sewing]
+    feed_parameters`` of the machine file). regulator_deg: the setting (default: the longest
+    forward stitch). Designs that cannot be assembled come back masked, not as errors.
+    """
+    if not 0.0 < relative_change < 1.0:
+        raise ValueError(f"relative_change must be in (0, 1), got {relative_change}")
+    s = _roles(machine)
+    groups = dict(s.feed_parameters if parameters is None else parameters)
+    if not groups:
+        raise ValueError(f"machine '{machine.name}': no feed parameters to study; list them in"
+                         " [sewing.feed_parameters] or pass parameters=")
+    reg = regulator_range_deg(machine)[1] if regulator_deg is None else regulator_deg
+    P = np.empty((len(groups), 3, machine.defaults.size))
+    for i, names in enumerate(groups.values()):
+        for j, f in enumerate((1.0 - relative_change, 1.0, 1.0 + relative_change)):
+            P[i, j] = machine.parameters({n: _base_value(machine, n) * f for n in names})
+    c = feed_cycles(machine, reg, params=P, step_deg=step_deg, on_failure="mask")
+    return Sensitivity(relative_change, reg, tuple(groups), tuple(tuple(v) for v in
+                                                                  groups.values()), c)

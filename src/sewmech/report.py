@@ -6,8 +6,10 @@ every table as CSV. The directory is built beside the target and swapped in at t
 failed run leaves the previous report untouched and never a half-written one.
 
 Sections so far: machine and convention, computed checks, motion diagrams (needle, shuttle,
-take-up eye), the take-up eye path, the timing diagram, the parameter table and the machine file
-itself. The feed, thread and dynamics sections join as those analyses land.
+take-up eye), the take-up eye path, the timing diagram (with the feed dog), the feed (dog
+trajectories forward and reverse, stitch-length curve and scale marks, sensitivity study),
+variants side by side, the parameter table and the machine file itself. The thread and dynamics
+sections join as those analyses land.
 """
 
 from __future__ import annotations
@@ -20,12 +22,13 @@ import math
 import os
 import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from . import feed as FD
 from . import timing as T
 from .kinematics import kinematics
 from .machine import Machine
@@ -41,7 +44,8 @@ class _Figures:
         self.machine = machine
         self.blocks: list[str] = []
 
-    def add(self, fig, name: str, title: str, caption: str, data: pd.DataFrame):
+    def add(self, fig, name: str, title: str, caption: str, data: pd.DataFrame,
+            table: pd.DataFrame | None = None):
         import matplotlib.pyplot as plt
 
         stem = f"{self.machine}-{name}"
@@ -57,7 +61,8 @@ class _Figures:
             f'<img alt="{html.escape(title)}" src="data:image/png;base64,{b64}">'
             f"<figcaption>{html.escape(caption)} Files: "
             f'<a href="{stem}.png">PNG</a>, <a href="{stem}.svg">SVG</a>, '
-            f'<a href="{stem}.csv">data (CSV)</a>.</figcaption></figure>')
+            f'<a href="{stem}.csv">data (CSV)</a>.</figcaption>'
+            + (_table_html(table) if table is not None else "") + "</figure>")
 
 
 def _table_html(df: pd.DataFrame, classes: str = "") -> str:
@@ -86,11 +91,13 @@ def _staging(out_dir: Path):
 
 
 def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0,
-                 advance: Callable[[str], None] | None = None) -> Path:
+                 advance: Callable[[str], None] | None = None,
+                 variants: Sequence[Machine] = ()) -> Path:
     """Compute everything and write the report; returns the path of ``index.html``.
 
     step_deg: shaft-angle step of the diagrams, deg. advance: called with a step name after
-    each step (progress display). Requires the machine's ``[sewing]`` roles.
+    each step (progress display). variants: machines compared side by side with this one.
+    Requires the machine's ``[sewing]`` roles.
     """
     import matplotlib
 
@@ -168,7 +175,14 @@ def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0
                      pd.DataFrame({"phi_deg": phi_deg, "x_mm": p[:, 0], "y_mm": p[:, 1]}))
 
         # ---- timing diagram ------------------------------------------------------------------
-        rows = 1 + bool(s.shuttle_link) + bool(s.take_up_eye)
+        has_feed = s.feed_dog is not None and s.regulator is not None
+        if has_feed:
+            reg_max = FD.regulator_range_deg(machine)[1]
+            fres = kinematics(machine, np.radians(phi_deg), points=[s.feed_dog],
+                              inputs={s.regulator: math.radians(reg_max)})
+            dog = fres.point(s.feed_dog).p
+            dog_up = dog[:, 1] > s.plate_y
+        rows = 1 + bool(s.shuttle_link) + bool(s.take_up_eye) + 2 * has_feed
         fig, axs = plt.subplots(rows, 1, figsize=(9, 2.3 * rows + 0.6), sharex=True,
                                 constrained_layout=True, squeeze=False)
         axs = axs[:, 0]
@@ -192,10 +206,22 @@ def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0
             axs[i].plot(phi_deg, ye, color="C3", label="take-up eye")
             axs[i].set_ylabel("eye y [mm]")
             tdata["take_up_eye_y_mm"] = ye
+            i += 1
+        if has_feed:
+            axs[i].plot(phi_deg, dog[:, 0], color="C4", label="feed dog x (fore-aft)")
+            axs[i].set_ylabel("dog x [mm]")
+            axs[i + 1].plot(phi_deg, dog[:, 1], color="C5", label="feed dog tooth tip")
+            axs[i + 1].axhline(s.plate_y, color="k", lw=1, label="throat plate")
+            axs[i + 1].set_ylabel("dog y [mm]")
+            tdata[f"dog_x_mm_at_regulator_{reg_max:g}deg"] = dog[:, 0]
+            tdata[f"dog_y_mm_at_regulator_{reg_max:g}deg"] = dog[:, 1]
+            tdata["dog_above_plate"] = dog_up
         inside = w_in.contains(phi_deg)
         tdata["needle_in_fabric"] = inside
         for ax in axs:
             _shade(ax, phi_deg, inside, "C0", "needle in fabric")
+            if has_feed:
+                _shade(ax, phi_deg, dog_up, "C5", "dog above plate")
             ax.axvline(ns.top_phi_deg, color="0.3", lw=0.8, ls=":")
             if ll is not None:
                 ax.axvline(ll.phi_deg, color="C2", lw=0.8, ls="--")
@@ -209,10 +235,16 @@ def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0
         axs[-1].set_xticks(np.arange(0, 361, 30))
         fig.suptitle(f"{machine.name}: timing diagram ({ref}; dotted: needle top)")
         figs.add(fig, "timing-diagram", "Timing diagram",
-                 "Needle height with the throat plate and the fabric top, shuttle angle and"
-                 " take-up eye height over one revolution; shaded: needle in the fabric;"
-                 " dashed: the shuttle point meets the needle.", pd.DataFrame(tdata))
+                 "Needle height with the throat plate and the fabric top, shuttle angle,"
+                 " take-up eye height and the feed dog's fore-aft and vertical motion (at the"
+                 " longest forward stitch) over one revolution; shaded: needle in the fabric"
+                 " and dog above the plate; dashed: the shuttle point meets the needle.",
+                 pd.DataFrame(tdata))
         step("figures")
+        feed_tables = _feed_section(figs, machine, step) if has_feed else {}
+        if variants:
+            _comparison(figs, [machine] + list(variants))
+            step("comparison")
 
         # ---- tables --------------------------------------------------------------------------
         chk = pd.DataFrame([{"check": c.name, "value": c.value, "unit": c.unit,
@@ -232,6 +264,16 @@ def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0
         if sw is not None:
             timing_rows += [("shuttle angle min", sw.min_deg, "deg"),
                             ("shuttle angle max", sw.max_deg, "deg")]
+        if has_feed:
+            fc = feed_tables["cycle"]
+            timing_rows += [(f"dog rises through the plate (regulator {reg_max:g} deg)",
+                             float(fc.rise_deg), "deg"),
+                            ("dog at the top of its lift", float(fc.top_deg), "deg"),
+                            ("dog halfway through its feed stroke", float(fc.mid_feed_deg),
+                             "deg"),
+                            ("dog drops through the plate", float(fc.fall_deg), "deg"),
+                            ("dog lift above the plate", float(fc.lift_mm), "mm"),
+                            ("stitch length", float(fc.stitch_mm), "mm")]
         tim = pd.DataFrame(timing_rows, columns=["event", "value", "unit"])
         tim.to_csv(root / f"{machine.name}-timing-events.csv", index=False,
                    float_format="%.10g")
@@ -247,10 +289,172 @@ def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0
             (root / src.name).write_text(text, encoding="utf-8")
         step("tables")
 
-        page = _page(machine, ref, chk, tim, par, figs.blocks, text, src.name)
+        for name, df in feed_tables.get("csv", {}).items():
+            df.to_csv(root / f"{machine.name}-{name}.csv", index=False, float_format="%.10g")
+        page = _page(machine, ref, chk, tim, par, figs.blocks, text, src.name,
+                     feed_tables.get("html", []))
         (root / "index.html").write_text(page, encoding="utf-8")
         step("page")
     return Path(out_dir) / "index.html"
+
+
+def _feed_section(figs: _Figures, machine: Machine, step) -> dict:
+    """Dog trajectories, stitch curve with scale marks, sensitivity grid (figures + tables)."""
+    import matplotlib.pyplot as plt
+
+    lo, hi = FD.regulator_range_deg(machine)
+    marks = FD.scale_marks(machine, 0.5)
+    by_len = {m.stitch_mm: m.regulator_deg for m in marks}
+    longest = min(max(by_len), -min(by_len))
+    wanted = sorted({k * round(longest) / 2.0 for k in (-2, -1, 0, 1, 2)} & set(by_len))
+    regs = np.array([by_len[w] for w in wanted])
+    c = FD.feed_cycles(machine, regs)
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.6), constrained_layout=True)
+    data = {"phi_deg": c.phi_deg}
+    for k, reg in enumerate(regs):
+        lab = f"{c.stitch_mm[k]:+.2f} mm (regulator {reg:+.2f} deg)"
+        ax.plot(c.x[k], c.y[k], lw=1.4, label=lab)
+        data[f"x_mm_reg_{reg:+.4f}deg"] = c.x[k]
+        data[f"y_above_plate_mm_reg_{reg:+.4f}deg"] = c.y[k]
+    for a in (ax, bx):
+        a.axhline(0.0, color="k", lw=1)
+        a.set_xlabel("dog tooth tip x [mm] (+x: towards the back)")
+        a.set_ylabel("height above the throat plate [mm]")
+        a.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, loc="lower center")
+    ax.set_title("tooth-tip paths by stitch length")
+    f, r = int(np.argmax(c.stitch_mm)), int(np.argmin(c.stitch_mm))
+    xc = 0.5 * (c.x[f].max() + c.x[f].min())
+    bx.plot(c.x[f] - xc, c.y[f], lw=1.6, label=f"forward {c.stitch_mm[f]:+.2f} mm")
+    xr = 0.5 * (c.x[r].max() + c.x[r].min())
+    bx.plot(-(c.x[r] - xr), c.y[r], lw=1.6, ls="--",
+            label=f"reverse {c.stitch_mm[r]:+.2f} mm, mirrored")
+    bx.set_xlabel("x about the middle of the stroke [mm] (reverse mirrored)")
+    bx.legend(fontsize=7, loc="lower center")
+    bx.set_title("reverse feed against forward")
+    figs.add(fig, "feed-trajectories", "Feed dog trajectories",
+             "Paths of the dog's tooth tip over one revolution for stitch lengths from the"
+             " longest reverse to the longest forward; right: the reverse path mirrored onto"
+             " the forward one to compare their shapes. The fabric moves with the dog only"
+             " above the plate line.", pd.DataFrame(data))
+    step("feed trajectories")
+
+    curve = FD.stitch_curve(machine, 121)
+    fig, (ax, bx) = plt.subplots(2, 1, figsize=(8, 6.4), sharex=True, constrained_layout=True)
+    ax.plot(curve.regulator_deg, curve.stitch_mm, lw=1.6)
+    ax.plot([m.regulator_deg for m in marks], [m.stitch_mm for m in marks], "o", ms=4,
+            color="C1", label="scale marks (every 0.5 mm)")
+    ax.axhline(0, color="k", lw=0.8)
+    ax.set_ylabel("stitch length [mm] (+ forward)")
+    ax.legend(fontsize=8)
+    ax.grid(True, alpha=0.3)
+    bx.plot(curve.regulator_deg, curve.lift_mm, color="C2", label="lift above plate")
+    bx.axhspan(*FD.FEED_DOG_RISE_MM, color="C2", alpha=0.1, label="DOMAIN.md 1.1 band")
+    bx.set_ylabel("dog lift [mm]")
+    bx.set_xlabel(f"regulator angle [deg] (travel {lo:g} .. {hi:g})")
+    bx.legend(fontsize=8)
+    bx.grid(True, alpha=0.3)
+    fig.suptitle(f"{machine.name}: stitch length and lift against the regulator setting")
+    mk = pd.DataFrame({"stitch_mm": [m.stitch_mm for m in marks],
+                       "regulator_deg": [m.regulator_deg for m in marks]})
+    figs.add(fig, "stitch-curve", "Stitch length and scale-plate marks",
+             "Stitch length (the dog's fore-aft travel while above the plate) and lift over the"
+             " regulator's travel; dots: the regulator angle of every 0.5 mm mark of the scale"
+             " plate, forward and reverse (table below).", curve.to_pandas(), table=mk)
+    step("stitch curve")
+
+    sens = FD.sensitivity(machine, 0.05)
+    n = len(sens.labels)
+    ncol = min(4, n)
+    nrow = math.ceil(n / ncol)
+    fig, axs = plt.subplots(nrow, ncol, figsize=(3.3 * ncol, 2.8 * nrow), squeeze=False,
+                            constrained_layout=True)
+    sc = sens.cycles
+    sdata = {"phi_deg": sc.phi_deg}
+    for i, label in enumerate(sens.labels):
+        a = axs.flat[i]
+        for j, (tag, st) in enumerate((("-5%", ":"), ("0", "-"), ("+5%", "--"))):
+            a.plot(sc.x[i, j], sc.y[i, j], ls=st, lw=1.2, label=tag)
+            sdata[f"{label} {tag} x_mm"] = sc.x[i, j]
+            sdata[f"{label} {tag} y_mm"] = sc.y[i, j]
+        a.axhline(0, color="k", lw=0.8)
+        a.set_title(label, fontsize=8)
+        a.tick_params(labelsize=7)
+        a.grid(True, alpha=0.3)
+    axs.flat[0].legend(fontsize=7)
+    for a in list(axs.flat)[n:]:
+        a.axis("off")
+    fig.suptitle(f"{machine.name}: sensitivity of the dog path to each feed parameter"
+                 f" (regulator {sens.regulator_deg:g} deg; x, height above plate in mm)")
+    table = sens.table().drop(columns="names")
+    figs.add(fig, "feed-sensitivity", "Feed sensitivity study",
+             "Each structural parameter of the feed changed by -5 %, 0, +5 % (the others held);"
+             " the table gives the change of stitch length, lift and feed timing (the shaft"
+             " angle at which the dog is halfway through its feed stroke).",
+             pd.DataFrame(sdata), table=table)
+    step("sensitivity")
+    return {"cycle": FD.feed_cycles(machine, hi), "csv": {"scale-marks": mk,
+                                                           "feed-sensitivity-table": table}}
+
+
+def _key_figures(m: Machine) -> dict:
+    """The numbers a designer compares between machine variants."""
+    s = T.roles(m)
+    out = {}
+    ns = T.needle_stroke(m)
+    out["needle stroke [mm]"] = ns.stroke
+    if s.shuttle_link:
+        out["shuttle swing [deg]"] = T.shuttle_swing(m).swing_deg
+    if s.shuttle_point:
+        out["loop lift [mm]"] = T.loop_lift(m).rise_mm
+    if s.take_up_eye:
+        out["take-up lag [deg]"] = T.take_up_lag_deg(m)
+    if s.feed_dog and s.regulator:
+        lo, hi = FD.regulator_range_deg(m)
+        c = FD.feed_cycles(m, [lo, hi])
+        out["longest forward stitch [mm]"] = float(c.stitch_mm[1])
+        out["longest reverse stitch [mm]"] = float(c.stitch_mm[0])
+        out["dog lift, longest forward [mm]"] = float(c.lift_mm[1])
+        out["dog rises through plate [deg]"] = float(c.rise_deg[1])
+        out["dog drops through plate [deg]"] = float(c.fall_deg[1])
+        out["mid feed stroke [deg]"] = float(c.mid_feed_deg[1])
+    return out
+
+
+def _comparison(figs: _Figures, machines: Sequence[Machine]):
+    """Key figures, dog paths and stitch curves of machine variants side by side."""
+    import matplotlib.pyplot as plt
+
+    table = pd.DataFrame({m.name: _key_figures(m) for m in machines})
+    table.insert(0, "figure", table.index)
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.4), constrained_layout=True)
+    data = {}
+    for m in machines:
+        s = m.spec.sewing
+        if not (s and s.feed_dog and s.regulator):
+            continue
+        lo, hi = FD.regulator_range_deg(m)
+        c = FD.feed_cycles(m, hi)
+        ax.plot(c.x - 0.5 * (c.x.max() + c.x.min()), c.y, lw=1.5, label=m.name)
+        curve = FD.stitch_curve(m, 61)
+        bx.plot(curve.regulator_deg, curve.stitch_mm, lw=1.5, label=m.name)
+        data[f"{m.name} phi_deg"] = c.phi_deg
+        data[f"{m.name} x_mm"] = c.x
+        data[f"{m.name} y_above_plate_mm"] = c.y
+    ax.axhline(0, color="k", lw=0.8)
+    ax.set_xlabel("dog x about mid-stroke [mm]")
+    ax.set_ylabel("height above plate [mm]")
+    ax.set_title("dog path at the longest forward stitch")
+    bx.set_xlabel("regulator angle [deg]")
+    bx.set_ylabel("stitch length [mm]")
+    bx.set_title("stitch-length curves")
+    for a in (ax, bx):
+        a.grid(True, alpha=0.3)
+        a.legend(fontsize=8)
+    names = " against ".join(m.name for m in machines)
+    figs.add(fig, "comparison", f"Variants side by side: {names}",
+             "Key figures of each variant (table), the dog's path at the longest forward stitch"
+             " and the stitch-length curves.", pd.DataFrame(data), table=table)
 
 
 def _display(value: float, unit: str) -> float:
@@ -275,7 +479,7 @@ pre{background:#f6f6f6;padding:1em;overflow-x:auto;font-size:0.8em}
 """
 
 
-def _page(machine, ref, chk, tim, par, blocks, file_text, file_name) -> str:
+def _page(machine, ref, chk, tim, par, blocks, file_text, file_name, extra=()) -> str:
     info = machine.spec.machine
     n_fail = int((chk["result"] != "pass").sum()) if len(chk) else 0
     verdict = (f'<p class="pass">All {len(chk)} checks pass.</p>' if n_fail == 0 else
@@ -296,6 +500,7 @@ def _page(machine, ref, chk, tim, par, blocks, file_text, file_name) -> str:
 <p>Data: <a href="{e(info.name)}-timing-events.csv">timing events (CSV)</a>.</p>
 <h2>Figures</h2>
 {''.join(blocks)}
+{''.join(extra)}
 <h2>Machine data</h2>
 <p>Every value of the machine file as a named parameter (angles shown in degrees). Sources and
 estimates are recorded beside each value in the file below.

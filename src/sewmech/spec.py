@@ -45,6 +45,7 @@ class MachineInfo(_Spec):
     title: str = ""
     description: str = ""
     format: Literal[1] = 1
+    variants: list[str] = Field(default_factory=list)  # machines the report compares with
 
 
 class Convention(_Spec):

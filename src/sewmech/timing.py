@@ -323,4 +323,8 @@ def check_timing(machine: Machine, params=None) -> list[Check]:
         lag = take_up_lag_deg(machine, params)
         out.append(Check("take-up eye top after needle top", lag, "deg", "> 0 (lags)", lag > 0.0,
                          "DOMAIN.md 3.3"))
+    if s.feed_dog is not None and s.regulator is not None:
+        from .feed import check_feed
+
+        out += check_feed(machine, params)
     return out
