@@ -605,9 +605,9 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
     sd = np.empty(n_vars)
     sdd = np.empty(n_vars)
     q_prev = np.empty(n_unk)
-    q_prev2 = np.empty(n_unk)
+    dq1_prev = np.empty(n_unk)  # d q / d phi at the last solution
+    dq2_prev = np.empty(n_unk)  # d2 q / d phi2
     phi_prev = np.empty(n_groups)
-    phi_prev2 = np.empty(n_groups)
     n_hist = np.zeros(n_groups, dtype=np.int64)
     lost = np.zeros(n_groups, dtype=np.bool_)
     pc = np.empty(n_units)  # cos and sin of each crank's phase
@@ -776,14 +776,13 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
                             for j in range(n):
                                 q[j] = params[d, unk[u0 + j, 3]]
                             iters = 4 * max_iter
-                        elif n_hist[g] == 1 or phi_prev[g] == phi_prev2[g]:
-                            for j in range(n):
-                                q[j] = q_prev[u0 + j]
-                            iters = max_iter
                         else:
-                            f = (phi - phi_prev[g]) / (phi_prev[g] - phi_prev2[g])
+                            # second-order Taylor predictor from the last solution's exact
+                            # rates: one Newton step usually lands within the tolerance
+                            h = phi - phi_prev[g]
                             for j in range(n):
-                                q[j] = q_prev[u0 + j] + f * (q_prev[u0 + j] - q_prev2[u0 + j])
+                                q[j] = q_prev[u0 + j] + h * (dq1_prev[u0 + j]
+                                                             + 0.5 * h * dq2_prev[u0 + j])
                             iters = max_iter
                         code = _solve_group(g, grp, unk, terms, cams_i, arcs_i, params, d,
                                             p, v, a, th, om, ep, s, sd, sdd, q, tol, iters,
@@ -793,13 +792,24 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
                             loop_worst[d, march_store[k], g] = int(info[2])
                         if code == FAIL_NONE:
                             for j in range(n):
-                                q_prev2[u0 + j] = q_prev[u0 + j]
                                 q_prev[u0 + j] = q[j]
+                                L = unk[u0 + j, 1]
+                                if unk[u0 + j, 0] == 0:
+                                    r1 = om[L]
+                                    r2 = ep[L]
+                                else:
+                                    r1 = sd[L]
+                                    r2 = sdd[L]
+                                if ws != 0.0:  # d/dphi = (d/dt) / omega
+                                    dq1_prev[u0 + j] = r1 / ws
+                                    dq2_prev[u0 + j] = (r2 - r1 / ws * es) / (ws * ws)
+                                else:
+                                    dq1_prev[u0 + j] = 0.0
+                                    dq2_prev[u0 + j] = 0.0
                                 if unk[u0 + j, 0] == 0:
                                     L = unk[u0 + j, 1]
                                     lc[L] = math.cos(th[L])
                                     ls[L] = math.sin(th[L])
-                            phi_prev2[g] = phi_prev[g]
                             phi_prev[g] = phi
                             n_hist[g] += 1
                         else:
