@@ -145,3 +145,27 @@ def test_cli_report_failure_leaves_previous_report(tmp_path):
     assert "[sewing]" in out.stderr and "fourbar-benchmark" in out.stderr
     assert (out_dir / "index.html").read_text() == "previous"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rep"]  # no staging left behind
+
+
+def test_cli_feed_json_and_kinematics_input():
+    out = runner.invoke(app, ["feed", "jb1-3", "--json"])
+    assert out.exit_code == 0, out.stderr
+    data = json.loads(out.stdout)  # strict JSON: no NaN
+    assert [k["stitch_mm"] for k in data["scale_marks"]] == [k * 0.5 for k in range(-8, 9)]
+    zero = data["settings"][1]
+    assert zero["regulator_deg"] == 0.0 and abs(zero["stitch_mm"]) < 0.01
+    assert zero["mid_feed_deg"] is None  # no feed, no feed timing
+    assert data["feed_cam_phase_for_mid_feed_at_top_deg"] == pytest.approx(22.973, abs=1e-3)
+    # kinematics at a regulator setting equals the API's
+    out = runner.invoke(app, ["kinematics", "jb1-3", "--step-deg", "30", "--input",
+                              "regulator=20", "--json"])
+    assert out.exit_code == 0, out.stderr
+    got = json.loads(out.stdout)
+    m = sewmech.load_machine("jb1-3")
+    r = sewmech.kinematics(m, np.radians(np.arange(0, 360, 30.0)),
+                           inputs={"regulator": np.radians(20.0)})
+    key = next(k for k in got["channels"] if "feed_dog.tip" in k and k.startswith("p_"))
+    np.testing.assert_allclose(np.asarray(got["channels"][key]["values"]),
+                               r.channel(key)[0], rtol=1e-12)
+    bad = runner.invoke(app, ["kinematics", "jb1-3", "--input", "reg=20"])
+    assert bad.exit_code == 2 and "no input 'reg'" in bad.stderr

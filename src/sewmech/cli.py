@@ -120,14 +120,26 @@ def kinematics_cmd(
     out: Path = typer.Option(None, help="write the channels into this directory"),
     format: Format = typer.Option(Format.csv, "--format", help="file format with --out"),
     as_json: bool = typer.Option(False, "--json", help="print every channel as JSON to stdout"),
+    inputs: list[str] = typer.Option(None, "--input", help="a setting input NAME=DEG, e.g."
+                                     " regulator=20; repeatable (default: the file's)"),
 ):
     """Positions, velocities and accelerations of every point, link and joint variable."""
     from .io import kinematics_to_dict, write_kinematics_csv, write_kinematics_json
     from .kinematics import kinematics
 
     m = _load(machine)
+    settings = {}
+    for item in inputs or ():
+        name, _, value = item.partition("=")
+        if name not in m.spec.inputs:
+            _fail(ValueError(f"--input {item!r}: machine '{m.name}' has no input '{name}'"
+                             f" (inputs: {', '.join(m.spec.inputs) or 'none'})"))
+        try:
+            settings[name] = math.radians(float(value))
+        except ValueError:
+            _fail(ValueError(f"--input {item!r}: expected NAME=DEGREES"))
     try:
-        res = kinematics(m, _phi_grid(m, step_deg), rpm=rpm)
+        res = kinematics(m, _phi_grid(m, step_deg), rpm=rpm, inputs=settings or None)
     except SewmechError as exc:
         _fail(exc)
     if as_json:
@@ -139,6 +151,55 @@ def kinematics_cmd(
         path = out / f"{m.name}-kinematics.{format.value}"
         (write_kinematics_csv if format is Format.csv else write_kinematics_json)(res, path)
         console.print(f"written: {path}")
+
+
+@app.command("feed")
+def feed_cmd(
+    machine: str = typer.Argument(DEFAULT_MACHINE, help="machine name or TOML file"),
+    step_mm: float = typer.Option(0.5, help="stitch-length step of the scale marks, mm"),
+    as_json: bool = typer.Option(False, "--json", help="print the figures as JSON to stdout"),
+):
+    """Stitch length, lift and timing of the feed dog; scale-plate marks; feed-cam phase."""
+    from . import feed as FD
+
+    m = _load(machine)
+    try:
+        lo, hi = FD.regulator_range_deg(m)
+        zero = m.spec.inputs[m.spec.sewing.regulator].default_deg
+        cyc = FD.feed_cycles(m, [lo, zero, hi]).to_pandas()
+        marks = FD.scale_marks(m, step_mm)
+        timing = FD.set_feed_timing(m, 0.0) if m.spec.sewing.feed_cam else None
+    except (SewmechError, ValueError) as exc:
+        _fail(exc)
+    phase_now = next((u.phase_deg for u in m.spec.units if timing and
+                      u.name == m.spec.sewing.feed_cam), None)
+    if as_json:
+        rows = cyc.astype(object).where(cyc.notna(), None)  # JSON has no NaN: null
+        json.dump({"machine": m.name, "settings": rows.to_dict(orient="records"),
+                   "scale_marks": [{"stitch_mm": k.stitch_mm, "regulator_deg": k.regulator_deg}
+                                   for k in marks],
+                   "feed_cam_phase_deg": phase_now,
+                   "feed_cam_phase_for_mid_feed_at_top_deg":
+                       timing.phase_deg if timing else None}, sys.stdout)
+        sys.stdout.write("\n")
+        return
+    table = Table(title=f"{m.name}: feed dog (angles in deg of shaft, lengths mm)")
+    cols = ("regulator_deg", "stitch_mm", "lift_mm", "rise_deg", "top_deg", "mid_feed_deg",
+            "fall_deg")
+    for c in cols:
+        table.add_column(c, justify="right")
+    for row in cyc.itertuples():
+        table.add_row(*(f"{getattr(row, c):.4g}" for c in cols))
+    console.print(table)
+    mt = Table(title=f"scale-plate marks every {step_mm:g} mm")
+    mt.add_column("stitch [mm]", justify="right")
+    mt.add_column("regulator [deg]", justify="right")
+    for k in marks:
+        mt.add_row(f"{k.stitch_mm:+.2f}", f"{k.regulator_deg:+.4f}")
+    console.print(mt)
+    if timing is not None:
+        console.print(f"feed cam phase: {phase_now:g} deg in the file; {timing.phase_deg:.4f}"
+                      " deg puts the middle of the feed stroke at the top of lift")
 
 
 @app.command("report")
