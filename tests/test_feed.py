@@ -329,3 +329,11 @@ def test_sensitivity_against_single_designs(jb):
     # the cam width moves the fork gap with it: nothing changes
     w = t[t["parameter"] == "feed cam width (fork gap)"].iloc[0]
     assert abs(w["stitch change +5% [mm]"]) < 1e-9 and abs(w["lift change -5% [mm]"]) < 1e-9
+
+
+@pytest.mark.parametrize("a,b,expected", [((10, 50), (40, 90), 10.0), ((350, 20), (10, 30), 10.0),
+                                          ((350, 20), (340, 355), 5.0), ((0, 10), (20, 30), 0.0),
+                                          ((300, 100), (90, 310), 20.0)])
+def test_window_overlap(a, b, expected):
+    assert F._overlap_deg(*a, *b) == pytest.approx(expected)
+    assert F._overlap_deg(*b, *a) == pytest.approx(expected)

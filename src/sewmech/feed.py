@@ -77,13 +77,12 @@ def _herm_root(y0, y1, m0, m1, h):
 
 def _crossings(f, df, h):
     """All zero crossings of periodic samples f (n,) with slopes df: (phi in rad from grid 0,
-    direction +1 up / -1 down, interval index)."""
-    n = f.shape[0]
+    direction +1 up / -1 down, interval index, fraction of the interval)."""
     g = np.roll(f, -1)
     gd = np.roll(df, -1)
     k = np.nonzero(((f < 0) & (g >= 0)) | ((f > 0) & (g <= 0)))[0]
     t = _herm_root(f[k], g[k], df[k], gd[k], h)
-    return (k + t) * h, np.where(f[k] < 0, 1, -1), k, t, n
+    return (k + t) * h, np.where(f[k] < 0, 1, -1), k, t
 
 
 def _at(values, slopes, k, t, h):
@@ -205,7 +204,7 @@ def feed_cycles(machine: Machine, regulator_deg: ArrayLike, *, params: ArrayLike
         xmax = _extreme(x, vx, AX[d], h, +1)[1]
         xmin = _extreme(x, vx, AX[d], h, -1)[1]
         out["stroke_mm"][d] = xmax - xmin
-        ph, dirn, k, t, _ = _crossings(y, vy, h)
+        ph, dirn, k, t = _crossings(y, vy, h)
         if not (dirn > 0).any():
             continue  # never above the plate: no feed
         # the window above the plate that contains the top of lift
@@ -220,7 +219,7 @@ def feed_cycles(machine: Machine, regulator_deg: ArrayLike, *, params: ArrayLike
         out["fall_deg"][d] = math.degrees(fall)
         out["stitch_mm"][d] = stitch
         if stitch != 0.0:
-            pm_, dm_, _, _, _ = _crossings(x - 0.5 * (xmax + xmin), vx, h)
+            pm_, dm_, _, _ = _crossings(x - 0.5 * (xmax + xmin), vx, h)
             want = np.sign(stitch) * fwd
             inside = ((pm_ - rise) % (2 * math.pi)) <= ((fall - rise) % (2 * math.pi))
             sel = pm_[(dm_ == want) & inside]
@@ -355,9 +354,10 @@ def set_feed_timing(machine: Machine, mid_feed_after_top_deg: float = 0.0, *,
 
 def _overlap_deg(a0, a1, b0, b1) -> float:
     """Length (deg) of the overlap of two shaft-angle windows [a0, a1], [b0, b1] (may wrap)."""
-    a = (np.arange(0.0, 360.0, 0.01) - a0) % 360.0 <= (a1 - a0) % 360.0
-    b = (np.arange(0.0, 360.0, 0.01) - b0) % 360.0 <= (b1 - b0) % 360.0
-    return float(np.count_nonzero(a & b)) * 0.01
+    la = (a1 - a0) % 360.0
+    lb = (b1 - b0) % 360.0
+    b0 = a0 + (b0 - a0) % 360.0  # b's start at or after a's, then try b one turn earlier too
+    return sum(max(0.0, min(a0 + la, s + lb) - max(a0, s)) for s in (b0, b0 - 360.0))
 
 
 def check_feed(machine: Machine, params=None) -> list:
