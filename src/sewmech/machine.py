@@ -388,6 +388,9 @@ class _Compiler:
                         hint = f" Did you mean {', '.join(close)}?" if close else ""
                         raise self.err("sewing", f"feed_parameters.{label}",
                                        f"unknown parameter '{pname}'.{hint}")
+        if spec.thread is not None:
+            for k, g in enumerate(spec.thread.guides):
+                self.known_point("thread", f"guides[{k}].point", g.point)
         names = [u.name for u in spec.units]
         dup = {n for n in names if names.count(n) > 1}
         if dup:

@@ -321,6 +321,37 @@ class CamSpec(_Spec):
         return self
 
 
+class GuideSpec(_Spec):
+    """One thread guide: a point the thread passes through, or a pin it wraps."""
+
+    point: Name
+    radius: NonNegativeFloat = 0.0  # mm; 0: a hole or eye
+    wrap: Literal["ccw", "cw"] = "ccw"  # the thread's turn round a pin, seen from the hand wheel
+    note: str = ""
+
+
+class ThreadSpec(_Spec):
+    """``[thread]``: the needle thread's path from the tension discs to the needle eye."""
+
+    guides: list[GuideSpec] = Field(min_length=2)
+    # indices of the guides that bound the take-up section (its supply), both point guides
+    take_up: tuple[int, int]
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _sections(self):
+        n = len(self.guides)
+        i0, i1 = self.take_up
+        if not 0 <= i0 < i1 < n:
+            raise ValueError(f"take_up must be two guide indices 0 <= first < second < {n},"
+                             f" got {list(self.take_up)}")
+        for k in (0, n - 1, i0, i1):
+            if self.guides[k].radius != 0.0:
+                raise ValueError(f"guide {k} ('{self.guides[k].point}') bounds a section of the"
+                                 " path and must be a point guide (radius 0)")
+        return self
+
+
 class MachineSpec(_Spec):
     """The whole machine file."""
 
@@ -332,6 +363,7 @@ class MachineSpec(_Spec):
     cams: dict[Name, CamSpec] = Field(default_factory=dict)
     units: list[Unit] = Field(min_length=1)
     sewing: SewingSpec | None = None
+    thread: ThreadSpec | None = None
 
     @field_validator("points")
     @classmethod

@@ -1,0 +1,121 @@
+"""The thread path and the take-up's supply, against geometry computed by hand here."""
+
+import math
+
+import numpy as np
+import pytest
+
+import sewmech
+from sewmech.errors import MachineFileError
+from sewmech.thread import path_length, thread_path
+
+
+def _over_pin(A, C, B, r):
+    """A taut thread from A round a pin (centre C, radius r) to B, the pin bending it: two
+    tangents and the arc between the tangent points (the classic belt construction)."""
+    A, C, B = (np.asarray(x, float) for x in (A, C, B))
+    da, db = np.linalg.norm(A - C), np.linalg.norm(B - C)
+    ca, cb = (A - C) / da, (B - C) / db
+    between = math.acos(np.clip(ca @ cb, -1, 1))  # angle ACB at the centre
+    arc = 2 * math.pi - between - math.acos(r / da) - math.acos(r / db)
+    return math.sqrt(da**2 - r**2) + math.sqrt(db**2 - r**2) + r * arc
+
+
+def test_straight_path_is_the_sum_of_distances():
+    pts = np.array([[0, 0], [3, 4], [3, 10], [-5, 10]], float)
+    assert path_length(pts, np.zeros(4)) == pytest.approx(5 + 6 + 8, abs=1e-12)
+
+
+@pytest.mark.parametrize("wrap", [-1, 1])
+def test_wrap_over_a_pin(wrap):
+    # the thread passes over (cw) a pin at (0, 3), or under its mirror image (ccw)
+    A, C, B, r = (-10.0, 0.0), (0.0, 3.0 * -wrap), (10.0, 0.0), 2.0
+    expected = _over_pin(A, C, B, r)
+    assert path_length([A, C, B], [0.0, wrap * r, 0.0]) == pytest.approx(expected, abs=1e-12)
+    # the arc is 55.5 deg here: the hand numbers, once more
+    assert expected == pytest.approx(2 * math.sqrt(109 - 4) + 2 * math.radians(55.49), abs=2e-3)
+
+
+def test_wrap_more_than_half_a_turn():
+    # out along y = 0, round the far side of a pin of radius 2 at (0, 2), back along y = 4
+    L = path_length([(-10.0, 0.0), (0.0, 2.0), (-10.0, 4.0)], [0.0, 2.0, 0.0])
+    assert L == pytest.approx(20.0 + 2 * math.pi, abs=1e-12)
+    # wrapped the other way the thread would have to go round almost a whole turn
+    L_cw = path_length([(-10.0, 0.0), (0.0, 2.0), (-10.0, 4.0)], [0.0, -2.0, 0.0])
+    assert L_cw > L
+
+
+def test_crossed_tangent_between_opposite_wraps():
+    # two pins wrapped in opposite senses: the straight part is the inner tangent,
+    # sqrt(D^2 - (r1 + r2)^2); with symmetric points the arcs are equal and computed by hand
+    r = 1.0
+    pts = [(-10.0, 5.0), (-4.0, 0.0), (4.0, 0.0), (10.0, -5.0)]
+    L = path_length(pts, [0.0, -r, r, 0.0])
+    D = 8.0
+    inner = math.sqrt(D**2 - (2 * r) ** 2)
+    # direction of the inner tangent: turned from +x by asin(2r / D) (downwards here)
+    ang_in = -math.asin(2 * r / D)
+    # end tangent from (-10, 5) to the pin at (-4, 0), thread passing above it (cw)
+    v = np.array([6.0, -5.0])
+    dA = np.linalg.norm(v)
+    tA = math.sqrt(dA**2 - r**2)
+    ang_a = math.atan2(v[1], v[0]) + math.asin(r / dA)  # tangent above the pin: turned up
+    arc = (ang_a - ang_in) % (2 * math.pi)  # right turn from the end tangent to the inner one
+    assert L == pytest.approx(2 * tA + inner + 2 * r * arc, abs=1e-12)
+
+
+def test_overlapping_guides_are_an_error():
+    with pytest.raises(ValueError, match="guides 1 and 2 overlap"):
+        path_length([(0, 0), (0, 5), (0, 6), (0, 20)], [0.0, 2.0, -2.0, 0.0])
+    with pytest.raises(ValueError, match="point guide"):
+        path_length([(0, 0), (5, 0)], [1.0, 0.0])
+
+
+@pytest.fixture(scope="module")
+def jb():
+    return sewmech.load_machine("jb1-3")
+
+
+def test_jb_path_against_its_guides(jb):
+    """The machine's path length from the guides' positions, computed here segment by segment."""
+    phi = np.radians(np.arange(0.0, 360.0, 7.0))
+    tp = thread_path(jb, phi)
+    r = sewmech.kinematics(jb, phi)
+    T = r.point("thread.tension").p
+    P = r.point("thread.check_post").p
+    E = r.point("take_up.eye").p
+    G = r.point("thread.face_guide").p
+    NB = r.point("needle_bar.thread_guide").p
+    NE = r.point("needle.eye").p
+    dist = lambda a, b: np.linalg.norm(a - b, axis=-1)  # noqa: E731
+    tu = np.array([_over_pin(T[k], P[k], E[k], 2.0) for k in range(len(phi))]) + dist(E, G)
+    below = dist(G, NB) + dist(NB, NE)
+    np.testing.assert_allclose(tp.take_up, tu, atol=1e-10)
+    np.testing.assert_allclose(tp.below, below, atol=1e-10)
+    np.testing.assert_allclose(tp.total, tu + below, atol=1e-10)
+    np.testing.assert_allclose(tp.supply, tu.max() - tu, atol=1e-10)
+
+
+def test_supply_over_a_cycle(jb):
+    """The take-up returns every bit of thread it releases: S(0) = S(360); its stroke is the
+    range of its section, and the eye's top is the least supply (the stitch is set there)."""
+    phi = np.radians(np.arange(0.0, 361.0, 1.0))
+    tp = thread_path(jb, phi)
+    assert tp.supply[-1] == pytest.approx(tp.supply[0], abs=1e-9)
+    assert float(tp.stroke) == pytest.approx(np.ptp(tp.supply), abs=1e-12)
+    assert 80.0 < float(tp.stroke) < 130.0  # household take-ups draw about 100 mm
+    eye_top = np.argmax(sewmech.kinematics(jb, phi).point("take_up.eye").p[:, 1])
+    assert abs(tp.phi_deg[np.argmin(tp.supply)] - tp.phi_deg[eye_top]) < 12.0
+
+
+def test_thread_table_errors():
+    from sewmech.spec import parse_machine
+
+    base = sewmech.load_machine("jb1-3").file
+    text = open(base).read()
+    bad = text.replace('{ point = "thread.face_guide" }', '{ point = "thread.face_guid" }')
+    with pytest.raises(MachineFileError, match=r"thread.*guides\[3\]\.point.*unknown point"):
+        sewmech.machine_from_toml(bad, "jb.toml")
+    bad = text.replace("take_up = [0, 3]", "take_up = [0, 1]")
+    with pytest.raises(MachineFileError, match="guide 1 .* must be a point guide"):
+        parse_machine(bad, "jb.toml")
