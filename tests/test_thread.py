@@ -119,3 +119,60 @@ def test_thread_table_errors():
     bad = text.replace("take_up = [0, 3]", "take_up = [0, 1]")
     with pytest.raises(MachineFileError, match="guide 1 .* must be a point guide"):
         parse_machine(bad, "jb.toml")
+
+
+def test_taut_round_a_circle():
+    from sewmech.thread import _taut_round_circle
+
+    # clear of the circle: straight
+    assert _taut_round_circle([0, 10], [0, 0], 2.0, [10, 10]) == pytest.approx(10.0)
+    # blocked, A and B on opposite sides: round the side where the straight line passes, with
+    # the arc between the tangent points = angle ACB - acos(r/|CA|) - acos(r/|CB|)
+    for B in ((1.0, -10.0), (-1.0, -10.0)):
+        A, C, r = np.array([0.0, 10.0]), np.zeros(2), 2.0
+        da, db = np.linalg.norm(A - C), np.linalg.norm(np.subtract(B, C))
+        acb = math.acos((A - C) @ np.subtract(B, C) / (da * db))
+        expected = (math.sqrt(da**2 - r**2) + math.sqrt(db**2 - r**2)
+                    + r * (acb - math.acos(r / da) - math.acos(r / db)))
+        assert _taut_round_circle(A, C, r, B) == pytest.approx(expected, abs=1e-12)
+
+
+def test_consumption_matches_the_industry_formula():
+    from sewmech.thread import consumption_per_stitch
+
+    l = np.array([1.0, 2.5, 4.0])
+    t = np.array([0.5, 1.0, 6.0])
+    c = consumption_per_stitch(l, t)
+    # C = 2 + 2 T S inches per inch of seam, T in inches, S stitches per inch: per stitch
+    S = 25.4 / l
+    per_stitch_mm = (2 + 2 * (t / 25.4) * S) / S * 25.4
+    np.testing.assert_allclose(c["total"], per_stitch_mm, rtol=1e-12)
+    np.testing.assert_allclose(c["needle"], l + t)
+    d = consumption_per_stitch(2.5, 1.0, 0.2)
+    assert d["needle"] == pytest.approx(3.5 + 0.1 * math.pi)
+
+
+def test_balance_parts(jb):
+    """Demand parts against the kinematics, computed here; the loop's largest size against the
+    DOMAIN.md 2.3 estimate (half the bobbin case's perimeter plus twice its depth below the
+    plate)."""
+    from sewmech.thread import thread_balance
+
+    b = thread_balance(jb, step_deg=1.0)
+    phi = np.radians(b.phi_deg)
+    r = sewmech.kinematics(jb, phi)
+    eye = r.point("needle.eye").p
+    np.testing.assert_allclose(b.penetration, np.maximum(0.0, -140.0 + 1.0 - eye[:, 1]), atol=1e-12)
+    tp = thread_path(jb, phi)
+    np.testing.assert_allclose(b.bar, tp.below, atol=1e-12)
+    k = int(np.argmin(tp.supply))
+    assert b.demand[k] == 0.0 and b.take_up_top_deg == b.phi_deg[k]
+    np.testing.assert_allclose(b.overfeed, tp.supply - b.demand, atol=1e-12)
+    # the loop: none outside seizure .. cast-off; the size of the DOMAIN estimate (which is
+    # itself approximate: our legs both follow the case's outline, 13 % more here)
+    R, depth = 12.0, 167.5 - 140.0 - 12.0
+    estimate = math.pi * R + 2 * depth
+    assert 0.8 * estimate < b.loop.max() < 1.2 * estimate
+    outside = (b.phi_deg - b.seizure_deg) % 360 > (b.cast_off_deg - b.seizure_deg) % 360 + 1
+    assert np.all(b.loop[outside] == 0.0)
+    assert b.consumption_mm == pytest.approx(2.5 + 1.0 + 0.1 * math.pi)

@@ -336,6 +336,9 @@ class ThreadSpec(_Spec):
     guides: list[GuideSpec] = Field(min_length=2)
     # indices of the guides that bound the take-up section (its supply), both point guides
     take_up: tuple[int, int]
+    thread_diameter: NonNegativeFloat = 0.0  # mm
+    bobbin_case_radius: PositiveFloat | None = None  # mm, about the shuttle axis: the loop's way
+    cast_off_deg: PositiveFloat = 180.0  # shuttle turn from seizure to casting the loop off
     note: str = ""
 
     @model_validator(mode="after")

@@ -124,3 +124,159 @@ def thread_path(machine: Machine, phi: ArrayLike, *, params=None, inputs=None,
     below = path_length(pos[..., i1:, :], rho[i1:])
     return ThreadPath(np.degrees(np.asarray(phi, dtype=float)), total, tu,
                       tu.max(axis=-1, keepdims=True) - tu, below)
+
+
+# ---- demand of the stitch-forming side, and the balance ------------------------------------------
+
+CHECK_SPRING_STROKE_MM = 10.0  # DOMAIN.md 2.2 item 5: Juki LK-1900B check spring, 8-10 mm
+
+
+def consumption_per_stitch(stitch_mm: ArrayLike, fabric_mm: ArrayLike,
+                           thread_diameter_mm: ArrayLike = 0.0) -> dict[str, np.ndarray]:
+    """Needle and bobbin thread per stitch of a balanced lockstitch (type 301), mm.
+
+    Each thread runs one stitch length along its face of the fabric and half the thickness
+    down (or up) to the interlacing at mid-thickness and back: l + t each (DOMAIN.md 2.1, the
+    geometric form of the industry formula); a finite thread diameter d adds the bend of each
+    thread round the other at the interlacing, pi d / 2 per thread (Malek et al., Autex 2020,
+    DOMAIN.md 2.1, in its simplest form). Also returned: the industry formula
+    C = 2 + 2 T S (inches of thread per inch of seam, T thickness in inches, S stitches per inch)
+    converted to mm per stitch, for comparison (with d = 0 it equals needle + bobbin).
+    """
+    l = np.asarray(stitch_mm, dtype=float)
+    t = np.asarray(fabric_mm, dtype=float)
+    d = np.asarray(thread_diameter_mm, dtype=float)
+    if np.any(l <= 0) or np.any(t < 0) or np.any(d < 0):
+        raise ValueError("stitch length must be > 0, fabric thickness and thread diameter >= 0")
+    each = l + t + 0.5 * math.pi * d
+    inch = 25.4
+    spi = inch / l
+    industry = (2.0 + 2.0 * (t / inch) * spi) * inch / spi  # thread per inch x inches per stitch
+    return {"needle": each, "bobbin": each.copy(), "total": 2.0 * each, "industry": industry}
+
+
+def _taut_round_circle(A, C, R, B):
+    """Shortest thread from A to B (..., 2) that may not enter the circle (C, R): straight if
+    the segment clears it, else tangent + arc + tangent on the shorter side."""
+    A, B = np.broadcast_arrays(np.asarray(A, float), np.asarray(B, float))
+    C = np.broadcast_to(np.asarray(C, float), A.shape)
+    ab = B - A
+    t = np.clip(np.einsum("...i,...i->...", C - A, ab) / np.einsum("...i,...i->...", ab, ab),
+                0.0, 1.0)
+    gap = np.linalg.norm(A + t[..., None] * ab - C, axis=-1)
+    straight = np.linalg.norm(ab, axis=-1)
+    pts = np.stack([A, C, B], axis=-2)
+    wrap = np.minimum(path_length(pts, np.array([0.0, R, 0.0])),
+                      path_length(pts, np.array([0.0, -R, 0.0])))
+    return np.where(gap >= R, straight, wrap)
+
+
+@dataclass(frozen=True)
+class ThreadBalance:
+    """Supply, demand and overfeed of the needle thread over one cycle (mm, one design).
+
+    Demand parts: ``bar`` the path from the end of the take-up section to the needle eye;
+    ``penetration`` the leg from the eye back up to the fabric's top (0 while the eye is above
+    it; the leg down to the eye is part of ``bar``); ``loop`` the growth of the loop the shuttle
+    draws round the bobbin case, from seizure to cast-off. ``demand`` is their sum relative to
+    its value at the take-up's top (the stitch is set there: no slack), ``overfeed`` = supply -
+    demand: the slack thread the check spring or the loop takes.
+    """
+
+    phi_deg: np.ndarray
+    supply: np.ndarray
+    bar: np.ndarray
+    penetration: np.ndarray
+    loop: np.ndarray
+    demand: np.ndarray
+    overfeed: np.ndarray
+    take_up_top_deg: float
+    seizure_deg: float
+    cast_off_deg: float
+    loop_max_deg: float
+    needle_entry_deg: float
+    stitch_mm: float
+    fabric_mm: float
+    consumption_mm: float
+
+    def _at(self, values, phi_deg):
+        return float(np.interp(phi_deg % 360.0, self.phi_deg, values, period=360.0))
+
+    @property
+    def min_overfeed_while_loop_grows(self) -> float:
+        """Least overfeed from seizure to the loop's largest size, mm (must be >= 0)."""
+        a, b = self.seizure_deg, self.loop_max_deg
+        inside = (self.phi_deg - a) % 360.0 <= (b - a) % 360.0
+        return float(self.overfeed[inside].min())
+
+    @property
+    def overfeed_at_needle_entry(self) -> float:
+        return self._at(self.overfeed, self.needle_entry_deg)
+
+    @property
+    def reserve_after_cast_off(self) -> float:
+        """Overfeed just after cast-off: the slack the take-up still pulls in while rising to
+        its top; it must cover the thread the stitch consumes (mm)."""
+        return self._at(self.overfeed, self.cast_off_deg + 1e-6)
+
+    def to_pandas(self):
+        import pandas as pd
+
+        return pd.DataFrame({k: getattr(self, k) for k in ("phi_deg", "supply", "bar",
+                                                           "penetration", "loop", "demand",
+                                                           "overfeed")})
+
+
+def thread_balance(machine: Machine, *, stitch_mm: float = 2.5, fabric_mm: float | None = None,
+                   step_deg: float = 0.5, params=None) -> ThreadBalance:
+    """The thread balance of one cycle: the take-up's supply against the stitch's demand.
+
+    Follows DOMAIN.md 2.3 with the machine's own geometry: the take-up section and the path to
+    the needle eye from ``[thread]``, the eye and fabric from ``[sewing]``, loop seizure from
+    the shuttle timing, and the loop drawn round a bobbin case of ``bobbin_case_radius`` about
+    the shuttle axis until the shuttle has turned ``cast_off_deg`` past seizure.
+    """
+    from . import timing as T
+
+    t = _thread_spec(machine)
+    s = T.roles(machine)
+    if t.bobbin_case_radius is None:
+        raise ValueError(f"machine '{machine.name}': [thread] bobbin_case_radius is needed for"
+                         " the loop demand")
+    fabric = s.fabric_thickness if fabric_mm is None else float(fabric_mm)
+    n = round(360.0 / step_deg)
+    phi = np.arange(n) * (2.0 * math.pi / n)
+    tp = thread_path(machine, phi, params=params)
+    sp = T._need(s.shuttle_point, "shuttle_point", machine)
+    axis = T._shuttle_axis(machine)
+    r = kinematics(machine, phi, params=params, points=[s.needle_eye, sp, axis],
+                   links=[T._need(s.shuttle_link, "shuttle_link", machine)], variables=[])
+    eye = r.point(s.needle_eye).p
+    top = s.plate_y + fabric
+    pen = np.maximum(0.0, top - eye[:, 1])
+    # the loop: from the needle hole in the plate round the bobbin case to the shuttle point
+    ll = T.loop_lift(machine, params)
+    seize = math.radians(ll.phi_deg)
+    theta = np.unwrap(r.link(s.shuttle_link).theta)
+    k_s = int(round(seize / (2 * math.pi / n))) % n
+    turned = np.abs(np.unwrap(np.roll(theta, -k_s)) - theta[k_s])  # shuttle turn since seizure
+    drawing = np.roll(np.maximum.accumulate(turned) < math.radians(t.cast_off_deg), k_s)
+    hole = np.array([eye[:, 0].mean(), s.plate_y])
+    legs = _taut_round_circle(hole, r.point(axis).p, t.bobbin_case_radius, r.point(sp).p)
+    leg0 = float(_taut_round_circle(hole, r.point(axis).p[k_s], t.bobbin_case_radius,
+                                    r.point(sp).p[k_s]))
+    loop = np.where(drawing, 2.0 * (legs - leg0), 0.0)
+    raw = tp.below + pen + loop
+    k_top = int(np.argmin(tp.supply))
+    demand = raw - raw[k_top]
+    over = tp.supply - demand
+    h = 360.0 / n
+    off = np.nonzero(np.roll(drawing, -k_s) == 0)[0]
+    k_c = (k_s + int(off[0]) - 1) % n if off.size else (k_s - 1) % n
+    loop_grow = np.roll(loop, -k_s)[: (k_c - k_s) % n + 1]
+    k_m = (k_s + int(np.argmax(loop_grow))) % n
+    entry = T.needle_windows(machine, params)[0].start_deg
+    return ThreadBalance(np.arange(n) * h, tp.supply, tp.below, pen, loop, demand, over,
+                         k_top * h, ll.phi_deg, k_c * h, k_m * h, entry, float(stitch_mm), fabric,
+                         float(consumption_per_stitch(stitch_mm, fabric, t.thread_diameter)
+                               ["needle"]))
