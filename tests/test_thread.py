@@ -176,3 +176,25 @@ def test_balance_parts(jb):
     outside = (b.phi_deg - b.seizure_deg) % 360 > (b.cast_off_deg - b.seizure_deg) % 360 + 1
     assert np.all(b.loop[outside] == 0.0)
     assert b.consumption_mm == pytest.approx(2.5 + 1.0 + 0.1 * math.pi)
+
+
+def test_thread_checks_from_the_balance(jb):
+    """The checks read the balance where DOMAIN.md 2.3 says: the least overfeed between seizure
+    and the loop's largest size, the overfeed as the eye enters the fabric, and after cast-off."""
+    from sewmech.thread import check_thread, thread_balance
+
+    b = thread_balance(jb)
+    c = {x.name: x for x in check_thread(jb, b)}
+    loop_on = b.loop > 0
+    k_max = int(np.argmax(b.loop))
+    grow = ((b.phi_deg - b.seizure_deg) % 360 <= (b.phi_deg[k_max] - b.seizure_deg) % 360)
+    assert c["least overfeed while the shuttle enlarges the loop"].value == pytest.approx(
+        b.overfeed[grow].min())
+    assert np.count_nonzero(~loop_on[grow]) <= 1  # the loop exists all through it (0 at seizure)
+    k_e = np.argmin(np.abs((b.phi_deg - b.needle_entry_deg + 180) % 360 - 180))
+    assert c["overfeed when the needle eye enters the fabric"].value == pytest.approx(
+        b.overfeed[k_e], abs=0.3)  # within half a degree of the entry
+    first_off = (k_max + 1) % len(b.phi_deg)
+    assert b.loop[first_off] == 0.0
+    assert c["take-up reserve once the loop is cast off"].value == pytest.approx(
+        b.overfeed[first_off])

@@ -223,6 +223,8 @@ def report_cmd(
     steps = ["kinematics", "timing checks", "figures"]
     if s is not None and s.feed_dog and s.regulator:
         steps += ["feed trajectories", "stitch curve", "sensitivity"]
+    if m.spec.thread is not None and m.spec.thread.bobbin_case_radius:
+        steps.append("thread")
     if variants:
         steps.append("comparison")
     steps += ["tables", "page"]

@@ -242,6 +242,9 @@ def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0
                  pd.DataFrame(tdata))
         step("figures")
         feed_tables = _feed_section(figs, machine, step) if has_feed else {}
+        if machine.spec.thread is not None and machine.spec.thread.bobbin_case_radius:
+            _thread_section(figs, machine)
+            step("thread")
         if variants:
             _comparison(figs, [machine] + list(variants))
             step("comparison")
@@ -395,6 +398,52 @@ def _feed_section(figs: _Figures, machine: Machine, step) -> dict:
     step("sensitivity")
     return {"cycle": FD.feed_cycles(machine, hi), "csv": {"scale-marks": mk,
                                                            "feed-sensitivity-table": table}}
+
+
+def _thread_section(figs: _Figures, machine: Machine):
+    """Thread balance: supply, demand and its parts, overfeed, with its own checks."""
+    import matplotlib.pyplot as plt
+
+    from . import thread as TH
+
+    b = TH.thread_balance(machine)
+    checks = TH.check_thread(machine, b)
+    fig, (ax, bx) = plt.subplots(2, 1, figsize=(9, 6.4), sharex=True, constrained_layout=True)
+    ax.plot(b.phi_deg, b.supply, lw=1.8, label="take-up supply S")
+    ax.plot(b.phi_deg, b.demand, lw=1.8, label="demand D (relative to the stitch set)")
+    k = int(np.argmin(b.supply))
+    ax.plot(b.phi_deg, b.bar - b.bar[k], lw=1, ls=":", label="  path to the eye (change)")
+    ax.plot(b.phi_deg, b.penetration - b.penetration[k], lw=1, ls=":",
+            label="  eye's leg through the fabric")
+    ax.plot(b.phi_deg, b.loop, lw=1, ls=":", label="  loop round the bobbin case")
+    ax.set_ylabel("thread [mm]")
+    ax.legend(fontsize=7, loc="upper left")
+    bx.plot(b.phi_deg, b.overfeed, color="C3", lw=1.8, label="overfeed O = S - D")
+    bx.axhline(0, color="k", lw=0.8)
+    bx.axhspan(0, TH.CHECK_SPRING_STROKE_MM, color="C2", alpha=0.1, label="check-spring stroke")
+    bx.set_ylabel("overfeed [mm]")
+    bx.set_xlabel("shaft angle phi [deg]")
+    bx.set_xticks(np.arange(0, 361, 30))
+    for a in (ax, bx):
+        loop = (b.phi_deg - b.seizure_deg) % 360 < (b.cast_off_deg - b.seizure_deg) % 360
+        _shade(a, b.phi_deg, loop, "C1", "loop on the shuttle")
+        for x, st in ((b.needle_entry_deg, "--"), (b.take_up_top_deg, ":")):
+            a.axvline(x, color="0.3", lw=0.8, ls=st)
+        a.grid(True, alpha=0.3)
+    bx.legend(fontsize=7, loc="upper left")
+    fig.suptitle(f"{machine.name}: needle-thread balance, stitch {b.stitch_mm:g} mm, fabric"
+                 f" {b.fabric_mm:g} mm\n(dashed: the needle eye enters the fabric; dotted: least"
+                 " supply, the stitch is set)")
+    table = pd.DataFrame([{"check": c.name, "value": c.value, "unit": c.unit,
+                           "expected": c.expected, "result": "pass" if c.passed else "FAIL",
+                           "source": c.source} for c in checks])
+    figs.add(fig, "thread-balance", "Needle-thread balance",
+             "What the take-up releases (supply) against what needle, fabric and shuttle hold"
+             " (demand) over one revolution, and their difference, the overfeed (DOMAIN.md 2.3);"
+             " shaded: the loop on the shuttle from seizure to cast-off. The balance checks"
+             " below are design diagnostics of the thread path, the take-up and the loop model"
+             " (see the sewmech.thread documentation), separate from the machine-class checks.",
+             b.to_pandas(), table=table)
 
 
 def _key_figures(m: Machine) -> dict:

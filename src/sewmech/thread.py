@@ -35,11 +35,12 @@ from .kinematics import kinematics
 from .machine import Machine
 
 
-def path_length(centres: ArrayLike, rho: ArrayLike) -> np.ndarray:
+def path_length(centres: ArrayLike, rho: ArrayLike, *, on_overlap: str = "raise") -> np.ndarray:
     """Length (mm) of a thread through guides with centres (..., n, 2) and signed radii (n,).
 
-    The first and last guides must be points (rho = 0). Raises ValueError where two guides'
-    circles overlap so that no common tangent exists (reported with the guide pair).
+    The first and last guides must be points (rho = 0). Where two guides' circles overlap so
+    that no common tangent exists: ValueError naming the pair (``on_overlap="raise"``) or NaN
+    (``"nan"``, for sweeps over many designs).
     """
     c = np.asarray(centres, dtype=float)
     rho = np.asarray(rho, dtype=float)
@@ -52,7 +53,9 @@ def path_length(centres: ArrayLike, rho: ArrayLike) -> np.ndarray:
     dd = np.einsum("...i,...i->...", d, d)
     b = rho[:-1] - rho[1:]
     a2 = dd - b * b
-    if np.any(a2 < 0.0):
+    if on_overlap == "nan":
+        a2 = np.where(a2 < 0.0, np.nan, a2)
+    elif np.any(a2 < 0.0):
         k = int(np.nonzero(np.any(a2.reshape(-1, n - 1) < 0.0, axis=0))[0][0])
         raise ValueError(f"thread guides {k} and {k + 1} overlap: no common tangent (their"
                          " distance is less than the difference of their signed radii)")
@@ -110,7 +113,9 @@ def guide_radii(machine: Machine) -> np.ndarray:
 def thread_path(machine: Machine, phi: ArrayLike, *, params=None, inputs=None,
                 on_failure: str = "raise") -> ThreadPath:
     """Lengths of the machine's thread path at shaft angles ``phi`` (rad) for one design or a
-    batch (``params``). The supply is taken over the given angles: pass a full cycle."""
+    batch (``params``). The supply is taken over the given angles: pass a full cycle.
+    ``on_failure="mask"``: designs that cannot be assembled, or whose guides overlap, give NaN.
+    """
     t = _thread_spec(machine)
     names = [g.point for g in t.guides]
     unique = list(dict.fromkeys(names))
@@ -119,9 +124,10 @@ def thread_path(machine: Machine, phi: ArrayLike, *, params=None, inputs=None,
     pos = np.stack([r.point(nm).p for nm in names], axis=-2)  # batch + (n_phi, n_guides, 2)
     rho = guide_radii(machine)
     i0, i1 = t.take_up
-    total = path_length(pos, rho)
-    tu = path_length(pos[..., i0:i1 + 1, :], rho[i0:i1 + 1])
-    below = path_length(pos[..., i1:, :], rho[i1:])
+    mode = "nan" if on_failure == "mask" else "raise"
+    total = path_length(pos, rho, on_overlap=mode)
+    tu = path_length(pos[..., i0:i1 + 1, :], rho[i0:i1 + 1], on_overlap=mode)
+    below = path_length(pos[..., i1:, :], rho[i1:], on_overlap=mode)
     return ThreadPath(np.degrees(np.asarray(phi, dtype=float)), total, tu,
                       tu.max(axis=-1, keepdims=True) - tu, below)
 
@@ -190,7 +196,7 @@ class ThreadBalance:
     loop: np.ndarray
     demand: np.ndarray
     overfeed: np.ndarray
-    take_up_top_deg: float
+    take_up_top_deg: float  # least supply: the take-up holds the most thread (stitch set)
     seizure_deg: float
     cast_off_deg: float
     loop_max_deg: float
@@ -215,9 +221,9 @@ class ThreadBalance:
 
     @property
     def reserve_after_cast_off(self) -> float:
-        """Overfeed just after cast-off: the slack the take-up still pulls in while rising to
-        its top; it must cover the thread the stitch consumes (mm)."""
-        return self._at(self.overfeed, self.cast_off_deg + 1e-6)
+        """Overfeed once the loop is cast off: the slack the take-up still pulls in while
+        rising to its top; it must cover the thread the stitch consumes (mm)."""
+        return self._at(self.overfeed, self.cast_off_deg)
 
     def to_pandas(self):
         import pandas as pd
@@ -272,11 +278,32 @@ def thread_balance(machine: Machine, *, stitch_mm: float = 2.5, fabric_mm: float
     over = tp.supply - demand
     h = 360.0 / n
     off = np.nonzero(np.roll(drawing, -k_s) == 0)[0]
-    k_c = (k_s + int(off[0]) - 1) % n if off.size else (k_s - 1) % n
-    loop_grow = np.roll(loop, -k_s)[: (k_c - k_s) % n + 1]
+    k_c = (k_s + int(off[0])) % n if off.size else k_s  # first angle with the loop cast off
+    loop_grow = np.roll(loop, -k_s)[: max(1, (k_c - k_s) % n)]
     k_m = (k_s + int(np.argmax(loop_grow))) % n
     entry = T.needle_windows(machine, params)[0].start_deg
     return ThreadBalance(np.arange(n) * h, tp.supply, tp.below, pen, loop, demand, over,
                          k_top * h, ll.phi_deg, k_c * h, k_m * h, entry, float(stitch_mm), fabric,
                          float(consumption_per_stitch(stitch_mm, fabric, t.thread_diameter)
                                ["needle"]))
+
+
+def check_thread(machine: Machine, balance: ThreadBalance | None = None) -> list:
+    """The thread-balance checks of DOMAIN.md 2.3 as :class:`sewmech.timing.Check` rows."""
+    from .timing import Check
+
+    b = thread_balance(machine) if balance is None else balance
+    out = []
+    v = b.min_overfeed_while_loop_grows
+    out.append(Check("least overfeed while the shuttle enlarges the loop", v, "mm",
+                     ">= 0 (no thread pulled through the tension)", v >= 0.0, "DOMAIN.md 2.3"))
+    v = b.overfeed_at_needle_entry
+    out.append(Check("overfeed when the needle eye enters the fabric", v, "mm",
+                     f"0-{CHECK_SPRING_STROKE_MM:g} (the check spring takes it)",
+                     0.0 <= v <= CHECK_SPRING_STROKE_MM,
+                     "DOMAIN.md 2.3; check-spring stroke: DOMAIN.md 2.2 item 5 (Juki LK-1900B)"))
+    v = b.reserve_after_cast_off
+    out.append(Check("take-up reserve once the loop is cast off", v, "mm",
+                     f">= {b.consumption_mm:.2f} (the needle thread one stitch consumes)",
+                     v >= b.consumption_mm, "DOMAIN.md 2.3 (stitch set, l + t drawn per cycle)"))
+    return out
