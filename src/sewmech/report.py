@@ -309,7 +309,8 @@ def _feed_section(figs: _Figures, machine: Machine, step) -> dict:
     marks = FD.scale_marks(machine, 0.5)
     by_len = {m.stitch_mm: m.regulator_deg for m in marks}
     longest = min(max(by_len), -min(by_len))
-    wanted = sorted({k * round(longest) / 2.0 for k in (-2, -1, 0, 1, 2)} & set(by_len))
+    half = 0.5 * round(longest)  # a mark near the middle (marks are every 0.5 mm)
+    wanted = sorted({-longest, -half, 0.0, half, longest} & set(by_len))
     regs = np.array([by_len[w] for w in wanted])
     c = FD.feed_cycles(machine, regs)
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.6), constrained_layout=True)
