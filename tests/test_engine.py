@@ -345,3 +345,29 @@ def test_threaded_kernel_equals_serial(rng, monkeypatch, loop):
     for name in ("p", "v", "a", "theta", "omega", "epsilon", "q", "feasible", "failure_unit",
                  "loop_residual"):
         np.testing.assert_array_equal(getattr(threaded, name), getattr(serial, name))
+
+
+def test_only_the_units_an_output_needs_are_solved():
+    """Asking for a few outputs evaluates only the units they depend on: the values are bit for
+    bit those of the full evaluation, and a unit outside the chain cannot fail the call."""
+    m = sewmech.load_machine("jb1-3")
+    phi = np.radians(np.arange(0.0, 360.0, 10.0))
+    full = sewmech.kinematics(m, phi)
+    part = sewmech.kinematics(m, phi, points=["needle.eye"], links=["take_up_lever"],
+                              variables=["needle_bar"])
+    for name in ("p_needle.eye_x", "v_needle.eye_y", "a_needle.eye_y", "theta_take_up_lever",
+                 "epsilon_take_up_lever", "qdd_needle_bar"):
+        assert np.array_equal(part.channel(name)[0], full.channel(name)[0]), name
+    rows = m.selection(["needle.eye"], [], [])[-1]
+    assert {m.unit_names[m.kernel_unit_of_row[r]] for r in rows if m.kernel_unit_of_row[r] >= 0} \
+        == {"needle_crank", "needle_bar", "needle"}
+    # a feed that cannot be assembled (lift crank pad far above the eccentric) fails only the
+    # calls that need the feed
+    p = m.parameters({"lift.cam.3.length": 40.0})
+    r = sewmech.kinematics(m, phi, params=p, points=["needle.eye"], links=[], variables=[])
+    assert r.all_feasible
+    with pytest.raises(sewmech.ConvergenceError, match="lift"):
+        sewmech.kinematics(m, phi, params=p, points=["feed_dog.tip"], links=[], variables=[])
+    masked = sewmech.kinematics(m, phi, params=p, on_failure="mask")
+    assert not masked.feasible.any()
+    assert {masked.unit_names[u] for u in np.unique(masked.failure_unit)} == {"lift"}

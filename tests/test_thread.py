@@ -192,7 +192,7 @@ def test_thread_checks_from_the_balance(jb):
         b.overfeed[grow].min())
     assert np.count_nonzero(~loop_on[grow]) <= 1  # the loop exists all through it (0 at seizure)
     k_e = np.argmin(np.abs((b.phi_deg - b.needle_entry_deg + 180) % 360 - 180))
-    assert c["overfeed when the needle eye enters the fabric"].value == pytest.approx(
+    assert c["overfeed when the needle enters the fabric"].value == pytest.approx(
         b.overfeed[k_e], abs=0.3)  # within half a degree of the entry
     first_off = (k_max + 1) % len(b.phi_deg)
     assert b.loop[first_off] == 0.0

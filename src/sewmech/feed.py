@@ -63,16 +63,32 @@ def _herm(y0, y1, m0, m1, h, t):
 
 def _herm_root(y0, y1, m0, m1, h):
     """Fraction t in [0, 1] where the Hermite interpolant crosses zero (y0, y1 of opposite sign
-    or zero); bisection, 52 halvings = machine precision of the interval."""
-    lo = np.zeros_like(y0)
-    hi = np.ones_like(y0)
-    s0 = np.sign(y0)
-    for _ in range(52):
-        mid = 0.5 * (lo + hi)
-        same = np.sign(_herm(y0, y1, m0, m1, h, mid)) == s0
-        lo = np.where(same, mid, lo)
-        hi = np.where(same, hi, mid)
-    return np.where(y0 == 0.0, 0.0, 0.5 * (lo + hi))
+    or zero). Newton from the chord's root; any interval where Newton leaves [0, 1] or does not
+    settle is bisected (52 halvings: machine precision of the interval)."""
+    y0, y1, m0, m1 = (np.asarray(a, dtype=float) for a in (y0, y1, m0, m1))
+    den = y0 - y1
+    t = np.clip(np.divide(y0, den, out=np.zeros_like(y0), where=den != 0.0), 0.0, 1.0)
+    for _ in range(8):
+        t2 = t * t
+        f = _herm(y0, y1, m0, m1, h, t)
+        df = ((6 * t2 - 6 * t) * (y0 - y1) + (3 * t2 - 4 * t + 1) * h * m0
+              + (3 * t2 - 2 * t) * h * m1)
+        step = np.divide(f, df, out=np.zeros_like(f), where=df != 0.0)
+        t = t - step
+    scale = np.maximum(np.abs(y0), np.abs(y1))
+    bad = ~((t >= 0.0) & (t <= 1.0)) | ~(np.abs(_herm(y0, y1, m0, m1, h, t)) <= 1e-12 * scale)
+    if bad.any():
+        a, b, c, d = y0[bad], y1[bad], m0[bad], m1[bad]
+        lo = np.zeros_like(a)
+        hi = np.ones_like(a)
+        s0 = np.sign(a)
+        for _ in range(52):
+            mid = 0.5 * (lo + hi)
+            same = np.sign(_herm(a, b, c, d, h, mid)) == s0
+            lo = np.where(same, mid, lo)
+            hi = np.where(same, hi, mid)
+        t[bad] = 0.5 * (lo + hi)
+    return np.where(y0 == 0.0, 0.0, t)
 
 
 def _crossings(f, df, h):

@@ -44,31 +44,34 @@ def rpm_to_rad_s(rpm: float) -> float:
 
 
 def _march(phi: np.ndarray, start: float, max_step: float):
-    """Continuation path from the assembly angle through every requested angle (forward)."""
+    """Continuation path from the assembly angle through every requested angle (forward).
+
+    Returns (march angles, output row of each march step or -1 for an intermediate step, index
+    into phi of the step's shaft speed). Gaps wider than max_step are split evenly.
+    """
     offsets = np.mod(phi - start, 2.0 * math.pi)
     order = np.argsort(offsets, kind="stable")
-    march: list[float] = []
-    store: list[int] = []
-    where: list[int] = []  # index into phi for omega lookup
-    last = 0.0
-    if offsets[order[0]] > 0.0:
-        march.append(start)
-        store.append(-1)
-        where.append(int(order[0]))
-    for i in order:
-        target = offsets[i]
-        gap = target - last
-        if march and gap > max_step:
-            n_sub = int(math.ceil(gap / max_step))
-            for k in range(1, n_sub):
-                march.append(start + last + gap * k / n_sub)
-                store.append(-1)
-                where.append(int(i))
-        march.append(start + target)
-        store.append(int(i))
-        where.append(int(i))
-        last = target
-    return np.asarray(march), np.asarray(store, dtype=np.int64), np.asarray(where, dtype=np.int64)
+    targets = offsets[order]
+    gaps = np.diff(targets, prepend=0.0)
+    # steps per requested angle: the gap split into ceil(gap / max_step) equal parts
+    n_sub = np.maximum(1, np.ceil(gaps / max_step - 1e-12).astype(np.int64))
+    lead = targets[0] > 0.0  # the march starts at the assembly angle itself
+    if lead:
+        n_sub[0] = max(1, int(n_sub[0]))
+    else:
+        n_sub[0] = 1
+    idx = np.repeat(np.arange(len(targets)), n_sub)  # the requested angle each step leads to
+    first = np.cumsum(n_sub) - n_sub  # position of each group's first step
+    k = np.arange(idx.size) - first[idx] + 1  # 1 .. n_sub within a group
+    prev = np.where(idx > 0, targets[np.maximum(idx - 1, 0)], 0.0)
+    march = start + prev + gaps[idx] * k / n_sub[idx]
+    store = np.where(k == n_sub[idx], order[idx], -1).astype(np.int64)
+    where = order[idx].astype(np.int64)
+    if lead:
+        march = np.concatenate([[start], march])
+        store = np.concatenate([[-1], store])
+        where = np.concatenate([[order[0]], where])
+    return march, store, where
 
 
 def kinematics(
@@ -110,8 +113,8 @@ def kinematics(
         "raise": an :class:`AssemblyError` names the unit and the crank angle of the first
         failure. "mask": return with ``feasible`` False (and NaN values) where it failed.
     points, links, variables : sequence of str, optional
-        Return only these (default: all). Large sweeps that need a few channels save the memory
-        and time of the rest; every unit is still solved.
+        Return only these (default: all). Only the units these outputs depend on are solved, so
+        large sweeps that need a few channels save the memory and time of the rest.
     max_step_deg : float
         Largest continuation step of the loop solver, degrees.
     tol : float
@@ -163,8 +166,9 @@ def kinematics(
     else:
         march, store = phi, np.arange(n_phi, dtype=np.int64)
         march_omega, march_eps = omega_arr, eps_arr
-    pt_names, pt_sel, lk_names, lk_sel, var_names, var_sel, need_th = machine.selection(
+    pt_names, pt_sel, lk_names, lk_sel, var_names, var_sel, need_th, rows = machine.selection(
         points, links, variables)
+    program = machine.program if len(rows) == len(machine.program) else machine.program[rows]
     var_units = tuple(machine.variable_units[i] for i in var_sel)
     n_pt, n_l, n_v = len(pt_sel), len(lk_sel), len(var_sel)
     n_g = machine.groups.shape[0]
@@ -181,7 +185,7 @@ def kinematics(
     fail_code = np.empty((n_design, n_phi), dtype=np.int64)
     loop_res = np.full((n_design, n_phi, n_g), np.nan) if n_g else np.empty((n_design, n_phi, 0))
     loop_worst = np.zeros((n_design, n_phi, n_g), dtype=np.int64)
-    args = (machine.program, flat, march, store, march_omega, march_eps, machine.groups,
+    args = (program, flat, march, store, march_omega, march_eps, machine.groups,
             machine.unknowns, machine.terms, machine.cams, machine.arcs,
             len(machine.point_names), len(machine.link_names), len(machine.variable_names), tol,
             max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD,
@@ -194,6 +198,8 @@ def kinematics(
         K.evaluate_program(*args)
     feasible = fail_unit < 0
     all_ok = feasible.all()
+    if not all_ok:  # fail_unit holds rows of the evaluated program: back to the machine's
+        fail_unit = np.where(fail_unit >= 0, rows[np.maximum(fail_unit, 0)], fail_unit)
     if on_failure == "raise" and not all_ok:
         _raise_first(machine, phi, store, batch, fail_unit, fail_code, loop_res, loop_worst)
     # fail_unit holds kernel rows; the result names units (fixed points have none: -1)

@@ -150,11 +150,68 @@ class Machine:
     def parameter_index(self, name: str) -> int:
         return self._index(self.parameter_names, name, "parameter")
 
+    @cached_property
+    def _row_io(self) -> list[tuple[set, set]]:
+        """(reads, writes) of every kernel row, as ("p" | "l" | "v", index) pairs."""
+        out = []
+        t, unk = self.terms, self.unknowns
+        for row in self.program:
+            op = int(row[0])
+            r: set = set()
+            w: set = set()
+            if op == K.OP_FIXED:
+                w = {("p", row[1])}
+            elif op == K.OP_CRANK:
+                w = {("l", row[1])}
+            elif op == K.OP_POINT:
+                r, w = {("l", row[2]), ("p", row[3])}, {("p", row[1])}
+            elif op == K.OP_RRR:
+                r, w = {("p", row[1]), ("p", row[2])}, {("p", row[3]), ("l", row[4]),
+                                                         ("l", row[5])}
+            elif op == K.OP_RRP:
+                r = {("p", row[1]), ("p", row[2]), ("l", row[3])}
+                w = {("p", row[4]), ("l", row[5]), ("l", row[6]), ("v", row[11])}
+            elif op == K.OP_RPR:
+                r, w = {("p", row[1]), ("p", row[2])}, {("l", row[3]), ("v", row[7])}
+                if row[4] >= 0:
+                    w.add(("l", row[4]))
+            else:  # a loop group: its unknowns, from its terms' known quantities
+                n, u0, _, t0, nt = (int(x) for x in self.groups[row[1]])
+                w = {("l" if unk[j, 0] == 0 else "v", unk[j, 1]) for j in range(u0, u0 + n)}
+                for term in t[t0:t0 + nt]:
+                    if term[0] == K.TERM_POINT:
+                        r.add(("p", term[4]))
+                        continue
+                    if term[0] == K.TERM_VEC and term[3] == K.SRC_VAR and term[10] < 0:
+                        r.add(("v", term[4]))
+                    if term[11] < 0:
+                        r.add(("l" if term[5] == K.SRC_LINK else "v", term[6]))
+                    if term[0] == K.TERM_CAM:
+                        cam = self.cams[term[8]]
+                        r |= {("l", cam[0]), ("p", cam[1])}
+            out.append(({(k, int(i)) for k, i in r}, {(k, int(i)) for k, i in w}))
+        return out
+
+    def rows_for(self, pt_sel, lk_sel, var_sel) -> np.ndarray:
+        """Kernel rows (in solve order) that the given outputs depend on: only these run."""
+        need = ({("p", int(i)) for i in pt_sel} | {("l", int(i)) for i in lk_sel}
+                | {("v", int(i)) for i in var_sel})
+        keep = []
+        for k in range(len(self._row_io) - 1, -1, -1):
+            reads, writes = self._row_io[k]
+            if writes & need:
+                keep.append(k)
+                need |= reads
+        rows = np.asarray(keep[::-1], dtype=np.int64)
+        rows.setflags(write=False)
+        return rows
+
     def selection(self, points=None, links=None, variables=None):
         """Names and indices of the returned points, links and joint variables (None: all).
 
-        Returns ``(pt_names, pt_sel, lk_names, lk_sel, var_names, var_sel, need_th)`` where
-        ``need_th`` marks the links whose angle the kernel must compute. Cached per selection:
+        Returns ``(pt_names, pt_sel, lk_names, lk_sel, var_names, var_sel, need_th, rows)``
+        where ``need_th`` marks the links whose angle the kernel must compute and ``rows`` the
+        kernel rows the outputs depend on (the only ones evaluated). Cached per selection:
         optimisation loops call kinematics thousands of times with the same selection.
         """
         key = tuple(None if w is None else (w,) if isinstance(w, str) else tuple(w)
@@ -174,6 +231,7 @@ class Machine:
         need[out[3]] = True
         need.setflags(write=False)
         out.append(need)
+        out.append(self.rows_for(out[1], out[3], out[5]))
         self._selections[key] = hit = tuple(out)
         return hit
 

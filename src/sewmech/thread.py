@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .feed import _crossings as _grid_crossings
 from .kinematics import kinematics
 from .machine import Machine
 
@@ -116,20 +117,23 @@ def thread_path(machine: Machine, phi: ArrayLike, *, params=None, inputs=None,
     batch (``params``). The supply is taken over the given angles: pass a full cycle.
     ``on_failure="mask"``: designs that cannot be assembled, or whose guides overlap, give NaN.
     """
-    t = _thread_spec(machine)
-    names = [g.point for g in t.guides]
-    unique = list(dict.fromkeys(names))
-    r = kinematics(machine, phi, params=params, inputs=inputs, points=unique, links=[],
+    names = list(dict.fromkeys(g.point for g in _thread_spec(machine).guides))
+    r = kinematics(machine, phi, params=params, inputs=inputs, points=names, links=[],
                    variables=[], on_failure=on_failure)
-    pos = np.stack([r.point(nm).p for nm in names], axis=-2)  # batch + (n_phi, n_guides, 2)
+    return _path_of(machine, r, on_failure)
+
+
+def _path_of(machine: Machine, r, on_failure: str = "raise") -> ThreadPath:
+    """The thread path from a kinematics result that holds every guide point."""
+    t = _thread_spec(machine)
+    pos = np.stack([r.point(g.point).p for g in t.guides], axis=-2)  # batch+(n_phi, n_guide, 2)
     rho = guide_radii(machine)
     i0, i1 = t.take_up
     mode = "nan" if on_failure == "mask" else "raise"
     total = path_length(pos, rho, on_overlap=mode)
     tu = path_length(pos[..., i0:i1 + 1, :], rho[i0:i1 + 1], on_overlap=mode)
     below = path_length(pos[..., i1:, :], rho[i1:], on_overlap=mode)
-    return ThreadPath(np.degrees(np.asarray(phi, dtype=float)), total, tu,
-                      tu.max(axis=-1, keepdims=True) - tu, below)
+    return ThreadPath(np.degrees(r.phi), total, tu, tu.max(axis=-1, keepdims=True) - tu, below)
 
 
 # ---- demand of the stitch-forming side, and the balance ------------------------------------------
@@ -251,39 +255,59 @@ def thread_balance(machine: Machine, *, stitch_mm: float = 2.5, fabric_mm: float
                          " the loop demand")
     fabric = s.fabric_thickness if fabric_mm is None else float(fabric_mm)
     n = round(360.0 / step_deg)
-    phi = np.arange(n) * (2.0 * math.pi / n)
-    tp = thread_path(machine, phi, params=params)
+    if n < 36 or abs(n * step_deg - 360.0) > 1e-9:
+        raise ValueError(f"step_deg must divide 360 into at least 36 steps, got {step_deg}")
+    h = 2.0 * math.pi / n
+    phi = np.arange(n) * h
     sp = T._need(s.shuttle_point, "shuttle_point", machine)
+    link = T._need(s.shuttle_link, "shuttle_link", machine)
     axis = T._shuttle_axis(machine)
-    r = kinematics(machine, phi, params=params, points=[s.needle_eye, sp, axis],
-                   links=[T._need(s.shuttle_link, "shuttle_link", machine)], variables=[])
+    guides = [g.point for g in t.guides]
+    pts = list(dict.fromkeys(guides + [s.needle_point, s.needle_eye, sp, axis]))
+    # one pass at omega = 1 rad/s: velocities are d/dphi, for the events on the grid
+    r = kinematics(machine, phi, params=params, points=pts, links=[link], variables=[],
+                   omega=1.0)
+    tp = _path_of(machine, r)
     eye = r.point(s.needle_eye).p
-    top = s.plate_y + fabric
-    pen = np.maximum(0.0, top - eye[:, 1])
-    # the loop: from the needle hole in the plate round the bobbin case to the shuttle point
-    ll = T.loop_lift(machine, params)
-    seize = math.radians(ll.phi_deg)
-    theta = np.unwrap(r.link(s.shuttle_link).theta)
-    k_s = int(round(seize / (2 * math.pi / n))) % n
-    turned = np.abs(np.unwrap(np.roll(theta, -k_s)) - theta[k_s])  # shuttle turn since seizure
+    pen = np.maximum(0.0, s.plate_y + fabric - eye[:, 1])
+    # seizure: after the needle's bottom dead centre, the shuttle point first crosses the
+    # needle line above its shaft axis (the definition of sewmech.timing.loop_lift)
+    needle = r.point(s.needle_point)
+    k_bdc = int(np.argmin(needle.p[:, 1]))
+    x_line = needle.p[k_bdc, 0]
+    spm = r.point(sp)
+    above = spm.p[:, 1] > r.point(axis).p[:, 1]
+    seize = None
+    for ph, _, k, _ in zip(*_grid_crossings(spm.p[:, 0] - x_line, spm.v[:, 0], h)):
+        if above[k] and (ph - phi[k_bdc]) % (2 * math.pi) < 2 * math.pi - 1e-12:
+            lag = (ph - phi[k_bdc]) % (2 * math.pi)
+            if seize is None or lag < seize[1]:
+                seize = (ph, lag)
+    if seize is None:
+        raise ValueError(f"machine '{machine.name}': the shuttle point never passes the needle"
+                         " line above its axis")
+    k_s = int(math.ceil(seize[0] / h - 1e-9)) % n  # first grid angle with the loop seized
+    theta = np.unwrap(np.roll(r.link(link).theta, -k_s))
+    turned = np.abs(theta - theta[0])  # shuttle turn since seizure
     drawing = np.roll(np.maximum.accumulate(turned) < math.radians(t.cast_off_deg), k_s)
-    hole = np.array([eye[:, 0].mean(), s.plate_y])
-    legs = _taut_round_circle(hole, r.point(axis).p, t.bobbin_case_radius, r.point(sp).p)
-    leg0 = float(_taut_round_circle(hole, r.point(axis).p[k_s], t.bobbin_case_radius,
-                                    r.point(sp).p[k_s]))
-    loop = np.where(drawing, 2.0 * (legs - leg0), 0.0)
+    # the loop: from the needle hole in the plate round the bobbin case to the shuttle point
+    hole = np.array([x_line, s.plate_y])
+    legs = _taut_round_circle(hole, r.point(axis).p, t.bobbin_case_radius, spm.p)
+    loop = np.where(drawing, 2.0 * (legs - legs[k_s]), 0.0)
     raw = tp.below + pen + loop
     k_top = int(np.argmin(tp.supply))
     demand = raw - raw[k_top]
-    over = tp.supply - demand
-    h = 360.0 / n
-    off = np.nonzero(np.roll(drawing, -k_s) == 0)[0]
+    off = np.nonzero(~np.roll(drawing, -k_s))[0]
     k_c = (k_s + int(off[0])) % n if off.size else k_s  # first angle with the loop cast off
-    loop_grow = np.roll(loop, -k_s)[: max(1, (k_c - k_s) % n)]
-    k_m = (k_s + int(np.argmax(loop_grow))) % n
-    entry = T.needle_windows(machine, params)[0].start_deg
-    return ThreadBalance(np.arange(n) * h, tp.supply, tp.below, pen, loop, demand, over,
-                         k_top * h, ll.phi_deg, k_c * h, k_m * h, entry, float(stitch_mm), fabric,
+    k_m = (k_s + int(np.argmax(np.roll(loop, -k_s)[: max(1, (k_c - k_s) % n)]))) % n
+    # needle entry: the needle point passes the fabric's top going down
+    ph, d, _, _ = _grid_crossings(needle.p[:, 1] - (s.plate_y + fabric), needle.v[:, 1], h)
+    if not (d < 0).any():
+        raise ValueError(f"machine '{machine.name}': the needle never enters the fabric")
+    deg = 360.0 / n
+    return ThreadBalance(np.arange(n) * deg, tp.supply, tp.below, pen, loop, demand,
+                         tp.supply - demand, k_top * deg, math.degrees(seize[0]), k_c * deg,
+                         k_m * deg, math.degrees(float(ph[d < 0][0])), float(stitch_mm), fabric,
                          float(consumption_per_stitch(stitch_mm, fabric, t.thread_diameter)
                                ["needle"]))
 
@@ -298,7 +322,7 @@ def check_thread(machine: Machine, balance: ThreadBalance | None = None) -> list
     out.append(Check("least overfeed while the shuttle enlarges the loop", v, "mm",
                      ">= 0 (no thread pulled through the tension)", v >= 0.0, "DOMAIN.md 2.3"))
     v = b.overfeed_at_needle_entry
-    out.append(Check("overfeed when the needle eye enters the fabric", v, "mm",
+    out.append(Check("overfeed when the needle enters the fabric", v, "mm",
                      f"0-{CHECK_SPRING_STROKE_MM:g} (the check spring takes it)",
                      0.0 <= v <= CHECK_SPRING_STROKE_MM,
                      "DOMAIN.md 2.3; check-spring stroke: DOMAIN.md 2.2 item 5 (Juki LK-1900B)"))
