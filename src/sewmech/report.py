@@ -433,7 +433,7 @@ def _thread_section(figs: _Figures, machine: Machine):
         a.grid(True, alpha=0.3)
     bx.legend(fontsize=7, loc="upper left")
     fig.suptitle(f"{machine.name}: needle-thread balance, stitch {b.stitch_mm:g} mm, fabric"
-                 f" {b.fabric_mm:g} mm\n(dashed: the needle eye enters the fabric; dotted: least"
+                 f" {b.fabric_mm:g} mm\n(dashed: the needle enters the fabric; dotted: least"
                  " supply, the stitch is set)")
     table = pd.DataFrame([{"check": c.name, "value": c.value, "unit": c.unit,
                            "expected": c.expected, "result": "pass" if c.passed else "FAIL",
