@@ -198,3 +198,36 @@ def test_thread_checks_from_the_balance(jb):
     assert b.loop[first_off] == 0.0
     assert c["take-up reserve once the loop is cast off"].value == pytest.approx(
         b.overfeed[first_off])
+
+
+def test_adjustable_take_up_against_single_balances(jb):
+    """Each recommended setting, evaluated on its own with thread_balance and check_thread,
+    passes every check, with the smallest slack equal to the reported margin; a setting next to
+    it has no larger margin."""
+    from sewmech.thread import CHECK_SPRING_STROKE_MM, adjust_take_up, check_thread, \
+        thread_balance
+
+    settings = np.linspace(24.0, 38.0, 29)
+    r = adjust_take_up(jb, "Q.y", settings, thickness_mm=[0.5, 2.0, 5.0])
+    assert np.all(np.diff(r.best) > 0)  # thicker fabric: the pivot goes up
+
+    def slack(t, q):
+        p = jb.parameters({"Q.y": q})
+        b = thread_balance(jb, fabric_mm=t, params=p)
+        c = {x.name: x for x in check_thread(jb, b)}
+        o_e = c["overfeed when the needle enters the fabric"].value
+        return b, c, min(c["least overfeed while the shuttle enlarges the loop"].value, o_e,
+                         CHECK_SPRING_STROKE_MM - o_e,
+                         c["take-up reserve once the loop is cast off"].value - b.consumption_mm)
+
+    for t, q, m in zip(r.thickness_mm, r.best, r.best_margin):
+        b, c, s = slack(t, q)
+        assert all(x.passed for x in c.values()), (t, q)
+        assert s == pytest.approx(m, abs=1e-9)
+        j = int(np.nonzero(settings == q)[0][0])
+        for k in (j - 1, j + 1):
+            if 0 <= k < settings.size:
+                try:
+                    assert slack(t, settings[k])[2] <= m + 1e-9
+                except sewmech.AssemblyError:  # the take-up does not assemble there:
+                    assert np.isnan(r.margin[list(r.thickness_mm).index(t), k])  # masked

@@ -449,6 +449,12 @@ class _Compiler:
         if spec.thread is not None:
             for k, g in enumerate(spec.thread.guides):
                 self.known_point("thread", f"guides[{k}].point", g.point)
+            adj = spec.thread.adjust
+            if adj is not None and adj.parameter not in self.pnames:
+                close = difflib.get_close_matches(adj.parameter, self.pnames, n=3)
+                hint = f" Did you mean {', '.join(close)}?" if close else ""
+                raise self.err("thread.adjust", "parameter",
+                               f"unknown parameter '{adj.parameter}'.{hint}")
         names = [u.name for u in spec.units]
         dup = {n for n in names if names.count(n) > 1}
         if dup:

@@ -445,6 +445,40 @@ def _thread_section(figs: _Figures, machine: Machine):
              " below are design diagnostics of the thread path, the take-up and the loop model"
              " (see the sewmech.thread documentation), separate from the machine-class checks.",
              b.to_pandas(), table=table)
+    if machine.spec.thread.adjust is not None:
+        _adjust_figure(figs, machine)
+
+
+def _adjust_figure(figs: _Figures, machine: Machine):
+    """The adjustable take-up: margin over (thickness, setting) and the recommended setting."""
+    import matplotlib.pyplot as plt
+
+    from . import thread as TH
+
+    adj = machine.spec.thread.adjust
+    r = TH.adjust_take_up(machine, adj.parameter, np.linspace(adj.min, adj.max, 57))
+    unit = machine.parameter_units[machine.parameter_index(adj.parameter)]
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    im = ax.pcolormesh(r.settings, r.thickness_mm, r.margin, cmap="RdYlGn", vmin=-5, vmax=5,
+                       shading="nearest")
+    ax.contour(r.settings, r.thickness_mm, r.margin, levels=[0.0], colors="k", linewidths=1)
+    ax.plot(r.best, r.thickness_mm, "o-", color="k", ms=3, label="recommended")
+    ax.set_xlabel(f"{adj.parameter} [{unit}]")
+    ax.set_ylabel("fabric thickness [mm]")
+    ax.set_title("margin to the balance checks [mm] (black line: 0)")
+    ax.legend(fontsize=7)
+    fig.colorbar(im, ax=ax)
+    bx.plot(r.thickness_mm, r.best, "o-")
+    bx.set_xlabel("fabric thickness [mm]")
+    bx.set_ylabel(f"recommended {adj.parameter} [{unit}]")
+    bx.grid(True, alpha=0.3)
+    bx.set_title("setting per thickness (gaps: no setting passes)")
+    data = pd.DataFrame(r.margin, columns=[f"{adj.parameter}={v:.4g}" for v in r.settings])
+    data.insert(0, "fabric_mm", r.thickness_mm)
+    figs.add(fig, "take-up-adjustment", "Adjustable take-up",
+             f"The take-up's adjustable dimension {adj.parameter} over its range against fabric"
+             " thickness: the margin to all the thread-balance checks, and the setting with the"
+             " largest margin for each thickness (table).", data, table=r.table())
 
 
 def _key_figures(m: Machine) -> dict:

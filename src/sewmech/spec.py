@@ -330,6 +330,22 @@ class GuideSpec(_Spec):
     note: str = ""
 
 
+class AdjustSpec(_Spec):
+    """``[thread.adjust]``: the take-up's adjustable dimension (a parameter name, e.g. the
+    rocker pivot's height on an eccentric stud) and its range, internal units (mm or rad)."""
+
+    parameter: str
+    min: float
+    max: float
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _range(self):
+        if not self.max > self.min:
+            raise ValueError(f"max {self.max} must be larger than min {self.min}")
+        return self
+
+
 class ThreadSpec(_Spec):
     """``[thread]``: the needle thread's path from the tension discs to the needle eye."""
 
@@ -339,6 +355,7 @@ class ThreadSpec(_Spec):
     thread_diameter: NonNegativeFloat = 0.0  # mm
     bobbin_case_radius: PositiveFloat | None = None  # mm, about the shuttle axis: the loop's way
     cast_off_deg: PositiveFloat = 180.0  # shuttle turn from seizure to casting the loop off
+    adjust: AdjustSpec | None = None
     note: str = ""
 
     @model_validator(mode="after")

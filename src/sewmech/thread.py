@@ -331,3 +331,76 @@ def check_thread(machine: Machine, balance: ThreadBalance | None = None) -> list
                      f">= {b.consumption_mm:.2f} (the needle thread one stitch consumes)",
                      v >= b.consumption_mm, "DOMAIN.md 2.3 (stitch set, l + t drawn per cycle)"))
     return out
+
+
+# ---- the adjustable take-up ------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TakeUpAdjustment:
+    """Setting of one adjustable take-up dimension against fabric thickness.
+
+    ``margin[i, j]`` (mm) is the smallest of the four slacks of the balance checks for thickness
+    i at setting j: least overfeed while the loop grows, overfeed at needle entry, room left in
+    the check spring, reserve after cast-off beyond the consumption; >= 0 means every check
+    passes. ``best`` is the setting with the largest margin per thickness (NaN if none passes).
+    """
+
+    parameter: str
+    thickness_mm: np.ndarray
+    settings: np.ndarray
+    margin: np.ndarray = field(repr=False)
+    best: np.ndarray
+    best_margin: np.ndarray
+
+    def table(self):
+        import pandas as pd
+
+        return pd.DataFrame({"fabric_mm": self.thickness_mm,
+                             f"recommended {self.parameter}": self.best,
+                             "margin_mm": self.best_margin})
+
+
+def adjust_take_up(machine: Machine, parameter: str, settings: ArrayLike, *,
+                   thickness_mm: ArrayLike = np.arange(0.5, 6.01, 0.5), stitch_mm: float = 2.5,
+                   step_deg: float = 0.5, params=None) -> TakeUpAdjustment:
+    """For each fabric thickness, the setting of ``parameter`` (a take-up dimension, internal
+    units) at which supply best matches demand: the largest margin to all the balance checks.
+
+    The demand does not depend on the take-up and the supply does not depend on the fabric, so
+    one batch of thread paths over the settings and one balance per thickness give the whole
+    (thickness x setting) table.
+    """
+    svals = np.asarray(settings, dtype=float)
+    tvals = np.asarray(thickness_mm, dtype=float)
+    base = np.array(machine.defaults if params is None else params, dtype=float)
+    i = machine.parameter_index(parameter)
+    P = np.repeat(base[None, :], svals.size, axis=0)
+    P[:, i] = svals
+    n = round(360.0 / step_deg)
+    phi = np.arange(n) * (2.0 * math.pi / n)
+    S = thread_path(machine, phi, params=P, on_failure="mask").supply  # (n_set, n)
+    ok = np.isfinite(S).all(axis=-1)
+    k_top = np.argmin(np.where(ok[:, None], S, np.inf), axis=-1)
+    margin = np.full((tvals.size, svals.size), np.nan)
+    for a, t in enumerate(tvals):
+        b = thread_balance(machine, stitch_mm=stitch_mm, fabric_mm=t, step_deg=step_deg,
+                           params=base)
+        raw = b.bar + b.penetration + b.loop
+        O = S - (raw[None, :] - raw[k_top][:, None])
+        grow = (b.phi_deg - b.seizure_deg) % 360 <= (b.loop_max_deg - b.seizure_deg) % 360
+        # at needle entry: linear between the grid angles, as ThreadBalance reads it
+        x = b.needle_entry_deg / step_deg
+        k0 = int(math.floor(x)) % n
+        w = x - math.floor(x)
+        o_e = (1.0 - w) * O[:, k0] + w * O[:, (k0 + 1) % n]
+        k_c = int(round(b.cast_off_deg / step_deg)) % n
+        m = np.minimum.reduce([O[:, grow].min(axis=-1), o_e, CHECK_SPRING_STROKE_MM - o_e,
+                               O[:, k_c] - b.consumption_mm])
+        margin[a] = np.where(ok, m, np.nan)
+    filled = np.where(np.isfinite(margin), margin, -np.inf)
+    j = np.argmax(filled, axis=-1)
+    best_margin = filled[np.arange(tvals.size), j]
+    best = np.where(best_margin >= 0.0, svals[j], np.nan)
+    return TakeUpAdjustment(parameter, tvals, svals, margin, best,
+                            np.where(np.isfinite(best_margin), best_margin, np.nan))
