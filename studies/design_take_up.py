@@ -12,7 +12,9 @@ each batch of designs on the thread balance of ``sewmech.thread`` (DOMAIN.md 2.3
 
 and on soundness: a take-up crank of at most 20 mm, the eye above the face-plate guides
 (y >= -35 mm), in front of the needle bar (x 10..80 mm) and moving mostly vertically (x travel
-<= 40 mm). A small weight on the largest overfeed keeps slack low.
+<= 40 mm), and a least transmission angle between lever and rocker of MU_MIN (default 25 deg;
+without it the search runs to the change-point four-bar, whose lever nearly locks). A small
+weight on the largest overfeed keeps slack low.
 
 Run: ``.venv/bin/python studies/design_take_up.py jb1-3 --seed 31 --lag-max 40`` (about a
 minute on two cores). Prints the dimensions and the balance figures; changes no file.
@@ -41,6 +43,7 @@ def main():
     ap.add_argument("machine")
     ap.add_argument("--seed", type=int, default=31)
     ap.add_argument("--lag-max", type=float, default=40.0)
+    ap.add_argument("--mu-min", type=float, default=25.0, help="least transmission angle, deg")
     args = ap.parse_args()
     m = sewmech.load_machine(args.machine)
     b0 = thread_balance(m, step_deg=STEP_DEG)  # the demand does not depend on the take-up
@@ -55,14 +58,19 @@ def main():
     def evaluate(X):
         P = m.parameters({k: X[:, i] for i, k in enumerate(NAMES)})
         tp = thread_path(m, phi, params=P, on_failure="mask")
-        eye = sewmech.kinematics(m, phi, params=P, points=["take_up.eye"], links=[],
-                                 variables=[], on_failure="mask").point("take_up.eye").p
-        return tp.supply, eye
+        r = sewmech.kinematics(m, phi, params=P, points=["take_up.eye"],
+                               links=["take_up_lever", "take_up_rocker"], variables=[],
+                               on_failure="mask")
+        rel = np.abs(np.angle(np.exp(1j * (r.link("take_up_lever").theta
+                                           - r.link("take_up_rocker").theta))))
+        mu = np.degrees(np.minimum(rel, np.pi - rel)).min(axis=-1)  # least transmission angle
+        return tp.supply, r.point("take_up.eye").p, mu
 
     def score(XT):
         X = np.atleast_2d(XT.T)
-        S, eye = evaluate(X)
-        ok = np.all(np.isfinite(S), axis=-1) & np.all(np.isfinite(eye[..., 1]), axis=-1)
+        S, eye, mu = evaluate(X)
+        ok = (np.all(np.isfinite(S), axis=-1) & np.all(np.isfinite(eye[..., 1]), axis=-1)
+              & np.isfinite(mu))
         S = np.where(ok[:, None], S, 0.0)
         ex = np.where(ok[:, None], eye[..., 0], 50.0)
         ey = np.where(ok[:, None], eye[..., 1], 0.0)
@@ -80,6 +88,7 @@ def main():
         f += 5 * np.maximum(0, -35.0 - ey.min(axis=-1))
         f += 5 * np.maximum(0, 10.0 - ex.min(axis=-1)) + 5 * np.maximum(0, ex.max(axis=-1) - 80.0)
         f += 5 * np.maximum(0, np.ptp(ex, axis=-1) - 40.0)
+        f += 5 * np.maximum(0, args.mu_min - np.where(ok, mu, 0.0))
         f[~ok] = 1e6
         return f
 
@@ -97,7 +106,8 @@ def main():
     print(f"  least overfeed while the loop grows {b.min_overfeed_while_loop_grows:.2f} mm,"
           f" at needle entry {b.overfeed_at_needle_entry:.2f} mm, reserve after cast-off"
           f" {b.reserve_after_cast_off:.1f} mm, thread stroke {np.ptp(b.supply):.1f} mm")
-    print(f"  eye top after needle top: {sewmech.timing.take_up_lag_deg(m, P):.1f} deg")
+    print(f"  eye top after needle top: {sewmech.timing.take_up_lag_deg(m, P):.1f} deg;"
+          f" least transmission angle {float(evaluate(x[None, :])[2][0]):.1f} deg")
 
 
 if __name__ == "__main__":

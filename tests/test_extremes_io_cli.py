@@ -113,7 +113,7 @@ def test_cli_report_writes_page_figures_and_tables(tmp_path):
     assert out.exit_code == 0, out.stdout
     page = (out_dir / "index.html").read_text()
     checks = pd.read_csv(out_dir / "jb1-3-checks.csv")
-    assert f"All {len(checks)} checks pass" in page and len(checks) == 10
+    assert f"All {len(checks)} checks pass" in page and len(checks) == 11
     figures = ("motion", "eye-path", "timing-diagram", "feed-trajectories", "stitch-curve",
                "feed-sensitivity", "thread-balance", "take-up-adjustment", "comparison")
     assert page.count("data:image/png;base64,") == len(figures)

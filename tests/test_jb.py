@@ -140,3 +140,18 @@ def test_every_channel_continuous(jb):
         if name.split("_")[0] in ("a", "epsilon", "qdd") or name == "qd_fork_on_cam":
             d = np.delete(d, switches)
         assert np.abs(d).max() < 0.05 * span + 1e-9, name
+
+
+def test_needle_descent_at_take_up_top_against_a_grid(jb):
+    phi = np.radians(np.arange(0.0, 360.0, 0.01))
+    r = sewmech.kinematics(jb, phi, points=["needle.point", "take_up.eye"], links=[],
+                           variables=[])
+    y_n = r.point("needle.point").p[:, 1]
+    y_e = r.point("take_up.eye").p[:, 1]
+    k = int(np.argmax(y_e))
+    # the eye's top between grid points: the vertex of the parabola through three samples
+    f = 0.5 * (y_e[k - 1] - y_e[k + 1]) / (y_e[k - 1] - 2 * y_e[k] + y_e[k + 1])
+    d = y_n.max() - np.interp(k + f, np.arange(len(y_n)), y_n)
+    assert T.needle_descent_at_take_up_top(jb) == pytest.approx(d, abs=1e-4)
+    c = {x.name: x for x in T.check_timing(jb)}["needle descent when the take-up eye is at its top"]
+    assert c.passed and 1.5 <= d <= 6.0

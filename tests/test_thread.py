@@ -207,12 +207,14 @@ def test_adjustable_take_up_against_single_balances(jb):
     from sewmech.thread import CHECK_SPRING_STROKE_MM, adjust_take_up, check_thread, \
         thread_balance
 
-    settings = np.linspace(24.0, 38.0, 29)
-    r = adjust_take_up(jb, "Q.y", settings, thickness_mm=[0.5, 2.0, 5.0])
-    assert np.all(np.diff(r.best) > 0)  # thicker fabric: the pivot goes up
+    adj = jb.spec.thread.adjust
+    settings = np.linspace(adj.min, adj.max, 29)
+    r = adjust_take_up(jb, adj.parameter, settings, thickness_mm=[0.5, 2.0, 5.0])
+    assert np.isfinite(r.best).all()
+    assert np.all(np.diff(r.best) != 0)  # the setting follows the fabric
 
     def slack(t, q):
-        p = jb.parameters({"Q.y": q})
+        p = jb.parameters({adj.parameter: q})
         b = thread_balance(jb, fabric_mm=t, params=p)
         c = {x.name: x for x in check_thread(jb, b)}
         o_e = c["overfeed when the needle enters the fabric"].value

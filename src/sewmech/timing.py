@@ -25,6 +25,8 @@ from .spec import SewingSpec
 
 SHUTTLE_SWING_DEG = (206.0, 210.0)  # DOMAIN.md 1.1
 LOOP_LIFT_MM = (2.0, 2.5)  # DOMAIN.md 3.1
+# DOMAIN.md 3.3: "a few millimeters (around 1/8 inch)"; read as 1.5-6 mm
+NEEDLE_DESCENT_AT_TAKE_UP_TOP_MM = (1.5, 6.0)
 
 
 def roles(machine: Machine) -> SewingSpec:
@@ -155,6 +157,15 @@ def shuttle_swing(machine: Machine, params=None) -> Swing:
     th = np.unwrap(kinematics(machine, np.linspace(a, b, 721), params=params).link(link).theta)
     return Swing(math.degrees(lo.value), lo.phi_deg % 360.0, math.degrees(hi.value),
                  hi.phi_deg % 360.0, abs(math.degrees(th[-1] - th[0])))
+
+
+def needle_descent_at_take_up_top(machine: Machine, params=None) -> float:
+    """How far (mm) the needle point has come down from its top when the take-up eye is at
+    its highest (DOMAIN.md 3.3: a few millimetres, about 1/8 in, on household machines)."""
+    eye = _need(roles(machine).take_up_eye, "take_up_eye", machine)
+    top = extremes(machine, f"p_{eye}_y", params=params).maximum
+    return needle_stroke(machine, params).top_y - _y(machine, roles(machine).needle_point,
+                                                     top.phi, params)
 
 
 def take_up_lag_deg(machine: Machine, params=None) -> float:
@@ -323,6 +334,11 @@ def check_timing(machine: Machine, params=None) -> list[Check]:
         lag = take_up_lag_deg(machine, params)
         out.append(Check("take-up eye top after needle top", lag, "deg", "> 0 (lags)", lag > 0.0,
                          "DOMAIN.md 3.3"))
+        d = needle_descent_at_take_up_top(machine, params)
+        lo, hi = NEEDLE_DESCENT_AT_TAKE_UP_TOP_MM
+        out.append(Check("needle descent when the take-up eye is at its top", d, "mm",
+                         f"{lo:g}-{hi:g} (a few mm, about 1/8 in)", lo <= d <= hi,
+                         "DOMAIN.md 3.3 (household machines)"))
     if s.feed_dog is not None and s.regulator is not None:
         from .feed import check_feed
 
