@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .feed import _crossings as _grid_crossings
+from ._events import crossings as _grid_crossings
 from .kinematics import kinematics
 from .machine import Machine
 
