@@ -76,7 +76,8 @@ class KinematicsResult:
     failure_unit : ndarray of int, shape batch + (n_phi,)
         Index into ``unit_names`` of the unit that failed, -1 where feasible.
     loop_residual : ndarray, shape batch + (n_phi, n_loop_units)
-        Max-norm of the loop-closure residual (mm) of each loop unit after Newton.
+        Max-norm of the loop-closure residual (mm) of each loop unit after Newton; NaN for a
+        loop unit that the requested outputs did not need (it was not solved).
     branches : dict[str, int]
         Assembly branch of each closed-form unit, as stated in the machine file.
     """
