@@ -358,6 +358,7 @@ def test_only_the_units_an_output_needs_are_solved():
     for name in ("p_needle.eye_x", "v_needle.eye_y", "a_needle.eye_y", "theta_take_up_lever",
                  "epsilon_take_up_lever", "qdd_needle_bar"):
         assert np.array_equal(part.channel(name)[0], full.channel(name)[0]), name
+    assert np.isnan(part.loop_residual).all() and np.isfinite(full.loop_residual).all()
     rows = m.selection(["needle.eye"], [], [])[-1]
     assert {m.unit_names[m.kernel_unit_of_row[r]] for r in rows if m.kernel_unit_of_row[r] >= 0} \
         == {"needle_crank", "needle_bar", "needle"}
