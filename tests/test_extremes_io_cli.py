@@ -115,7 +115,8 @@ def test_cli_report_writes_page_figures_and_tables(tmp_path):
     checks = pd.read_csv(out_dir / "jb1-3-checks.csv")
     assert f"All {len(checks)} checks pass" in page and len(checks) == 11
     figures = ("motion", "eye-path", "timing-diagram", "feed-trajectories", "stitch-curve",
-               "feed-sensitivity", "thread-balance", "take-up-adjustment", "comparison")
+               "feed-sensitivity", "thread-balance", "take-up-adjustment", "thread-consumption",
+               "comparison")
     assert page.count("data:image/png;base64,") == len(figures)
     assert "jb1-3 against jb8-2" in page  # the file's variant, side by side
     for fig in figures:

@@ -447,6 +447,37 @@ def _thread_section(figs: _Figures, machine: Machine):
              b.to_pandas(), table=table)
     if machine.spec.thread.adjust is not None:
         _adjust_figure(figs, machine)
+    _consumption_figure(figs, machine)
+
+
+def _consumption_figure(figs: _Figures, machine: Machine):
+    """Thread per stitch against stitch length and fabric thickness, with the industry formula."""
+    import matplotlib.pyplot as plt
+
+    from . import thread as TH
+
+    d = machine.spec.thread.thread_diameter
+    length = np.linspace(1.0, 4.0, 31)
+    fig, ax = plt.subplots(figsize=(7.5, 4.2), constrained_layout=True)
+    rows = []
+    for k, t in enumerate((0.5, 1.0, 2.0, 4.0, 6.0)):
+        c = TH.consumption_per_stitch(length, t, d)
+        ax.plot(length, c["total"], color=f"C{k}", lw=1.6, label=f"fabric {t:g} mm")
+        ax.plot(length, c["industry"], color=f"C{k}", lw=1, ls="--")
+        rows += [{"stitch_mm": l, "fabric_mm": t, "needle_mm": n, "bobbin_mm": b,
+                  "total_mm": tot, "industry_formula_mm": ind}
+                 for l, n, b, tot, ind in zip(length, c["needle"], c["bobbin"], c["total"],
+                                              c["industry"])]
+    ax.set_xlabel("stitch length [mm]")
+    ax.set_ylabel("needle + bobbin thread per stitch [mm]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    ax.set_title(f"{machine.name}: thread per stitch\n(solid: l + t + pi d/2 per thread,"
+                 f" d = {d:g} mm; dashed: C = 2 + 2TS)", fontsize=10)
+    figs.add(fig, "thread-consumption", "Thread consumption per stitch",
+             "Needle and bobbin thread of one balanced lockstitch against stitch length and"
+             " fabric thickness (DOMAIN.md 2.1), beside the industry formula C = 2 + 2TS per"
+             " inch of seam; the two differ by the thread-diameter term.", pd.DataFrame(rows))
 
 
 def _adjust_figure(figs: _Figures, machine: Machine):
