@@ -176,6 +176,11 @@ def test_balance_parts(jb):
     outside = (b.phi_deg - b.seizure_deg) % 360 > (b.cast_off_deg - b.seizure_deg) % 360 + 1
     assert np.all(b.loop[outside] == 0.0)
     assert b.consumption_mm == pytest.approx(2.5 + 1.0 + 0.1 * math.pi)
+    # events on the balance's own grid against the timing module's root finds (Brent)
+    from sewmech import timing as T
+
+    assert b.seizure_deg == pytest.approx(T.loop_lift(jb).phi_deg, abs=1e-6)
+    assert b.needle_entry_deg == pytest.approx(T.needle_windows(jb)[0].start_deg, abs=1e-6)
 
 
 def test_thread_checks_from_the_balance(jb):

@@ -46,35 +46,47 @@ def herm_root(y0, y1, m0, m1, h):
     return np.where(y0 == 0.0, 0.0, t)
 
 
-def crossings(f, df, h):
-    """All zero crossings of periodic samples f (n,) with slopes df: (phi in rad from grid 0,
-    direction +1 up / -1 down, interval index, fraction of the interval)."""
-    g = np.roll(f, -1)
-    gd = np.roll(df, -1)
-    k = np.nonzero(((f < 0) & (g >= 0)) | ((f > 0) & (g <= 0)))[0]
-    t = herm_root(f[k], g[k], df[k], gd[k], h)
-    return (k + t) * h, np.where(f[k] < 0, 1, -1), k, t
+def crossing_rows(F, DF, h):
+    """Zero crossings of periodic rows F (m, n) with slopes DF, as (m, n) arrays over the grid
+    intervals: phase (rad, NaN where the interval holds no crossing), direction (+1 up, -1 down,
+    0 none) and fraction t of the interval."""
+    G = np.roll(F, -1, axis=-1)
+    GD = np.roll(DF, -1, axis=-1)
+    mask = ((F < 0) & (G >= 0)) | ((F > 0) & (G <= 0))
+    t = np.zeros(F.shape)
+    t[mask] = herm_root(F[mask], G[mask], DF[mask], GD[mask], h)
+    k = np.arange(F.shape[-1])
+    phase = np.where(mask, (k + t) * h, np.nan)
+    direction = np.where(mask, np.where(F < 0, 1, -1), 0)
+    return phase, direction, t
 
 
-def at(values, slopes, k, t, h):
-    """Hermite value of periodic samples at interval k, fraction t."""
-    k1 = (k + 1) % values.shape[0]
-    return herm(values[k], values[k1], slopes[k], slopes[k1], h, t)
+def at_rows(V, S, k, t, h):
+    """Hermite values of periodic rows V (m, n) (slopes S) at interval k (m,), fraction t (m,)."""
+    r = np.arange(V.shape[0])
+    k1 = (k + 1) % V.shape[-1]
+    return herm(V[r, k], V[r, k1], S[r, k], S[r, k1], h, t)
 
 
-def extreme(values, slopes, curv, h, kind):
-    """Global max (kind=+1) or min (-1) of periodic samples, refined where the slope changes
-    sign next to the best grid point: (phi rad, value)."""
-    i = int(np.argmax(kind * values))
-    n = values.shape[0]
-    best = (i * h, values[i])
+def extreme_rows(V, S, C, h, kind):
+    """Global max (kind=+1) or min (-1) of each periodic row of V (m, n), refined on the
+    Hermite interpolant of its slope S (curvature C) in the two intervals next to the best grid
+    point: (phi rad, value), each (m,)."""
+    m, n = V.shape
+    r = np.arange(m)
+    i = np.argmax(kind * V, axis=-1)
+    phi = i * h
+    best = V[r, i].copy()
     for k in ((i - 1) % n, i):
         k1 = (k + 1) % n
-        s0, s1 = kind * slopes[k], kind * slopes[k1]
-        if s0 >= 0.0 >= s1 and s0 != s1:
-            t = float(herm_root(np.array([slopes[k]]), np.array([slopes[k1]]),
-                                 np.array([curv[k]]), np.array([curv[k1]]), h)[0])
-            v = float(at(values, slopes, np.array([k]), np.array([t]), h)[0])
-            if kind * v >= kind * best[1]:
-                best = ((k + t) * h, v)
-    return best
+        s0, s1 = kind * S[r, k], kind * S[r, k1]
+        ok = (s0 >= 0.0) & (s1 <= 0.0) & (s0 != s1)
+        if not ok.any():
+            continue
+        t = np.zeros(m)
+        t[ok] = herm_root(S[r, k][ok], S[r, k1][ok], C[r, k][ok], C[r, k1][ok], h)
+        v = at_rows(V, S, k, t, h)
+        better = ok & (kind * v >= kind * best)
+        best = np.where(better, v, best)
+        phi = np.where(better, (k + t) * h, phi)
+    return phi, best

@@ -24,9 +24,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import brentq
 
-from ._events import at as _at
-from ._events import crossings as _crossings
-from ._events import extreme as _extreme
+from ._events import at_rows as _at_rows
+from ._events import crossing_rows as _crossing_rows
+from ._events import extreme_rows as _extreme_rows
 from .kinematics import kinematics
 from .machine import Machine
 from .spec import SewingSpec
@@ -136,39 +136,13 @@ def feed_cycles(machine: Machine, regulator_deg: ArrayLike, *, params: ArrayLike
     AX = pm.a[..., 0].reshape(-1, n)
     AY = pm.a[..., 1].reshape(-1, n)
     ok = r.feasible.reshape(-1, n).all(axis=1)
-    out = {k: np.full(X.shape[0], np.nan) for k in ("stitch_mm", "lift_mm", "drop_mm", "top_deg",
-                                                     "rise_deg", "fall_deg", "stroke_mm",
-                                                     "mid_feed_deg")}
-    for d in np.nonzero(ok)[0]:
-        x, y, vx, vy = X[d], Y[d], VX[d], VY[d]
-        top, lift = _extreme(y, vy, AY[d], h, +1)
-        out["top_deg"][d] = math.degrees(top)
-        out["lift_mm"][d] = lift
-        out["drop_mm"][d] = _extreme(y, vy, AY[d], h, -1)[1]
-        xmax = _extreme(x, vx, AX[d], h, +1)[1]
-        xmin = _extreme(x, vx, AX[d], h, -1)[1]
-        out["stroke_mm"][d] = xmax - xmin
-        ph, dirn, k, t = _crossings(y, vy, h)
-        if not (dirn > 0).any():
-            continue  # never above the plate: no feed
-        # the window above the plate that contains the top of lift
-        ups = ph[dirn > 0]
-        downs = ph[dirn < 0]
-        rise = ups[np.argmin((top - ups) % (2 * math.pi))]
-        fall = downs[np.argmin((downs - top) % (2 * math.pi))]
-        ku, tu = k[dirn > 0][ups == rise], t[dirn > 0][ups == rise]
-        kd, td = k[dirn < 0][downs == fall], t[dirn < 0][downs == fall]
-        stitch = fwd * float(_at(x, vx, kd, td, h)[0] - _at(x, vx, ku, tu, h)[0])
-        out["rise_deg"][d] = math.degrees(rise)
-        out["fall_deg"][d] = math.degrees(fall)
-        out["stitch_mm"][d] = stitch
-        if stitch != 0.0:
-            pm_, dm_, _, _ = _crossings(x - 0.5 * (xmax + xmin), vx, h)
-            want = np.sign(stitch) * fwd
-            inside = ((pm_ - rise) % (2 * math.pi)) <= ((fall - rise) % (2 * math.pi))
-            sel = pm_[(dm_ == want) & inside]
-            if sel.size:
-                out["mid_feed_deg"][d] = math.degrees(sel[0])
+    nan = np.full(X.shape[0], np.nan)
+    out = {}
+    if ok.any():
+        out = _cycle_figures(X[ok], Y[ok], VX[ok], VY[ok], AX[ok], AY[ok], h, fwd)
+    out = {k: _scatter(nan, ok, out.get(k)) for k in ("stitch_mm", "lift_mm", "drop_mm",
+                                                       "top_deg", "rise_deg", "fall_deg",
+                                                       "stroke_mm", "mid_feed_deg")}
     shape = batch
     return FeedCycles(
         regulator_deg=np.broadcast_to(reg, shape).copy(),
@@ -178,6 +152,48 @@ def feed_cycles(machine: Machine, regulator_deg: ArrayLike, *, params: ArrayLike
         feasible=ok.reshape(shape),
         **{k: v.reshape(shape) for k, v in out.items()},
     )
+
+
+def _scatter(base, mask, values):
+    out = base.copy()
+    if values is not None:
+        out[mask] = values
+    return out
+
+
+def _cycle_figures(X, Y, VX, VY, AX, AY, h, fwd) -> dict:
+    """The feed figures of rows of tooth-tip samples (m, n), all rows at once."""
+    two_pi = 2.0 * math.pi
+    m = X.shape[0]
+    r = np.arange(m)
+    top, lift = _extreme_rows(Y, VY, AY, h, +1)
+    drop = _extreme_rows(Y, VY, AY, h, -1)[1]
+    xmax = _extreme_rows(X, VX, AX, h, +1)[1]
+    xmin = _extreme_rows(X, VX, AX, h, -1)[1]
+    ph, dirn, t = _crossing_rows(Y, VY, h)
+    # the window above the plate that contains the top of lift: the last rise before the top
+    # and the first drop after it
+    up_key = np.where(dirn > 0, (top[:, None] - ph) % two_pi, np.inf)
+    dn_key = np.where(dirn < 0, (ph - top[:, None]) % two_pi, np.inf)
+    has = np.isfinite(up_key).any(axis=1) & np.isfinite(dn_key).any(axis=1)
+    ku = np.argmin(up_key, axis=1)
+    kd = np.argmin(dn_key, axis=1)
+    rise = np.where(has, ph[r, ku], np.nan)
+    fall = np.where(has, ph[r, kd], np.nan)
+    x_rise = _at_rows(X, VX, ku, t[r, ku], h)
+    x_fall = _at_rows(X, VX, kd, t[r, kd], h)
+    stitch = np.where(has, fwd * (x_fall - x_rise), np.nan)
+    # mid-feed: the tip passes the middle of its stroke, moving with the stitch, while above
+    pm, dm, _ = _crossing_rows(X - 0.5 * (xmax + xmin)[:, None], VX, h)
+    want = (np.sign(stitch) * fwd)[:, None]
+    since_rise = (pm - rise[:, None]) % two_pi
+    inside = (dm == want) & (since_rise <= ((fall - rise) % two_pi)[:, None])
+    key = np.where(inside, since_rise, np.inf)
+    km = np.argmin(key, axis=1)
+    mid = np.where(np.isfinite(key[r, km]) & (stitch != 0.0), pm[r, km], np.nan)
+    return {"stitch_mm": stitch, "lift_mm": lift, "drop_mm": drop, "top_deg": np.degrees(top),
+            "rise_deg": np.degrees(rise), "fall_deg": np.degrees(fall),
+            "stroke_mm": xmax - xmin, "mid_feed_deg": np.degrees(mid)}
 
 
 def stitch_length(machine: Machine, regulator_deg: float, *, params=None) -> float:

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._events import crossings as _grid_crossings
+from ._events import crossing_rows as _crossing_rows
 from .kinematics import kinematics
 from .machine import Machine
 
@@ -277,16 +277,13 @@ def thread_balance(machine: Machine, *, stitch_mm: float = 2.5, fabric_mm: float
     x_line = needle.p[k_bdc, 0]
     spm = r.point(sp)
     above = spm.p[:, 1] > r.point(axis).p[:, 1]
-    seize = None
-    for ph, _, k, _ in zip(*_grid_crossings(spm.p[:, 0] - x_line, spm.v[:, 0], h)):
-        if above[k] and (ph - phi[k_bdc]) % (2 * math.pi) < 2 * math.pi - 1e-12:
-            lag = (ph - phi[k_bdc]) % (2 * math.pi)
-            if seize is None or lag < seize[1]:
-                seize = (ph, lag)
-    if seize is None:
+    ph = _crossing_rows((spm.p[:, 0] - x_line)[None], spm.v[None, :, 0], h)[0][0]
+    after_bdc = np.where(above & np.isfinite(ph), (ph - phi[k_bdc]) % (2 * math.pi), np.inf)
+    if not np.isfinite(after_bdc).any():
         raise ValueError(f"machine '{machine.name}': the shuttle point never passes the needle"
                          " line above its axis")
-    k_s = int(math.ceil(seize[0] / h - 1e-9)) % n  # first grid angle with the loop seized
+    seize = float(ph[np.argmin(after_bdc)])
+    k_s = int(math.ceil(seize / h - 1e-9)) % n  # first grid angle with the loop seized
     theta = np.unwrap(np.roll(r.link(link).theta, -k_s))
     turned = np.abs(theta - theta[0])  # shuttle turn since seizure
     drawing = np.roll(np.maximum.accumulate(turned) < math.radians(t.cast_off_deg), k_s)
@@ -301,12 +298,13 @@ def thread_balance(machine: Machine, *, stitch_mm: float = 2.5, fabric_mm: float
     k_c = (k_s + int(off[0])) % n if off.size else k_s  # first angle with the loop cast off
     k_m = (k_s + int(np.argmax(np.roll(loop, -k_s)[: max(1, (k_c - k_s) % n)]))) % n
     # needle entry: the needle point passes the fabric's top going down
-    ph, d, _, _ = _grid_crossings(needle.p[:, 1] - (s.plate_y + fabric), needle.v[:, 1], h)
+    ph, d, _ = (a[0] for a in _crossing_rows((needle.p[:, 1] - (s.plate_y + fabric))[None],
+                                              needle.v[None, :, 1], h))
     if not (d < 0).any():
         raise ValueError(f"machine '{machine.name}': the needle never enters the fabric")
     deg = 360.0 / n
     return ThreadBalance(np.arange(n) * deg, tp.supply, tp.below, pen, loop, demand,
-                         tp.supply - demand, k_top * deg, math.degrees(seize[0]), k_c * deg,
+                         tp.supply - demand, k_top * deg, math.degrees(seize), k_c * deg,
                          k_m * deg, math.degrees(float(ph[d < 0][0])), float(stitch_mm), fabric,
                          float(consumption_per_stitch(stitch_mm, fabric, t.thread_diameter)
                                ["needle"]))
