@@ -202,6 +202,60 @@ def feed_cmd(
                       " deg puts the middle of the feed stroke at the top of lift")
 
 
+@app.command("embroidery-take-up")
+def embroidery_cmd(
+    alpha_deg: float = typer.Option(10.0, help="frame line AD from +x, degrees"),
+    beta_deg: float = typer.Option(35.0, help="DE from DC (clockwise), degrees"),
+    points: int = typer.Option(12, help="equally spaced positions from phi = 0"),
+    machine: str = typer.Option("embroidery-131", help="machine name or TOML file"),
+    as_json: bool = typer.Option(False, "--json", help='print {"phi_deg": [...], "L_mm": [...]}'),
+    out: Path = typer.Option(None, help="without --json: also save the figure (PNG) here"),
+):
+    """Thread drawn L(phi) = l_max - l by the embroidery take-up for one (alpha, beta)."""
+    from . import embroidery as EM
+
+    if points < 2:
+        _fail(ValueError(f"--points must be at least 2, got {points}"))
+    m = _load(machine)
+    try:
+        phi, L = EM.thread_drawn(m, alpha_deg, beta_deg, n_points=points)
+    except (SewmechError, ValueError, KeyError) as exc:
+        _fail(exc)
+    if not np.isfinite(L).all():
+        _fail(ValueError(f"the take-up cannot be assembled at alpha = {alpha_deg:g} deg,"
+                         f" beta = {beta_deg:g} deg"))
+    if as_json:
+        json.dump({"phi_deg": phi.tolist(), "L_mm": L.tolist()}, sys.stdout)
+        sys.stdout.write("\n")
+        return
+    table = Table(title=f"{m.name}: thread drawn, alpha {alpha_deg:g} deg, beta {beta_deg:g} deg")
+    table.add_column("phi [deg]", justify="right")
+    table.add_column("L [mm]", justify="right")
+    for a, b in zip(phi, L):
+        table.add_row(f"{a:g}", f"{b:.2f}")
+    console.print(table)
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fphi, fL = EM.thread_drawn(m, alpha_deg, beta_deg, n_points=360)
+    fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
+    ax.plot(fphi, fL, lw=1.6)
+    ax.plot(phi, L, "o", ms=4)
+    ax.set_xlabel("phi [deg] (0: needle top dead centre)")
+    ax.set_ylabel("thread drawn L [mm]")
+    ax.set_title(f"{m.name}: alpha {alpha_deg:g} deg, beta {beta_deg:g} deg")
+    ax.grid(True, alpha=0.3)
+    from .io import atomic_write
+
+    path = (out or Path("out")) / f"{m.name}-L-a{alpha_deg:g}-b{beta_deg:g}.png"
+    with atomic_write(path, "wb", encoding=None) as fh:
+        fig.savefig(fh, format="png", dpi=120)
+    plt.close(fig)
+    console.print(f"figure: {path}")
+
+
 @app.command("report")
 def report_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="machine name or TOML file"),
