@@ -134,3 +134,49 @@ def test_bad_input():
     with pytest.raises(ValueError, match="holes remove more"):
         M.compose([M.sphere(2.0, RHO), M.sphere(3.0, RHO, hole=True)])
     assert M.MATERIALS["steel"] == 7850.0
+
+
+import sewmech  # noqa: E402
+
+FOURBAR = sewmech.shipped_machines()["fourbar-benchmark"].read_text()
+
+
+def test_masses_in_a_machine_file():
+    text = FOURBAR + """
+[masses.crank]
+material = "steel"
+solids = [
+  { type = "box", size = [25.0, 8.0, 5.0], center = [7.5, 0.0, 0.0] },
+  { type = "cylinder", radius = 2.0, length = 5.0, base = [15.0, 0.0, -2.5], hole = true },
+]
+
+[masses.coupler]
+mass = 0.035
+com = [20.0, 1.5]
+inertia_zz = 6.1
+"""
+    m = sewmech.machine_from_toml(text, "fb.toml")
+    crank = m.masses["crank"]
+    ref = M.compose([M.box(25.0, 8.0, 5.0, 7850.0, center=(7.5, 0, 0)),
+                     M.cylinder(2.0, 5.0, 7850.0, base=(15.0, 0, -2.5), hole=True)])
+    assert crank.mass == pytest.approx(ref.mass) and np.allclose(crank.inertia, ref.inertia)
+    assert crank.mass == pytest.approx(7850e-9 * (25 * 8 * 5 - math.pi * 4 * 5))
+    c = m.masses["coupler"]
+    assert c.planar == (0.035, pytest.approx(np.array([20.0, 1.5])), 6.1)
+    assert np.isnan(c.inertia[0, 0])  # measured planar values: the rest is unknown
+
+
+@pytest.mark.parametrize("table,match", [
+    ('[masses.crnk]\nmass = 1.0\ncom = [0.0, 0.0]\ninertia_zz = 1.0\n',
+     r"masses\.crnk.*not a moving link.*crank"),
+    ('[masses.crank]\nmass = 1.0\ncom = [0.0, 0.0]\n', "exactly one of inertia_zz, inertia"),
+    ('[masses.crank]\nmaterial = "unobtainium"\nsolids = [ { type = "sphere", radius = 1.0 } ]\n',
+     "unknown material"),
+    ('[masses.crank]\ndensity = 7850.0\nsolids = [ { type = "sphere", radius = 1.0 },'
+     ' { type = "sphere", radius = 2.0, hole = true } ]\n', "holes remove more"),
+])
+def test_mass_table_errors(table, match):
+    from sewmech.errors import MachineFileError
+
+    with pytest.raises(MachineFileError, match=match):
+        sewmech.machine_from_toml(FOURBAR + "\n" + table, "fb.toml")

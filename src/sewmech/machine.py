@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike
 
 from . import _kernels as K
 from .cams import CONSTANT_WIDTH_KEYS, constant_width_arcs
+from .mass import from_spec as mass_from_spec
 from .errors import MachineFileError
 from .spec import (
     FRAME,
@@ -240,6 +241,12 @@ class Machine:
         return {}
 
     @cached_property
+    def masses(self) -> dict:
+        """Mass properties (:class:`sewmech.mass.MassProperties`) of every link that has a
+        ``[masses.LINK]`` table, in the link's frame (mm, kg, kg mm^2)."""
+        return {name: mass_from_spec(m) for name, m in self.spec.masses.items()}
+
+    @cached_property
     def unit_of_row(self) -> np.ndarray:
         """Unit index (into unit_names) of each kernel row; -1 for fixed points; last = -1."""
         a = np.asarray(self.kernel_unit_of_row + (-1,), dtype=np.int64)
@@ -446,6 +453,16 @@ class _Compiler:
                         hint = f" Did you mean {', '.join(close)}?" if close else ""
                         raise self.err("sewing", f"feed_parameters.{label}",
                                        f"unknown parameter '{pname}'.{hint}")
+        for lname, mspec in spec.masses.items():
+            if lname not in self.links or lname == FRAME:
+                close = difflib.get_close_matches(lname, self.links[1:], n=3)
+                hint = f" Did you mean {', '.join(close)}?" if close else ""
+                raise self.err(f"masses.{lname}", "", f"'{lname}' is not a moving link of this"
+                               f" machine.{hint}")
+            try:
+                mass_from_spec(mspec)
+            except ValueError as exc:
+                raise self.err(f"masses.{lname}", "solids", str(exc)) from None
         if spec.thread is not None:
             for k, g in enumerate(spec.thread.guides):
                 self.known_point("thread", f"guides[{k}].point", g.point)

@@ -183,3 +183,45 @@ def point_mass(mass: float, at: Sequence[float]) -> MassProperties:
     """A concentrated mass (kg) at a point (mm): a pin, a screw, a counterweight insert."""
     _positive(mass=mass)
     return MassProperties(float(mass), np.asarray(at, dtype=float), np.zeros((3, 3)))
+
+
+def from_spec(spec) -> MassProperties:
+    """Mass properties of one ``[masses.LINK]`` table (:class:`sewmech.spec.MassSpec`).
+
+    Measured values with only ``inertia_zz`` give a planar body: its I_xx, I_yy and products
+    with z are unknown (NaN), which the planar analyses never read.
+    """
+    if spec.mass is not None:
+        com = np.zeros(3)
+        com[: len(spec.com)] = spec.com
+        if spec.inertia is not None:
+            inertia = np.asarray(spec.inertia, dtype=float)
+            if not np.allclose(inertia, inertia.T):
+                raise ValueError("inertia must be a symmetric 3 x 3 tensor")
+        else:
+            inertia = np.full((3, 3), np.nan)
+            inertia[2, 2] = spec.inertia_zz
+            inertia[0, 1] = inertia[1, 0] = np.nan
+        return MassProperties(float(spec.mass), com, inertia)
+    rho = spec.density if spec.density is not None else MATERIALS[spec.material]
+    parts = []
+    for s in spec.solids:
+        if s.type == "cylinder":
+            parts.append(cylinder(s.radius, s.length, rho, base=s.base, axis=s.axis, hole=s.hole))
+        elif s.type == "hollow_cylinder":
+            parts.append(hollow_cylinder(s.r_out, s.r_in, s.length, rho, base=s.base,
+                                         axis=s.axis, hole=s.hole))
+        elif s.type in ("frustum", "cone"):
+            parts.append(frustum(s.r1, s.r2, s.height, rho, base=s.base, axis=s.axis,
+                                 hole=s.hole))
+        elif s.type == "box":
+            a = math.radians(s.angle_deg)
+            R = np.array([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0],
+                          [0.0, 0.0, 1.0]])
+            parts.append(box(*s.size, rho, center=s.center, rotation=R, hole=s.hole))
+        elif s.type == "sphere":
+            parts.append(sphere(s.radius, rho, center=s.center, hole=s.hole))
+        else:
+            p = point_mass(s.mass, s.at)
+            parts.append(MassProperties(-p.mass, p.com, -p.inertia) if s.hole else p)
+    return compose(parts)

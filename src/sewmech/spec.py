@@ -372,6 +372,100 @@ class ThreadSpec(_Spec):
         return self
 
 
+Vec3 = tuple[float, float, float]
+
+
+class _SolidBase(_Spec):
+    hole: bool = False  # a negative solid (bore, pocket)
+    note: str = ""
+
+
+class CylinderSolid(_SolidBase):
+    type: Literal["cylinder"]
+    radius: PositiveFloat
+    length: PositiveFloat
+    base: Vec3 = (0.0, 0.0, 0.0)  # centre of one end face, mm (link frame u, v, z)
+    axis: Vec3 = (0.0, 0.0, 1.0)
+
+
+class TubeSolid(_SolidBase):
+    type: Literal["hollow_cylinder"]
+    r_out: PositiveFloat
+    r_in: NonNegativeFloat
+    length: PositiveFloat
+    base: Vec3 = (0.0, 0.0, 0.0)
+    axis: Vec3 = (0.0, 0.0, 1.0)
+
+
+class FrustumSolid(_SolidBase):
+    type: Literal["frustum", "cone"]
+    r1: PositiveFloat  # radius at the base
+    r2: NonNegativeFloat = 0.0  # radius at the far end (0: a cone)
+    height: PositiveFloat
+    base: Vec3 = (0.0, 0.0, 0.0)
+    axis: Vec3 = (0.0, 0.0, 1.0)
+
+
+class BoxSolid(_SolidBase):
+    type: Literal["box"]
+    size: tuple[PositiveFloat, PositiveFloat, PositiveFloat]  # edges along u, v, z, mm
+    center: Vec3 = (0.0, 0.0, 0.0)
+    angle_deg: float = 0.0  # turn about z
+
+
+class SphereSolid(_SolidBase):
+    type: Literal["sphere"]
+    radius: PositiveFloat
+    center: Vec3 = (0.0, 0.0, 0.0)
+
+
+class PointSolid(_SolidBase):
+    type: Literal["point"]
+    mass: PositiveFloat  # kg
+    at: Vec3 = (0.0, 0.0, 0.0)
+
+
+Solid = Annotated[Union[CylinderSolid, TubeSolid, FrustumSolid, BoxSolid, SphereSolid,
+                        PointSolid], Field(discriminator="type")]
+
+
+class MassSpec(_Spec):
+    """``[masses.LINK]``: a link's mass properties in its own frame (u along the link, v to its
+    left, z along the shafts), mm and kg: measured values (``mass``, ``com``, ``inertia_zz``
+    or a full ``inertia`` tensor, kg mm^2 about the centre of mass), or ``solids`` with a
+    ``material`` or ``density`` (kg/m^3)."""
+
+    mass: PositiveFloat | None = None
+    com: tuple[float, float] | Vec3 | None = None
+    inertia_zz: NonNegativeFloat | None = None
+    inertia: tuple[Vec3, Vec3, Vec3] | None = None
+    solids: list[Solid] | None = None
+    material: str | None = None
+    density: PositiveFloat | None = None
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _one_way(self):
+        measured = self.mass is not None
+        if measured == (self.solids is not None):
+            raise ValueError("give either measured values (mass, com, inertia_zz or inertia) or"
+                             " solids, not both and not neither")
+        if measured:
+            if self.com is None or (self.inertia_zz is None) == (self.inertia is None):
+                raise ValueError("measured mass properties need com and exactly one of"
+                                 " inertia_zz, inertia")
+        else:
+            if (self.material is None) == (self.density is None):
+                raise ValueError("solids need exactly one of material, density")
+            if self.material is not None:
+                from .mass import MATERIALS
+
+                if self.material not in MATERIALS:
+                    raise ValueError(f"unknown material '{self.material}'; known:"
+                                     f" {', '.join(sorted(MATERIALS))} (or give density)")
+        return self
+
+
 class MachineSpec(_Spec):
     """The whole machine file."""
 
@@ -384,6 +478,7 @@ class MachineSpec(_Spec):
     units: list[Unit] = Field(min_length=1)
     sewing: SewingSpec | None = None
     thread: ThreadSpec | None = None
+    masses: dict[Name, MassSpec] = Field(default_factory=dict)
 
     @field_validator("points")
     @classmethod
