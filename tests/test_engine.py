@@ -372,3 +372,14 @@ def test_only_the_units_an_output_needs_are_solved():
     masked = sewmech.kinematics(m, phi, params=p, on_failure="mask")
     assert not masked.feasible.any()
     assert {masked.unit_names[u] for u in np.unique(masked.failure_unit)} == {"lift"}
+
+
+def test_parameters_on_a_given_base():
+    m = sewmech.load_machine("fourbar-benchmark")
+    base = m.parameters({"B.u": 14.0})
+    p = m.parameters({"dyad.length1": [39.0, 41.0]}, base=base)
+    assert p.shape == (2, m.defaults.size)
+    assert np.all(p[:, m.parameter_index("B.u")] == 14.0)
+    assert list(p[:, m.parameter_index("dyad.length1")]) == [39.0, 41.0]
+    with pytest.raises(ValueError, match="base must end in"):
+        m.parameters({}, base=np.zeros(3))

@@ -57,21 +57,12 @@ def overrides(machine: Machine, alpha_deg: ArrayLike, beta_deg: ArrayLike,
     line (M, N follow D)."""
     a, b = np.broadcast_arrays(np.radians(np.asarray(alpha_deg, dtype=float)),
                                np.radians(np.asarray(beta_deg, dtype=float)))
-    base = machine.defaults if params is None else np.asarray(params, dtype=float)
+    base = None if params is None else np.asarray(params, dtype=float)
     ad = _length(machine, "D.x", "D.y")
     de = _length(machine, "E.u", "E.v")
     dx = ad * np.cos(a)
-    return _with(machine, base, {"D.x": dx, "D.y": ad * np.sin(a), "E.u": de * np.cos(-b),
-                                 "E.v": de * np.sin(-b), "M.x": dx, "N.x": dx})
-
-
-def _with(machine: Machine, base: np.ndarray, values: dict) -> np.ndarray:
-    shape = np.broadcast_shapes(*(np.shape(v) for v in values.values()))
-    out = np.empty(shape + base.shape[-1:])
-    out[...] = base
-    for name, v in values.items():
-        out[..., machine.parameter_index(name)] = v
-    return out
+    return machine.parameters({"D.x": dx, "D.y": ad * np.sin(a), "E.u": de * np.cos(-b),
+                               "E.v": de * np.sin(-b), "M.x": dx, "N.x": dx}, base=base)
 
 
 def design(machine: Machine, *, ab: float = 17.5, k1: float = 0.93, k2: float = 0.62,
@@ -91,7 +82,8 @@ def design(machine: Machine, *, ab: float = 17.5, k1: float = 0.93, k2: float = 
     phi = np.radians(np.linspace(phi1_deg, phi1_deg + phi12_deg, 241))
 
     def dc_turn(alpha):
-        p = _with(machine, base, {"D.x": ad * math.cos(alpha), "D.y": ad * math.sin(alpha)})
+        p = machine.parameters({"D.x": ad * math.cos(alpha), "D.y": ad * math.sin(alpha)},
+                               base=base)
         th = kinematics(machine, phi, params=p, points=[], links=["DC"], variables=[],
                         on_failure="mask").link("DC").theta
         if not np.isfinite(th).all():
@@ -107,7 +99,8 @@ def design(machine: Machine, *, ab: float = 17.5, k1: float = 0.93, k2: float = 
     # of the solutions, the one with the frame line nearest +x (the paper's small alpha)
     roots = [brentq(dc_turn, grid[i], grid[i + 1], xtol=1e-12) for i in k]
     alpha = min(roots, key=abs)
-    p = _with(machine, base, {"D.x": ad * math.cos(alpha), "D.y": ad * math.sin(alpha)})
+    p = machine.parameters({"D.x": ad * math.cos(alpha), "D.y": ad * math.sin(alpha)},
+                           base=base)
     dc1 = float(kinematics(machine, np.radians([phi1_deg]), params=p, points=[], links=["DC"],
                            variables=[]).link("DC").theta[0])
     beta = (dc1 - math.pi / 2.0 + math.pi) % (2.0 * math.pi) - math.pi  # DE1 up, clockwise

@@ -259,6 +259,7 @@ class Machine:
         overrides: Mapping[str, ArrayLike] | None = None,
         *,
         inputs: Mapping[str, ArrayLike] | None = None,
+        base: ArrayLike | None = None,
     ) -> np.ndarray:
         """Parameter vectors for a batch of designs.
 
@@ -270,6 +271,8 @@ class Machine:
             ``CAM.dwell``, ``CAM.orientation`` in rad) rebuild its six arcs.
         inputs : mapping of input name -> array_like
             Setting inputs (e.g. the stitch regulator), rad; shorthand for ``input.NAME``.
+        base : array_like, shape (n_parameters,) or batch + (n_parameters,), optional
+            The values the overrides change (default: the file's); broadcast with them.
 
         Returns
         -------
@@ -290,9 +293,12 @@ class Machine:
                     items[self.parameter_index(f"{cam}.arc{k}.{key}")] = values[..., k]
         for name, value in (inputs or {}).items():
             items[self.parameter_index(f"input.{name}")] = np.asarray(value, dtype=float)
-        shape = np.broadcast_shapes(*(v.shape for v in items.values())) if items else ()
+        b = self.defaults if base is None else np.asarray(base, dtype=float)
+        if b.shape[-1:] != self.defaults.shape:
+            raise ValueError(f"base must end in ({self.defaults.size},) parameters, got {b.shape}")
+        shape = np.broadcast_shapes(b.shape[:-1], *(v.shape for v in items.values()))
         out = np.empty(shape + (len(self.defaults),))
-        out[...] = self.defaults
+        out[...] = b
         for i, v in items.items():
             out[..., i] = v
         return out

@@ -372,9 +372,7 @@ def adjust_take_up(machine: Machine, parameter: str, settings: ArrayLike, *,
     svals = np.asarray(settings, dtype=float)
     tvals = np.asarray(thickness_mm, dtype=float)
     base = np.array(machine.defaults if params is None else params, dtype=float)
-    i = machine.parameter_index(parameter)
-    P = np.repeat(base[None, :], svals.size, axis=0)
-    P[:, i] = svals
+    P = machine.parameters({parameter: svals}, base=base)
     n = round(360.0 / step_deg)
     phi = np.arange(n) * (2.0 * math.pi / n)
     S = thread_path(machine, phi, params=P, on_failure="mask").supply  # (n_set, n)
