@@ -40,6 +40,38 @@ from .spec import (
 MACHINES_PACKAGE = "sewmech.data.machines"
 
 
+@dataclass(frozen=True)
+class Pair:
+    """One kinematic pair of the force analysis; its unknowns are the action of ``links[0]``
+    on ``links[1]``.
+
+    kind:
+      - ``"revolute"``: a pin at ``point``; unknowns Fx, Fy (N).
+      - ``"prismatic"``: a slider on its guide; unknowns N (N) along the guide's normal (the
+        line direction turned +90 deg) through ``point`` and a couple M (N mm).
+      - ``"cam"``: a cam contact; unknown N (N) along the cam term's outward normal through the
+        contact point (positive: the cam pushes the follower).
+      - ``"slot"``: a pin in a slot or a roller on a flat; unknown N (N) along the slot line's
+        normal through ``point``.
+      - ``"driver"``: the torque (N mm) that turns a crank (``input`` "shaft": the motor; a
+        setting input such as the stitch regulator: the torque that holds the setting).
+    """
+
+    name: str
+    kind: str
+    links: tuple[str, str]
+    unit: str
+    point: str | None = None
+    line_link: str | None = None  # prismatic/slot: the line's direction link; cam: normal link
+    line_var: str | None = None  # cam: the normal from an angle variable
+    line_param: int = -1  # parameter index of an angle added to the direction (rad), -1: none
+    extra_angle: float = 0.0  # a fixed angle added to the direction (rad)
+    terms: tuple[int, ...] = ()  # cam: the loop's other terms (global term rows)
+    cam_term: int = -1  # cam: the cam term's global row
+    input: str | None = None  # driver: "shaft" or a setting input's name
+    ratio_param: int = -1  # driver: parameter index of the crank's speed ratio
+
+
 @dataclass(frozen=True, eq=False)
 class Machine:
     """A compiled machine: immutable, built once, shared by every evaluation.
@@ -90,6 +122,8 @@ class Machine:
     arcs: np.ndarray = field(repr=False)
     kernel_unit_of_row: tuple[int, ...] = field(repr=False)
     cam_designs: dict[str, dict[str, float]] = field(default_factory=dict, repr=False)
+    pairs: tuple[Pair, ...] = field(default=(), repr=False)
+    mass_origins: dict[str, str] = field(default_factory=dict, repr=False)
 
     # ---- names -----------------------------------------------------------------------------
     @property
@@ -329,6 +363,8 @@ class _Compiler:
         self.arcs: list[list[int]] = []
         self.cam_index: dict[str, int] = {}
         self.cam_designs: dict[str, dict[str, float]] = {}
+        self.pairs: list[Pair] = []
+        self.contacts: list[tuple[str, str, object, dict]] = []  # (table, unit, contact, cams)
         # every name any unit will define, to tell "unknown" from "not solved yet"
         self.all_points, self.all_links = self._scan()
 
@@ -478,6 +514,7 @@ class _Compiler:
                 hint = f" Did you mean {', '.join(close)}?" if close else ""
                 raise self.err("thread.adjust", "parameter",
                                f"unknown parameter '{adj.parameter}'.{hint}")
+        self.dynamics_checks()
         names = [u.name for u in spec.units]
         dup = {n for n in names if names.count(n) > 1}
         if dup:
@@ -514,7 +551,90 @@ class _Compiler:
             arcs=arr(self.arcs, 5),
             kernel_unit_of_row=tuple(self.row_unit),
             cam_designs={k: dict(v) for k, v in self.cam_designs.items()},
+            pairs=tuple(self.pairs),
+            mass_origins=dict(self.mass_origins),
         )
+
+    def dynamics_checks(self):
+        """Pairs of the force analysis, mass-frame origins, loads and the shaft table."""
+        spec = self.spec
+        for table, u, cams in self.contacts:
+            for k, c in enumerate(u.contacts):
+                key = f"contacts[{k}]"
+                if hasattr(c, "cam"):
+                    if c.cam not in cams:
+                        have = ", ".join(cams) or "none"
+                        raise self.err(table, key + ".cam", f"'{c.cam}' is not a loop of this"
+                                       f" unit with one cam term (loops with a cam: {have})")
+                    row, others, term = cams[c.cam]
+                    cam_link = spec.cams[term.cam].link
+                    follower = c.follower or term.normal_link
+                    if follower is None:
+                        raise self.err(table, key + ".follower", "the cam term's normal is an"
+                                       " angle variable: name the follower link")
+                    self.known_link(table, key + ".follower", follower)
+                    trow = self.terms[row]
+                    self.pairs.append(Pair(
+                        f"{u.name}.{c.cam}", "cam", (cam_link, follower), u.name,
+                        line_link=term.normal_link,
+                        line_var=term.normal_angle, line_param=trow[7], terms=others,
+                        cam_term=row))
+                else:
+                    self.known_point(table, key + ".slot", c.slot)
+                    for lk in ("link", "slot_link"):
+                        self.known_link(table, f"{key}.{lk}", getattr(c, lk))
+                    if c.link not in self.point_links[c.slot]:
+                        raise self.err(table, key + ".link", f"the pin '{c.slot}' is not a point"
+                                       f" of link '{c.link}' (it is on:"
+                                       f" {', '.join(self.point_links[c.slot])})")
+                    self.pairs.append(Pair(
+                        f"{c.slot}.slot", "slot", (c.slot_link, c.link), u.name,
+                        point=c.slot, line_link=c.slot_link,
+                        extra_angle=math.radians(c.slot_deg)))
+        # every point shared by links is a pin between the first of them and each other one
+        for p in self.points:
+            links = self.point_links[p]
+            for other in links[1:]:
+                name = p if len(links) == 2 else f"{p}:{other}"
+                self.pairs.append(Pair(name, "revolute", (links[0], other), "", point=p))
+        self.mass_origins = {}
+        for lname, m in spec.masses.items():
+            on = [p for p in self.points if lname in self.point_links[p]]
+            if m.origin is not None:
+                self.known_point(f"masses.{lname}", "origin", m.origin)
+                if m.origin not in on:
+                    raise self.err(f"masses.{lname}", "origin", f"'{m.origin}' is not a point of"
+                                   f" link '{lname}' (its points: {', '.join(on) or 'none'})")
+                self.mass_origins[lname] = m.origin
+            elif on:
+                self.mass_origins[lname] = on[0]
+            else:
+                raise self.err(f"masses.{lname}", "origin", f"link '{lname}' has no points; put"
+                               " a point unit on it and name its origin here")
+        for k, load in enumerate(spec.loads):
+            table = f'loads[{k}] "{load.name}"'
+            self.check_load(table, load)
+        if spec.shaft is not None:
+            cranks = {(u.link or u.name): u for u in spec.units if u.type == "crank"}
+            pivots = set()
+            for lname in spec.shaft.links:
+                u = cranks.get(lname)
+                if u is None or u.input != SHAFT or u.ratio != 1.0:
+                    raise self.err("shaft", f"links.{lname}", f"'{lname}' is not the link of a"
+                                   " crank unit turned by the shaft at ratio 1")
+                pivots.add(u.pivot)
+            if len(pivots) > 1:
+                raise self.err("shaft", "links", "the shaft's cranks turn about different"
+                               f" points ({', '.join(sorted(pivots))}); they must share one axis")
+
+    def check_load(self, table: str, load) -> None:
+        self.known_link(table, "link", load.link)
+        self.known_point(table, "point", load.point)
+        if load.link not in self.point_links[load.point]:
+            raise self.err(table, "point", f"'{load.point}' is not a point of link '{load.link}'"
+                           f" (it is on: {', '.join(self.point_links[load.point])})")
+        for q in load.toward or ():
+            self.known_point(table, "toward", q)
 
     def unit_crank(self, ui, table, u: CrankUnit):
         pivot = self.known_point(table, "pivot", u.pivot)
@@ -531,9 +651,12 @@ class _Compiler:
                            f" from [inputs] ({', '.join(self.inputs) or 'none defined'})")
         lname = self.links[link]
         self.on_link(u.pivot, lname)
+        ratio = self.param(f"{u.name}.ratio", u.ratio, "1")
         self.add_row(ui, [K.OP_CRANK, link, self.param(f"{u.name}.phase",
                                                        math.radians(u.phase_deg), "rad"),
-                          self.param(f"{u.name}.ratio", u.ratio, "1"), setting])
+                          ratio, setting])
+        self.pairs.append(Pair(f"{u.name}.torque", "driver", (FRAME, lname), u.name,
+                               input=u.input, ratio_param=ratio))
         for pname, (uu, vv) in u.points.items():
             i = self.new_point(table, f"points.{pname}", pname, (lname,))
             self.add_row(ui, [K.OP_POINT, i, link, pivot, self.param(f"{pname}.u", uu, "mm"),
@@ -549,6 +672,13 @@ class _Compiler:
             i = self.new_point(table, f"points.{pname}", pname, (u.link,))
             self.add_row(ui, [K.OP_POINT, i, link, origin, self.param(f"{pname}.u", uu, "mm"),
                               self.param(f"{pname}.v", vv, "mm")])
+        for pname, others in u.pins.items():
+            if pname not in u.points:
+                raise self.err(table, f"pins.{pname}", f"'{pname}' is not one of this unit's"
+                               f" points ({', '.join(u.points)})")
+            for other in [others] if isinstance(others, str) else others:
+                self.known_link(table, f"pins.{pname}", other)
+                self.on_link(pname, other)
 
     def unit_rrr(self, ui, table, u: RRRUnit):
         p1 = self.known_point(table, "joints", u.joints[0])
@@ -576,6 +706,8 @@ class _Compiler:
         self.on_link(u.pin, u.rod)
         var = self.new_var(table, "variable", u.variable or u.name, "mm")
         self.branches[u.name] = u.branch
+        self.pairs.append(Pair(f"{u.name}.guide", "prismatic", (u.guide_link, u.slider), u.name,
+                               point=u.new, line_link=u.slider))
         self.add_row(ui, [K.OP_RRP, pin, gp, gl, c, rod, slider,
                           self.param(f"{u.name}.length", u.length, "mm"),
                           self.param(f"{u.name}.guide_angle", math.radians(u.guide_angle_deg),
@@ -590,6 +722,11 @@ class _Compiler:
         self.on_link(u.pivot, u.link)
         if u.block:
             self.on_link(u.pin, u.block)
+            self.pairs.append(Pair(f"{u.name}.slot", "prismatic", (u.link, u.block), u.name,
+                                   point=u.pin, line_link=u.link))
+        else:  # the pin slides in the slot directly: one force normal to the slot
+            self.pairs.append(Pair(f"{u.name}.slot", "slot", (u.link, self.point_links[u.pin][0]),
+                                   u.name, point=u.pin, line_link=u.link))
         var = self.new_var(table, "variable", u.variable or u.name, "mm")
         self.branches[u.name] = u.branch
         self.add_row(ui, [K.OP_RPR, pin, pivot, link, block,
@@ -742,6 +879,14 @@ class _Compiler:
             if c not in used:
                 raise self.err(table, "loops", f"unknown '{name}' appears in no loop term; the"
                                " loop equations cannot determine it")
+        cams = {}  # loop name -> (cam term row, rows of the loop's other terms, follower)
+        for li, loop in enumerate(u.loops):
+            rows = [t for t in range(t0, len(self.terms)) if self.terms[t][1] == li]
+            cam_rows = [t for t in rows if self.terms[t][0] == K.TERM_CAM]
+            if len(cam_rows) == 1:
+                ct = loop.terms[rows.index(cam_rows[0])]
+                cams[loop.name] = (cam_rows[0], tuple(t for t in rows if t != cam_rows[0]), ct)
+        self.contacts.append((table, u, cams))
         g = len(self.groups)
         self.groups.append([n_unknown, u0, 0, t0, len(self.terms) - t0])
         self.add_row(ui, [K.OP_LOOP, g])

@@ -140,6 +140,9 @@ class PointUnit(_Spec):
     link: Name
     origin: Name
     points: dict[Name, Vec2] = Field(min_length=1)
+    # new points of this unit where other (already moved) links are pinned: revolute joints
+    # for the force analysis, e.g. a fork hung on a rock-shaft arm inside a loop unit
+    pins: dict[Name, Name | list[Name]] = Field(default_factory=dict)
     note: str = ""
 
 
@@ -244,6 +247,31 @@ class Loop(_Spec):
     terms: list[LoopTerm] = Field(min_length=2)
 
 
+class CamContact(_Spec):
+    """A cam pair of a loop unit: the force acts along the cam term's normal.
+
+    ``cam`` names a loop of the unit that has a cam term; ``follower`` is the link the cam
+    pushes (default: the term's ``normal_link``).
+    """
+
+    cam: Name
+    follower: Name | None = None
+
+
+class SlotContact(_Spec):
+    """A pin sliding in a slot (a massless block), or a roller on a flat face: one force,
+    normal to the slot line, through the pin point.
+
+    ``slot`` is the pin (roller centre) point, ``link`` the link that carries it, and the slot
+    line runs along ``slot_link``'s angle turned by ``slot_deg``.
+    """
+
+    slot: Name
+    link: Name
+    slot_link: Name
+    slot_deg: float = 0.0
+
+
 class LoopUnit(_Spec):
     """Unknowns solved together by Newton-Raphson on vector loop-closure equations."""
 
@@ -256,6 +284,9 @@ class LoopUnit(_Spec):
     # `point` units may use them as origins on that link
     joints: dict[Name, list[Name]] = Field(default_factory=dict)
     loops: list[Loop] = Field(min_length=1)
+    # pairs inside the loops that are not revolute joints (the force analysis cannot read them
+    # off the loop terms): cam contacts and pins in slots
+    contacts: list[CamContact | SlotContact] = Field(default_factory=list)
     note: str = ""
 
 
@@ -442,6 +473,7 @@ class MassSpec(_Spec):
     solids: list[Solid] | None = None
     material: str | None = None
     density: PositiveFloat | None = None
+    origin: Name | None = None  # the point at the frame's origin (default: the link's first)
     note: str = ""
 
     @model_validator(mode="after")
@@ -466,6 +498,60 @@ class MassSpec(_Spec):
         return self
 
 
+class LoadSpec(_Spec):
+    """``[[loads]]``: a process force on a point of a link while the shaft angle is inside one
+    of its windows (degrees in the machine's convention; a window may wrap through 360).
+
+    The direction is fixed in the frame (``angle_deg``, counter-clockwise from +x) or along the
+    resultant of unit vectors from the point ``toward`` other points (a thread that runs over
+    the point to two guides pulls along the bisector of its legs).
+    """
+
+    name: str
+    link: Name
+    point: Name
+    force_N: float
+    angle_deg: float | None = None
+    toward: list[Name] | None = Field(default=None, min_length=1)
+    windows_deg: list[tuple[float, float]] = Field(default_factory=lambda: [(0.0, 360.0)])
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _direction(self):
+        if (self.angle_deg is None) == (self.toward is None):
+            raise ValueError("a load needs exactly one of angle_deg (a fixed direction) and"
+                             " toward (points its line of action is pulled towards)")
+        return self
+
+
+class LoadFile(_Spec):
+    """A load file: ``[[loads]]`` tables that replace the machine file's loads."""
+
+    loads: list[LoadSpec] = Field(default_factory=list)
+
+
+class ShaftSpec(_Spec):
+    """``[shaft]``: the upper shaft in 3-D for its bearing reactions.
+
+    ``links``: the crank links that turn with the shaft and the axial position z (mm) of the
+    plane in which each one's pins and contacts act; ``bearings``: z of the front and rear
+    bearings' mid-planes. z is the third axis of the machine frame (x, y, z right-handed), the
+    axis that link mass properties also use.
+    """
+
+    links: dict[Name, float] = Field(min_length=1)
+    bearings: dict[Literal["front", "rear"], float]
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _two(self):
+        if set(self.bearings) != {"front", "rear"}:
+            raise ValueError("bearings needs both 'front' and 'rear' (z of each, mm)")
+        if self.bearings["front"] == self.bearings["rear"]:
+            raise ValueError("the front and rear bearings must be at different z")
+        return self
+
+
 class MachineSpec(_Spec):
     """The whole machine file."""
 
@@ -479,6 +565,8 @@ class MachineSpec(_Spec):
     sewing: SewingSpec | None = None
     thread: ThreadSpec | None = None
     masses: dict[Name, MassSpec] = Field(default_factory=dict)
+    loads: list[LoadSpec] = Field(default_factory=list)
+    shaft: ShaftSpec | None = None
 
     @field_validator("points")
     @classmethod

@@ -1,0 +1,554 @@
+"""Inverse dynamics of a whole machine: forces in every pair, driving torque, frame reactions.
+
+The method is the JB dynamics report's matrix-vector force analysis: for every moving link the
+Newton-Euler equations (two force equations and the moment equation about its centre of mass)
+are written with the unknown pair forces, stacked into one square linear system per position,
+and solved. Here every position of every design is one such system, assembled and solved in
+one vectorised call (numpy's batched LU).
+
+Pairs (:class:`sewmech.machine.Pair`) come from the machine file: every pin shared by two links
+is a revolute pair, every slider unit a prismatic pair, every crank a driver; the cam contacts
+and pins-in-slots of loop units are declared in their ``contacts``. A pair's unknowns are the
+action of its first link on its second.
+
+Units: inputs and internal arrays in mm, kg, s, rad; forces N, moments and torques N mm,
+energies N mm (= mJ), powers N mm/s (= mW), inertias kg mm^2. The ``*_Nm``, ``*_J`` and ``*_W``
+names of the JSON output are SI.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from . import _kernels as K
+from .errors import SewmechError
+from .kinematics import kinematics
+from .machine import Machine, Pair
+from .mass import MassProperties
+from .results import KinematicsResult
+from .spec import FRAME, SHAFT, LoadSpec
+
+#: standard gravity, m/s^2 (acts along -y of the machine frame)
+GRAVITY = 9.80665
+
+#: unknowns per pair kind
+_N_UNKNOWN = {"revolute": 2, "prismatic": 2, "cam": 1, "slot": 1, "driver": 1}
+
+
+class SingularForceSystem(SewmechError):
+    """The equilibrium equations have no unique solution at some position."""
+
+
+@dataclass(frozen=True)
+class LinkMasses:
+    """Mass properties of the moving links in their own frames (planar part).
+
+    Arrays have shape ``(..., n_links)`` over the machine's links (index 0, the frame, is
+    unused); leading axes broadcast against the design batch.
+
+    Attributes
+    ----------
+    mass : kg
+    com_u, com_v : mm, centre of mass in the link frame (origin ``origins[i]``, u along the
+        link angle, v to its left)
+    inertia : kg mm^2, I_zz about the centre of mass
+    origins : point index of each link's frame origin (-1: none, the link is massless)
+    """
+
+    mass: np.ndarray
+    com_u: np.ndarray
+    com_v: np.ndarray
+    inertia: np.ndarray
+    origins: np.ndarray
+
+
+def link_masses(machine: Machine,
+                overrides: Mapping[str, MassProperties] | None = None) -> LinkMasses:
+    """Planar mass properties of every link from the machine file's ``[masses]`` (links without
+    one are massless), with ``overrides`` (link -> :class:`MassProperties` in the link frame)."""
+    n = len(machine.link_names)
+    m, cu, cv, inertia = (np.zeros(n) for _ in range(4))
+    origins = np.full(n, -1, dtype=np.int64)
+    table = dict(machine.masses)
+    for name, mp in (overrides or {}).items():
+        machine.link_index(name)
+        table[name] = mp
+    for name, mp in table.items():
+        i = machine.link_index(name)
+        origin = machine.mass_origins.get(name) or _first_point(machine, name)
+        if origin is None:
+            raise ValueError(f"link '{name}' has no points: its mass needs a frame origin")
+        mass, com, izz = mp.planar
+        m[i], cu[i], cv[i], inertia[i] = mass, com[0], com[1], izz
+        origins[i] = machine.point_index(origin)
+    for i, name in enumerate(machine.link_names):
+        if origins[i] < 0 and i > 0:  # massless: take moments about one of its points anyway
+            p = _first_point(machine, name)
+            origins[i] = machine.point_index(p) if p is not None else -1
+    return LinkMasses(m, cu, cv, inertia, origins)
+
+
+def _first_point(machine: Machine, link: str) -> str | None:
+    for p in machine.point_names:
+        if link in machine.point_links[p]:
+            return p
+    return None
+
+
+# ---- loads -------------------------------------------------------------------------------------
+
+
+def in_windows(phi_deg: np.ndarray, windows: Sequence[tuple[float, float]]) -> np.ndarray:
+    """Mask of shaft angles (deg) inside any of the windows [start, end] (deg); a window with
+    end < start wraps through 360; a window of 360 deg or more is the whole cycle."""
+    a = np.mod(phi_deg, 360.0)
+    out = np.zeros(np.shape(phi_deg), dtype=bool)
+    for w0, w1 in windows:
+        if w1 - w0 >= 360.0:
+            return np.ones(np.shape(phi_deg), dtype=bool)
+        s, e = w0 % 360.0, w1 % 360.0
+        tol = 1e-9
+        out |= ((a >= s - tol) & (a <= e + tol)) if s <= e else ((a >= s - tol) | (a <= e + tol))
+    return out
+
+
+def load_forces(machine: Machine, kin: KinematicsResult,
+                loads: Sequence[LoadSpec]) -> list[tuple[int, int, np.ndarray]]:
+    """(link index, point index, force N of shape batch + (n_phi, 2)) of every load."""
+    out = []
+    mask_cache = {}
+    for load in loads:
+        li = machine.link_index(load.link)
+        pi = kin.point_names.index(load.point)
+        key = tuple(map(tuple, load.windows_deg))
+        if key not in mask_cache:
+            mask_cache[key] = in_windows(kin.phi_deg, load.windows_deg)
+        on = mask_cache[key]
+        if load.angle_deg is not None:
+            a = math.radians(load.angle_deg)
+            direction = np.broadcast_to(np.array([math.cos(a), math.sin(a)]),
+                                        kin.p.shape[:-2] + (2,))
+        else:
+            x = kin.p[..., pi, :]
+            direction = np.zeros_like(x)
+            for q in load.toward:
+                d = kin.p[..., kin.point_names.index(q), :] - x
+                direction = direction + d / np.linalg.norm(d, axis=-1, keepdims=True)
+            direction = direction / np.linalg.norm(direction, axis=-1, keepdims=True)
+        out.append((li, pi, load.force_N * direction * on[:, None]))
+    return out
+
+
+# ---- the force analysis --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class DynamicsResult:
+    """Forces and energies of a machine over crank angles (see the module doc for units).
+
+    Array convention: batch axes, then the crank-angle axis, then components.
+
+    Attributes
+    ----------
+    kin : KinematicsResult
+        The motion the forces were solved for.
+    pairs : tuple[Pair, ...]
+        The pairs in unknown order.
+    unknowns : ndarray, batch + (n_phi, n_unknowns)
+        Every pair's unknowns (N, or N mm for couples and torques), pair after pair.
+    gravity : bool
+    load_names : tuple[str, ...]
+    load_force : ndarray, batch + (n_phi, n_loads, 2)
+        Each load's force, N (zero outside its windows).
+    load_power : ndarray, batch + (n_phi,)
+        Power of the loads on the machine, N mm/s.
+    mass : LinkMasses
+    params : ndarray, batch + (n_parameters,)
+        The designs' parameter vectors.
+    com_p, com_v, com_a : ndarray, batch + (n_phi, n_links, 2)
+        Centre of mass of each link: mm, mm/s, mm/s^2.
+    """
+
+    machine: Machine = field(repr=False)
+    kin: KinematicsResult = field(repr=False)
+    pairs: tuple[Pair, ...]
+    unknowns: np.ndarray = field(repr=False)
+    gravity: bool
+    load_names: tuple[str, ...]
+    load_force: np.ndarray = field(repr=False)
+    load_power: np.ndarray = field(repr=False)
+    mass: LinkMasses = field(repr=False)
+    com_p: np.ndarray = field(repr=False)
+    com_v: np.ndarray = field(repr=False)
+    com_a: np.ndarray = field(repr=False)
+    params: np.ndarray = field(repr=False)
+
+    # ---- pairs
+    @cached_property
+    def _columns(self) -> dict[str, tuple[int, Pair]]:
+        out, c = {}, 0
+        for pair in self.pairs:
+            out[pair.name] = (c, pair)
+            c += _N_UNKNOWN[pair.kind]
+        return out
+
+    @property
+    def phi(self) -> np.ndarray:
+        return self.kin.phi
+
+    @property
+    def phi_deg(self) -> np.ndarray:
+        return self.kin.phi_deg
+
+    @property
+    def pair_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.pairs)
+
+    def pair(self, name: str) -> np.ndarray:
+        """The unknowns of one pair, batch + (n_phi, k): revolute (Fx, Fy) N; prismatic (N in N,
+        M in N mm); cam and slot (N,) N; driver (torque N mm,). Action of ``links[0]`` on
+        ``links[1]``."""
+        try:
+            c, pair = self._columns[name]
+        except KeyError:
+            import difflib
+
+            close = difflib.get_close_matches(name, list(self._columns), n=3)
+            hint = f"; did you mean {', '.join(close)}?" if close else ""
+            raise KeyError(f"no pair '{name}'{hint}") from None
+        return self.unknowns[..., c:c + _N_UNKNOWN[pair.kind]]
+
+    def force(self, name: str) -> np.ndarray:
+        """The force vector (N) of a pair on its second link, batch + (n_phi, 2)."""
+        c, pair = self._columns[name]
+        x = self.unknowns[..., c:c + _N_UNKNOWN[pair.kind]]
+        if pair.kind == "revolute":
+            return x
+        if pair.kind == "driver":
+            raise ValueError(f"pair '{name}' is a driver: it transmits a torque, not a force")
+        return x[..., :1] * _pair_direction(self.machine, self.kin, pair, self.params)
+
+    def magnitude(self, name: str) -> np.ndarray:
+        """|force| (N) of a pair, or |torque| (N mm) of a driver, batch + (n_phi,)."""
+        c, pair = self._columns[name]
+        if pair.kind == "driver":
+            return np.abs(self.unknowns[..., c])
+        return np.linalg.norm(self.force(name), axis=-1)
+
+    # ---- driving
+    @cached_property
+    def input_torque(self) -> np.ndarray:
+        """Torque on the upper shaft from the motor, N mm, batch + (n_phi,): the sum of the
+        shaft-driven cranks' torques, each times its speed ratio (equal power)."""
+        P = self.kin.p.shape[:-2]
+        tau = np.zeros(P)
+        params = self.params
+        for name, (c, pair) in self._columns.items():
+            if pair.kind == "driver" and pair.input == SHAFT:
+                tau = tau + self.unknowns[..., c] * params[..., None, pair.ratio_param]
+        return tau
+
+    @cached_property
+    def setting_torques(self) -> dict[str, np.ndarray]:
+        """Torque (N mm) that holds each setting input (e.g. the stitch regulator)."""
+        return {pair.input: self.unknowns[..., c] for c, pair in self._columns.values()
+                if pair.kind == "driver" and pair.input != SHAFT}
+
+    @property
+    def input_power(self) -> np.ndarray:
+        """Power the motor puts into the shaft, N mm/s."""
+        return self.input_torque * self.kin.omega_shaft
+
+    # ---- the frame
+    @cached_property
+    def frame_reactions(self) -> dict[str, np.ndarray]:
+        """Force (N) on the frame at each of its pairs (revolute, prismatic, cam, slot)."""
+        out = {}
+        for name, (c, pair) in self._columns.items():
+            if pair.kind == "driver":
+                continue
+            if pair.links[0] == FRAME:
+                out[name] = -self.force(name)
+            elif pair.links[1] == FRAME:
+                out[name] = self.force(name)
+        return out
+
+    @cached_property
+    def shaking_force(self) -> np.ndarray:
+        """Shaking force, N, batch + (n_phi, 2): the resultant of the links' inertia forces,
+        -sum m a_G, which the frame (and through it the table) feels."""
+        return -np.einsum("...l,...lc->...c", self._m, self.com_a) * 1e-3
+
+    @cached_property
+    def shaking_moment(self) -> np.ndarray:
+        """Shaking moment about the frame origin, N mm, batch + (n_phi,): -sum (I alpha +
+        r_G x m a_G), the motor's reaction on its mount included."""
+        g, a = self.com_p, self.com_a
+        cross = g[..., 0] * a[..., 1] - g[..., 1] * a[..., 0]
+        return -(np.einsum("...l,...l->...", self._m, cross)
+                 + np.einsum("...l,...l->...", self._I, self.kin.epsilon)) * 1e-3
+
+    # ---- energy
+    @cached_property
+    def _m(self) -> np.ndarray:
+        return np.broadcast_to(self.mass.mass, self.kin.theta.shape)
+
+    @cached_property
+    def _I(self) -> np.ndarray:
+        return np.broadcast_to(self.mass.inertia, self.kin.theta.shape)
+
+    @cached_property
+    def kinetic_energy(self) -> np.ndarray:
+        """Kinetic energy of the machine, N mm (= mJ), batch + (n_phi,)."""
+        v2 = np.sum(self.com_v ** 2, axis=-1)
+        return 0.5e-3 * (np.sum(self._m * v2, axis=-1)
+                         + np.sum(self._I * self.kin.omega ** 2, axis=-1))
+
+    @cached_property
+    def kinetic_energy_rate(self) -> np.ndarray:
+        """dT/dt from the motion alone (sum m v.a + I omega alpha), N mm/s."""
+        va = np.sum(self.com_v * self.com_a, axis=-1)
+        return 1e-3 * (np.sum(self._m * va, axis=-1)
+                       + np.sum(self._I * self.kin.omega * self.kin.epsilon, axis=-1))
+
+    @cached_property
+    def potential_energy(self) -> np.ndarray:
+        """Potential energy of gravity, N mm, above y = 0 of the frame (zero without gravity)."""
+        if not self.gravity:
+            return np.zeros(self.kin.phi.shape if not self.kin.batch_shape else
+                            self.kin.batch_shape + self.kin.phi.shape)
+        return GRAVITY * np.sum(self._m * self.com_p[..., 1], axis=-1)
+
+    @cached_property
+    def potential_energy_rate(self) -> np.ndarray:
+        """dV/dt, N mm/s."""
+        if not self.gravity:
+            return np.zeros_like(self.kinetic_energy)
+        return GRAVITY * np.sum(self._m * self.com_v[..., 1], axis=-1)
+
+    @property
+    def external_power(self) -> np.ndarray:
+        """Power of the applied loads on the machine, N mm/s (gravity not included: it is in
+        the potential energy)."""
+        return self.load_power
+
+    @cached_property
+    def reduced_inertia(self) -> np.ndarray:
+        """Equivalent moment of inertia at the upper shaft, J(phi) = 2 T / omega^2, kg mm^2."""
+        return 2e3 * self.kinetic_energy / self.kin.omega_shaft ** 2
+
+
+
+def _pair_direction(machine: Machine, kin: KinematicsResult, pair: Pair,
+                    params: np.ndarray | None = None) -> np.ndarray:
+    """Unit vector of a pair's single force: the line's normal (prismatic, slot) or the cam's
+    outward normal, batch + (n_phi, 2)."""
+    if pair.line_var is not None:
+        ang = kin.q[..., kin.variable_names.index(pair.line_var)]
+    else:
+        ang = kin.theta[..., kin.link_names.index(pair.line_link)]
+    ang = ang + pair.extra_angle
+    if pair.line_param >= 0:
+        P = machine.defaults if params is None else params
+        ang = ang + np.asarray(P)[..., None, pair.line_param]
+    if pair.kind != "cam":  # the normal of a line
+        ang = ang + 0.5 * math.pi
+    return np.stack([np.cos(ang), np.sin(ang)], axis=-1)
+
+
+def _term_values(machine: Machine, kin: KinematicsResult, params: np.ndarray,
+                 rows: Sequence[int]) -> np.ndarray:
+    """Sum of the given loop terms (signed vectors, mm), batch + (n_phi, 2)."""
+    total = np.zeros(kin.p.shape[:-2] + (2,))
+    for t in rows:
+        row = machine.terms[t]
+        sign = float(row[2])
+        if row[0] == K.TERM_POINT:
+            total = total + sign * kin.p[..., int(row[4]), :]
+            continue
+        if row[0] != K.TERM_VEC:
+            raise ValueError("a cam loop may hold only one cam term")
+        L = (params[..., None, row[4]] if row[3] == K.SRC_PARAM
+             else kin.q[..., int(row[4])])
+        th = (kin.theta[..., int(row[6])] if row[5] == K.SRC_LINK
+              else kin.q[..., int(row[6])])
+        if row[7] >= 0:
+            th = th + params[..., None, row[7]]
+        total = total + sign * np.stack([L * np.cos(th), L * np.sin(th)], axis=-1)
+    return total
+
+
+def inverse_dynamics(
+    machine: Machine,
+    phi: ArrayLike,
+    *,
+    params: ArrayLike | None = None,
+    inputs: Mapping[str, ArrayLike] | None = None,
+    rpm: float | None = None,
+    omega: ArrayLike | None = None,
+    epsilon: ArrayLike = 0.0,
+    gravity: bool = True,
+    loads: Sequence[LoadSpec] | None = None,
+    masses: Mapping[str, MassProperties] | None = None,
+    kin: KinematicsResult | None = None,
+) -> DynamicsResult:
+    """Forces in every pair, the driving torque and the frame reactions over crank angles.
+
+    Parameters
+    ----------
+    machine : Machine
+    phi : array_like, shape (n_phi,)
+        Upper-shaft angles, rad.
+    params, inputs, rpm, omega, epsilon
+        As :func:`sewmech.kinematics.kinematics` (designs, settings, the shaft's speed in
+        rev/min or rad/s and its acceleration in rad/s^2).
+    gravity : bool
+        Weight of the links along -y (9.80665 m/s^2).
+    loads : sequence of LoadSpec, optional
+        Process loads; default: the machine file's ``[[loads]]``. ``[]`` for none.
+    masses : mapping link -> MassProperties, optional
+        Replace or add link mass properties (link frame, mm, kg, kg mm^2).
+    kin : KinematicsResult, optional
+        A kinematics result of the same call (all points, links and variables) to reuse.
+
+    Returns
+    -------
+    DynamicsResult
+
+    Raises
+    ------
+    SingularForceSystem
+        The machine's pairs do not give as many unknowns as equations, or the equations are
+        singular at some position (a dead centre of a mechanism with a driver).
+    """
+    names = machine.link_names
+    n_links = len(names)
+    n_eq = 3 * (n_links - 1)
+    pairs = machine.pairs
+    n_unk = sum(_N_UNKNOWN[p.kind] for p in pairs)
+    if n_unk != n_eq:
+        kinds = {k: sum(1 for p in pairs if p.kind == k) for k in _N_UNKNOWN}
+        raise SingularForceSystem(
+            f"machine '{machine.name}': {n_links - 1} moving links give {n_eq} equilibrium"
+            f" equations but the pairs give {n_unk} unknowns ({kinds}); declare the cam and"
+            " slot contacts of loop units (units[].contacts) and pin shared points"
+            " (point units' pins)")
+    if kin is None:
+        kin = kinematics(machine, phi, params=params, inputs=inputs, rpm=rpm, omega=omega,
+                         epsilon=epsilon)
+    P = machine.defaults if params is None else np.asarray(params, dtype=float)
+    if inputs:
+        P = machine.parameters(inputs=inputs, base=P)
+    P = np.broadcast_to(P, kin.batch_shape + machine.defaults.shape)
+    lm = link_masses(machine, masses)
+    shape = kin.theta.shape  # batch + (n_phi, n_links)
+
+    # centres of mass
+    org = np.maximum(lm.origins, 0)
+    po, vo, ao = kin.p[..., org, :], kin.v[..., org, :], kin.a[..., org, :]
+    no_origin = lm.origins < 0
+    if no_origin.any():
+        po, vo, ao = (np.where(no_origin[:, None], 0.0, x) for x in (po, vo, ao))
+    th, om, ep = kin.theta, kin.omega, kin.epsilon
+    c, s = np.cos(th), np.sin(th)
+    rx = c * lm.com_u - s * lm.com_v
+    ry = s * lm.com_u + c * lm.com_v
+    gp = po + np.stack([rx, ry], axis=-1)
+    gv = vo + np.stack([-om * ry, om * rx], axis=-1)
+    ga = ao + np.stack([-ep * ry - om * om * rx, ep * rx - om * om * ry], axis=-1)
+
+    # loads
+    load_specs = list(machine.spec.loads if loads is None else loads)
+    lf = load_forces(machine, kin, load_specs)
+
+    # right-hand side: m a_G - F - m g ; I alpha - sum (X - G) x F, per moving link
+    m = np.broadcast_to(lm.mass, shape)
+    rhs = np.zeros(shape[:-1] + (n_links, 3))
+    rhs[..., 0] = 1e-3 * m * ga[..., 0]
+    rhs[..., 1] = 1e-3 * m * ga[..., 1] + (GRAVITY * m if gravity else 0.0)
+    rhs[..., 2] = 1e-3 * np.broadcast_to(lm.inertia, shape) * ep
+    load_power = np.zeros(shape[:-1])
+    for li, pi, F in lf:
+        d = kin.p[..., pi, :] - gp[..., li, :]
+        rhs[..., li, 0] -= F[..., 0]
+        rhs[..., li, 1] -= F[..., 1]
+        rhs[..., li, 2] -= d[..., 0] * F[..., 1] - d[..., 1] * F[..., 0]
+        load_power = load_power + np.sum(F * kin.v[..., pi, :], axis=-1)
+
+    # the matrix: one column per unknown, rows 3 (link - 1) + (x, y, moment)
+    A = np.zeros(shape[:-1] + (n_eq, n_unk))
+    col = 0
+    for pair in pairs:
+        a, b = (names.index(x) for x in pair.links)
+        k = _N_UNKNOWN[pair.kind]
+        if pair.kind == "driver":
+            A[..., 3 * (b - 1) + 2, col] = 1.0
+            col += 1
+            continue
+        if pair.kind == "cam":
+            X = -float(machine.terms[pair.cam_term, 2]) * _term_values(machine, kin, P,
+                                                                        pair.terms)
+        else:
+            X = kin.p[..., kin.point_names.index(pair.point), :]
+        if pair.kind == "revolute":
+            dirs = [np.array([1.0, 0.0]), np.array([0.0, 1.0])]
+        else:
+            dirs = [_pair_direction(machine, kin, pair, P)]
+        for j, f in enumerate(dirs):
+            f = np.broadcast_to(f, X.shape)
+            for link, sgn in ((b, 1.0), (a, -1.0)):
+                if link == 0:
+                    continue
+                d = X - gp[..., link, :]
+                r = 3 * (link - 1)
+                A[..., r, col + j] = sgn * f[..., 0]
+                A[..., r + 1, col + j] = sgn * f[..., 1]
+                A[..., r + 2, col + j] = sgn * (d[..., 0] * f[..., 1] - d[..., 1] * f[..., 0])
+        if pair.kind == "prismatic":  # the couple
+            for link, sgn in ((b, 1.0), (a, -1.0)):
+                if link:
+                    A[..., 3 * (link - 1) + 2, col + 1] = sgn
+        col += k
+
+    b = rhs[..., 1:, :].reshape(shape[:-1] + (n_eq,))
+    x = _solve(A, b, kin, machine)
+    return DynamicsResult(
+        machine=machine, kin=kin, pairs=pairs, unknowns=x, gravity=gravity,
+        load_names=tuple(ld.name for ld in load_specs),
+        load_force=(np.stack([F for _, _, F in lf], axis=-2) if lf
+                    else np.zeros(shape[:-1] + (0, 2))),
+        load_power=load_power, mass=lm, com_p=gp, com_v=gv, com_a=ga, params=P)
+
+
+def _solve(A: np.ndarray, b: np.ndarray, kin: KinematicsResult, machine: Machine) -> np.ndarray:
+    feasible = np.broadcast_to(kin.feasible, A.shape[:-2])
+    if not feasible.all():  # infeasible positions stay NaN
+        A = np.where(feasible[..., None, None], A, np.eye(A.shape[-1]))
+        b = np.where(feasible[..., None], b, 0.0)
+    try:
+        x = np.linalg.solve(A, b[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        x = None
+    # a numerically singular system gives huge or non-finite unknowns: find and name it
+    cond_ok = None
+    if x is None or not np.isfinite(x[feasible]).all():
+        cond = np.linalg.cond(A)
+        cond_ok = cond < 1e12
+    if cond_ok is not None and not cond_ok.all():
+        idx = np.argwhere(~cond_ok)[0]
+        phi_deg = float(kin.phi_deg[idx[-1]])
+        design = tuple(int(i) for i in idx[:-1])
+        at = f"design {design}, " if design else ""
+        raise SingularForceSystem(
+            f"machine '{machine.name}' at {at}phi = {phi_deg:.6g} deg: the equilibrium"
+            " equations are singular (a mechanism at a dead centre with respect to its driver,"
+            " or a pair whose line passes through its link's pivot); step around this angle")
+    if not feasible.all():
+        x = np.where(feasible[..., None], x, np.nan)
+    return x

@@ -1,0 +1,343 @@
+"""Inverse dynamics against closed forms written here, energy balances and virtual work."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sewmech import load_machine
+from sewmech.dynamics import GRAVITY, SingularForceSystem, in_windows, inverse_dynamics
+from sewmech.machine import machine_from_toml
+from sewmech.mass import MassProperties
+from sewmech.spec import LoadSpec
+
+W = 1000 * 2 * math.pi / 60  # 1000 rpm, rad/s
+
+
+def planar(m, u, v, izz):
+    inertia = np.zeros((3, 3))
+    inertia[2, 2] = izz
+    return MassProperties(m, np.array([u, v, 0.0]), inertia)
+
+
+def cross(a, b):
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def rot(v, th):
+    """Vector v (u, v) of a link frame turned by th."""
+    c, s = np.cos(th), np.sin(th)
+    return np.stack([c * v[0] - s * v[1], s * v[0] + c * v[1]], axis=-1)
+
+
+def perp(x):
+    return np.stack([-x[..., 1], x[..., 0]], axis=-1)
+
+
+def rigid(p, v, a, th, om, ep, r_local):
+    """Position, velocity, acceleration of a body point from a reference point's motion."""
+    r = rot(r_local, th)
+    return (p + r, v + om[..., None] * perp(r),
+            a + ep[..., None] * perp(r) - (om ** 2)[..., None] * r)
+
+
+# ---- the four-bar: closed-form kinematics (Freudenstein's loop) and a sequential force solve ---
+
+FB = dict(A=np.array([0.0, 0.0]), D=np.array([38.0, 0.0]), r=15.0, l2=40.0, l3=35.0)
+FB_MASS = {"crank": (0.05, 7.5, 0.0, 1.2), "coupler": (0.08, 20.0, 2.0, 12.0),
+           "rocker": (0.07, 17.5, -1.0, 8.0)}
+
+
+def fourbar_kinematics(phi):
+    A, D, r, l2, l3 = FB["A"], FB["D"], FB["r"], FB["l2"], FB["l3"]
+    e1 = np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+    B = A + r * e1
+    d = D - B
+    dist = np.linalg.norm(d, axis=-1)
+    a = (l2 ** 2 - l3 ** 2 + dist ** 2) / (2 * dist)
+    h = np.sqrt(l2 ** 2 - a ** 2)
+    u = d / dist[:, None]
+    C = B + a[:, None] * u + h[:, None] * perp(u)  # left of B -> D: the upper assembly
+    th2 = np.arctan2(C[:, 1] - B[:, 1], C[:, 0] - B[:, 0])
+    th3 = np.arctan2(C[:, 1] - D[1], C[:, 0] - D[0])
+    # velocities: i r w e1 + i l2 w2 e2 = i l3 w3 e3
+    e2 = np.stack([np.cos(th2), np.sin(th2)], axis=-1)
+    e3 = np.stack([np.cos(th3), np.sin(th3)], axis=-1)
+    vB = W * r * perp(e1)
+    M = np.stack([np.stack([-l2 * perp(e2)[:, 0], l3 * perp(e3)[:, 0]], -1),
+                  np.stack([-l2 * perp(e2)[:, 1], l3 * perp(e3)[:, 1]], -1)], -2)
+    w23 = np.linalg.solve(M, vB[..., None])[..., 0]
+    w2, w3 = w23[:, 0], w23[:, 1]
+    aB = -W ** 2 * r * e1
+    rhs = aB - l2 * w2[:, None] ** 2 * e2 + l3 * w3[:, None] ** 2 * e3
+    a23 = np.linalg.solve(M, rhs[..., None])[..., 0]
+    return B, C, th2, th3, vB, aB, w2, w3, a23[:, 0], a23[:, 1]
+
+
+def fourbar_closed_form(phi, gravity):
+    """Pin forces and crank torque by free bodies taken one after the other."""
+    A, D = FB["A"], FB["D"]
+    B, C, th2, th3, vB, aB, w2, w3, e2, e3 = fourbar_kinematics(phi)
+    zero = np.zeros_like(phi)
+    th1 = phi
+    m1, *g1, I1 = FB_MASS["crank"]
+    m2, *g2, I2 = FB_MASS["coupler"]
+    m3, *g3, I3 = FB_MASS["rocker"]
+    G1, v1, a1 = rigid(A, zero[:, None], zero[:, None], th1, W + zero, zero, g1)
+    G2, v2, a2 = rigid(B, vB, aB, th2, w2, e2, g2)
+    G3, v3, a3 = rigid(D, zero[:, None], zero[:, None], th3, w3, e3, g3)
+    g = np.array([0.0, -GRAVITY if gravity else 0.0])
+    # inertia "loads": m a - m g (N), I alpha (N mm)
+    R1, R2, R3 = (m * (acc * 1e-3 - g) for m, acc in ((m1, a1), (m2, a2), (m3, a3)))
+    # rocker, moments about D: (C - D) x F_C + (G3 - D) x (m3 g) = I3 e3 + (G3 - D) x m3 a3
+    #   -> (C - D) x F_C = I3 e3 1e-3 + (G3 - D) x R3
+    # coupler, moments about B: (C - B) x (-F_C) = I2 e2 1e-3 + (G2 - B) x R2
+    rD, rB = C - D, C - B
+    b1 = I3 * e3 * 1e-3 + cross(G3 - D, R3)
+    b2 = -(I2 * e2 * 1e-3 + cross(G2 - B, R2))
+    M = np.stack([np.stack([-rD[:, 1], rD[:, 0]], -1), np.stack([-rB[:, 1], rB[:, 0]], -1)], -2)
+    FC = np.linalg.solve(M, np.stack([b1, b2], -1)[..., None])[..., 0]  # on rocker from coupler
+    FB_ = R2 + FC  # on coupler from crank: F_B - F_C = R2
+    FD = R3 - FC  # on rocker from frame
+    FA = R1 + FB_  # on crank from frame
+    tau = I1 * 0.0 - cross(B - A, -FB_) + cross(G1 - A, R1)  # crank at constant speed
+    return FA, FB_, FC, FD, tau
+
+
+@pytest.mark.parametrize("gravity", [False, True])
+def test_fourbar_against_closed_form(gravity):
+    m = load_machine("fourbar-benchmark")
+    masses = {k: planar(*v) for k, v in FB_MASS.items()}
+    phi = np.linspace(0.0, 2 * math.pi, 181, endpoint=False)
+    r = inverse_dynamics(m, phi, masses=masses, gravity=gravity, loads=[])
+    FA, FB_, FC, FD, tau = fourbar_closed_form(phi, gravity)
+    peak = np.abs(FA).max()
+    for name, ref in (("A", FA), ("B", FB_), ("C", FC), ("D", FD)):
+        assert np.abs(r.pair(name) - ref).max() <= 1e-9 * peak, name
+    assert np.allclose(r.input_torque, tau, rtol=0, atol=1e-9 * np.abs(tau).max())
+    assert np.abs(tau).max() > 100.0  # N mm: the test is not trivially zero
+
+
+# ---- the slider-crank (the needle bar): closed form ------------------------------------------
+
+SC_TOML = """
+[machine]
+name = "slider-crank"
+[convention]
+reference_event = "crank along +x"
+reference_phi_deg = 0.0
+[points.O]
+x = 0.0
+y = 0.0
+[[units]]
+type = "crank"
+name = "crank"
+pivot = "O"
+points = { B = [15.0, 0.0] }
+[[units]]
+type = "rrp"
+name = "bar"
+pin = "B"
+rod = "rod"
+length = 44.0
+new = "C"
+slider = "bar"
+guide_point = "O"
+guide_angle_deg = 90.0
+branch = -1
+[masses.crank]
+mass = 0.2
+com = [-3.0, 1.0]
+inertia_zz = 40.0
+[masses.rod]
+mass = 0.012
+com = [20.0, 0.5]
+inertia_zz = 2.5
+[masses.bar]
+mass = 0.05
+com = [-40.0, 0.3]
+inertia_zz = 30.0
+"""
+
+
+def test_slider_crank_against_closed_form():
+    m = machine_from_toml(SC_TOML)
+    phi = np.linspace(0.0, 2 * math.pi, 144, endpoint=False)
+    res = inverse_dynamics(m, phi, gravity=True, loads=[])
+    r, l = 15.0, 44.0
+    # closed form: B = r e^{i phi}; C = (0, y) below B with x_C = 0
+    s, c = np.sin(phi), np.cos(phi)
+    xb, yb = r * c, r * s
+    k = np.sqrt(l ** 2 - xb ** 2)
+    yc = yb - k
+    dk = (xb * r * s) / k * W  # d/dt sqrt(l^2 - xb^2) = -xb xb' / k, xb' = -r s w
+    vyc = r * c * W - dk
+    # second derivative: differentiate yb' - k' exactly
+    xbd = -r * s * W
+    xbdd = -r * c * W ** 2
+    kd = -xb * xbd / k
+    kdd = -(xbd ** 2 + xb * xbdd) / k + (xb * xbd) * kd / k ** 2
+    ayc = -r * s * W ** 2 - kdd
+    assert np.allclose(res.kin.point("C").a[:, 1], ayc, rtol=1e-9, atol=1e-6)
+    th2 = np.arctan2(yc - yb, -xb)  # rod B -> C
+    w2 = (xbd * (yc - yb) - (vyc - r * c * W) * (-xb)) / l ** 2
+    # rod angular acceleration from the rod direction's second derivative
+    dx, dy = -xb, yc - yb
+    dxd, dyd = -xbd, vyc - r * c * W
+    dxdd, dydd = -xbdd, ayc + r * s * W ** 2
+    e2 = ((dx * dydd - dy * dxdd) * l ** 2 - (dx * dyd - dy * dxd) * 2 * (dx * dxd + dy * dyd)) \
+        / l ** 4
+    w2 = (dx * dyd - dy * dxd) / l ** 2
+    zero = np.zeros_like(phi)
+    B = np.stack([xb, yb], -1)
+    C = np.stack([zero, yc], -1)
+    vB = np.stack([-r * s * W, r * c * W], -1)
+    aB = np.stack([-r * c * W ** 2, -r * s * W ** 2], -1)
+    g = np.array([0.0, -GRAVITY])
+    mc, gc, Ic = 0.2, (-3.0, 1.0), 40.0
+    mr, gr, Ir = 0.012, (20.0, 0.5), 2.5
+    mb, gb, Ib = 0.05, (-40.0, 0.3), 30.0
+    G1, _, a1 = rigid(np.zeros((len(phi), 2)), zero[:, None], zero[:, None], phi, W + zero, zero,
+                      gc)
+    G2, _, a2 = rigid(B, vB, aB, th2, w2, e2, gr)
+    G3 = C + np.array(rot(gb, math.pi / 2))
+    a3 = np.stack([zero, ayc], -1)
+    # bar (slider), vertical guide: x: N + F_Cx = mb a3x - mb gx; y: F_Cy = mb (a - g)_y
+    FCy = mb * (a3[:, 1] * 1e-3 + GRAVITY)  # on the bar from the rod
+    # rod: F_B - F_C = R2 ; moments about B: (C - B) x (-F_C) = I e2 + (G2 - B) x R2
+    R2 = mr * (a2 * 1e-3 - g)
+    rc = C - B
+    rhs = Ir * e2 * 1e-3 + cross(G2 - B, R2)
+    # -(rc_x F_Cy - rc_y F_Cx) = rhs  ->  F_Cx = (rhs + rc_x F_Cy) / rc_y
+    FCx = (rhs + rc[:, 0] * FCy) / rc[:, 1]
+    FC = np.stack([FCx, FCy], -1)
+    FBr = R2 + FC  # on the rod from the crank
+    # bar: normal force N (along the guide's normal, -x for a guide along +y) and couple M
+    R3 = mb * (a3 * 1e-3 - g)
+    N = -(R3[:, 0] - FCx)  # F_Cx + N * (-1) = R3_x
+    R1 = mc * (a1 * 1e-3 - g)
+    FA = R1 + FBr
+    tau = cross(B, FBr) + cross(G1, R1)
+    peak = np.abs(FA).max()
+    assert np.abs(res.pair("C") - FC).max() <= 1e-9 * peak
+    assert np.abs(res.pair("B") - FBr).max() <= 1e-9 * peak
+    assert np.abs(res.pair("O") - FA).max() <= 1e-9 * peak
+    assert np.allclose(res.pair("bar.guide")[..., 0], N, rtol=0, atol=1e-9 * peak)
+    # the guide couple: moments on the bar about its COM: (C - G3) x F_C + M + (C - G3) x N n = 0
+    n = np.array([-1.0, 0.0])
+    Mref = -cross(C - G3, FC) - cross(C - G3, N[:, None] * n)
+    assert np.allclose(res.pair("bar.guide")[..., 1], Mref, rtol=0, atol=1e-9 * peak * 100)
+    assert np.allclose(res.input_torque, tau, rtol=0, atol=1e-9 * np.abs(tau).max())
+
+
+# ---- the JB machine: energy, virtual work, the frame ------------------------------------------
+
+
+def jb_loads():
+    return [LoadSpec(name="take-up pull", link="take_up_lever", point="take_up.eye",
+                     force_N=2.94, toward=["thread.check_post", "thread.face_guide"],
+                     windows_deg=[(135.0, 155.0)]),
+            LoadSpec(name="presser", link="feed_bar", point="feed_dog.tip", force_N=14.7,
+                     angle_deg=-90.0, windows_deg=[(90.0, 175.0)]),
+            LoadSpec(name="feed resistance", link="feed_bar", point="feed_dog.tip",
+                     force_N=7.35, angle_deg=180.0, windows_deg=[(90.0, 175.0)])]
+
+
+def jb_masses(m, seed=0):
+    rng = np.random.default_rng(seed)
+    return {n: planar(rng.uniform(0.01, 0.2), rng.uniform(-10, 10), rng.uniform(-5, 5),
+                      rng.uniform(1, 50)) for n in m.link_names[1:]}
+
+
+@pytest.mark.parametrize("name", ["jb1-3", "jb8-2"])
+def test_power_balance_whole_machine(name):
+    m = load_machine(name)
+    phi = np.radians(np.arange(0.0, 360.0, 2.5))
+    r = inverse_dynamics(m, phi, masses=jb_masses(m), loads=jb_loads(),
+                         inputs={"regulator": math.radians(25.0)})
+    # energy rates from the motion alone, not from the solved forces
+    bal = r.input_power - (r.kinetic_energy_rate + r.potential_energy_rate - r.external_power)
+    assert np.abs(bal).max() <= 1e-8 * np.abs(r.input_power).max()
+    assert np.abs(r.external_power).max() > 0.0
+    # and the energy rates are the derivatives of the energies (central differences, 0.01 deg)
+    h = math.radians(0.01)
+    rp, rm = (inverse_dynamics(m, phi + s * h, masses=jb_masses(m), loads=[],
+                               inputs={"regulator": math.radians(25.0)}) for s in (1, -1))
+    dT = (rp.kinetic_energy - rm.kinetic_energy) / (2 * h) * r.kin.omega_shaft
+    dV = (rp.potential_energy - rm.potential_energy) / (2 * h) * r.kin.omega_shaft
+    assert np.allclose(dT, r.kinetic_energy_rate, rtol=0,
+                       atol=1e-6 * np.abs(r.kinetic_energy_rate).max())
+    assert np.allclose(dV, r.potential_energy_rate, rtol=0,
+                       atol=1e-6 * np.abs(r.potential_energy_rate).max())
+
+
+def test_static_torque_is_virtual_work():
+    """At vanishing speed the torque holds the weights and the loads: tau = dV/dphi - sum F .
+    dX/dphi, with the derivatives by central differences of positions."""
+    m = load_machine("jb1-3")
+    masses = jb_masses(m, 3)
+    phi = np.radians(np.array([10.0, 47.0, 100.0, 140.0, 150.0, 222.0, 300.0]))
+    loads = jb_loads()
+    r = inverse_dynamics(m, phi, masses=masses, loads=loads, omega=1e-7)
+    h = 1e-4  # rad: the loop units close to 1e-10 mm, so a smaller step would see that noise
+    rp, rm = (inverse_dynamics(m, phi + s * h, masses=masses, loads=loads, omega=1e-7)
+              for s in (1, -1))
+    dV = (rp.potential_energy - rm.potential_energy) / (2 * h)
+    work = np.zeros_like(phi)
+    for k, load in enumerate(loads):
+        i = m.point_index(load.point)
+        dX = (rp.kin.p[:, i] - rm.kin.p[:, i]) / (2 * h)
+        work += np.sum(r.load_force[:, k] * dX, axis=-1)
+    tau = dV - work
+    assert np.abs(tau).max() > 10.0
+    assert np.allclose(r.input_torque, tau, rtol=0, atol=1e-6 * np.abs(tau).max())
+
+
+def test_frame_feels_the_shaking_force_and_moment():
+    m = load_machine("jb1-3")
+    phi = np.radians(np.arange(0.0, 360.0, 5.0))
+    r = inverse_dynamics(m, phi, masses=jb_masses(m, 1), loads=[], gravity=False)
+    total = sum(r.frame_reactions.values())
+    assert np.allclose(total, r.shaking_force, rtol=0, atol=1e-9 * np.abs(total).max())
+    # moments on the frame: its pairs' forces (and the guide's couple) plus the drivers'
+    moment = np.zeros_like(phi)
+    for name, F in r.frame_reactions.items():
+        pair = r.pairs[r.pair_names.index(name)]
+        moment += cross(r.kin.point(pair.point).p, F)
+        if pair.kind == "prismatic":
+            moment -= r.pair(name)[..., 1]
+    for pair in r.pairs:
+        if pair.kind == "driver":
+            moment -= r.pair(pair.name)[..., 0]
+    assert np.allclose(moment, r.shaking_moment, rtol=0, atol=1e-9 * np.abs(moment).max())
+
+
+def test_batch_equals_loop():
+    m = load_machine("jb1-3")
+    phi = np.radians(np.arange(0.0, 360.0, 10.0))
+    settings = np.radians([-30.0, 0.0, 20.0])
+    P = m.parameters(inputs={"regulator": settings})
+    batch = inverse_dynamics(m, phi, params=P, masses=jb_masses(m), loads=jb_loads())
+    for k, s in enumerate(settings):
+        one = inverse_dynamics(m, phi, inputs={"regulator": s}, masses=jb_masses(m),
+                               loads=jb_loads())
+        assert np.allclose(batch.unknowns[k], one.unknowns, rtol=1e-12, atol=1e-9)
+
+
+def test_windows():
+    deg = np.array([0.0, 80.0, 90.0, 120.0, 175.0, 176.0, 350.0, 359.9])
+    assert in_windows(deg, [(90.0, 175.0)]).tolist() == [0, 0, 1, 1, 1, 0, 0, 0]
+    assert in_windows(deg, [(340.0, 10.0)]).tolist() == [1, 0, 0, 0, 0, 0, 1, 1]
+    assert in_windows(deg, [(78.0, 82.0), (135.0, 155.0)]).tolist() == [0, 1, 0, 0, 0, 0, 0, 0]
+    assert in_windows(deg, [(0.0, 360.0)]).all()
+
+
+def test_missing_contact_is_named():
+    m = machine_from_toml(SC_TOML)
+    # drop the guide pair by hand: the count no longer matches
+    object.__setattr__(m, "pairs", tuple(p for p in m.pairs if p.kind != "prismatic"))
+    with pytest.raises(SingularForceSystem, match="3 moving links give 9 equilibrium equations"
+                                                  " but the pairs give 7 unknowns"):
+        inverse_dynamics(m, [0.0])
