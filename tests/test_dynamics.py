@@ -341,3 +341,64 @@ def test_missing_contact_is_named():
     with pytest.raises(SingularForceSystem, match="3 moving links give 9 equilibrium equations"
                                                   " but the pairs give 7 unknowns"):
         inverse_dynamics(m, [0.0])
+
+
+# ---- the upper shaft in 3-D --------------------------------------------------------------------
+
+SHAFT_TOML = SC_TOML.replace("""[masses.crank]
+mass = 0.2
+com = [-3.0, 1.0]
+inertia_zz = 40.0""", """[masses.crank]
+material = "steel"
+solids = [ { type = "cylinder", radius = 4.0, length = 200.0, base = [0.0, 0.0, -20.0] },
+           { type = "point", mass = 0.03, at = [12.0, 0.0, 10.0] },
+           { type = "point", mass = 0.05, at = [-9.0, 3.0, 150.0] } ]
+[shaft]
+links = { crank = 0.0 }
+bearings = { front = 20.0, rear = 170.0 }""")
+
+
+@pytest.mark.parametrize("gravity", [False, True])
+def test_bearings_by_the_lever_rule(gravity):
+    """Each point mass and the rod's pin force are carried by the two bearings in inverse
+    proportion to their distances (the lever rule), written here for each load by itself."""
+    m = machine_from_toml(SHAFT_TOML)
+    phi = np.linspace(0.0, 2 * math.pi, 72, endpoint=False)
+    r = inverse_dynamics(m, phi, gravity=gravity, loads=[])
+    br = r.bearings
+    zf, zr = 20.0, 170.0
+    g = np.array([0.0, -GRAVITY if gravity else 0.0])
+    front = np.zeros((len(phi), 2))
+    rear = np.zeros((len(phi), 2))
+
+    def carry(F, z):  # a force F on the shaft at z: the bearings' reactions
+        nonlocal front, rear
+        wr = (z - zf) / (zr - zf)
+        front -= (1 - wr) * F
+        rear -= wr * F
+
+    # the shaft's solids, one by one: inertia and weight appear as forces at their own z
+    rho = 7850e-9
+    mc = rho * math.pi * 16.0 * 200.0
+    parts = [(mc, (0.0, 0.0), 80.0), (0.03, (12.0, 0.0), 10.0), (0.05, (-9.0, 3.0), 150.0)]
+    for mass, (u, v), z in parts:
+        pos = rot((u, v), phi)
+        acc = -W ** 2 * pos
+        carry(mass * g - mass * acc * 1e-3, z)
+    # the rod pulls the crank pin in the crank's plane z = 0
+    carry(-r.pair("B"), 0.0)
+    peak = np.abs(front).max()
+    assert np.allclose(br.front, front, rtol=0, atol=1e-9 * peak)
+    assert np.allclose(br.rear, rear, rtol=0, atol=1e-9 * peak)
+    # the planar analysis' frame pin force on the crank is the sum of both bearings
+    assert np.allclose(br.front + br.rear, r.pair("O"), rtol=0, atol=1e-9 * peak)
+    assert np.abs(br.inertia_couple).max() > 1.0  # the masses at different z make a couple
+
+
+def test_bearings_need_products_of_inertia():
+    # the slider-crank's crank has measured planar values only (mass, com, inertia_zz)
+    m = machine_from_toml(SC_TOML + "[shaft]\nlinks = { crank = 0.0 }\n"
+                          "bearings = { front = 20.0, rear = 170.0 }\n")
+    r = inverse_dynamics(m, [0.0, 1.0], loads=[])
+    with pytest.raises(ValueError, match="gives only inertia_zz: the bearing reactions need"):
+        r.bearings

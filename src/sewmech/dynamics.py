@@ -188,6 +188,8 @@ class DynamicsResult:
     com_v: np.ndarray = field(repr=False)
     com_a: np.ndarray = field(repr=False)
     params: np.ndarray = field(repr=False)
+    mass_props: dict = field(default_factory=dict, repr=False)
+    load_links: tuple[int, ...] = ()
 
     # ---- pairs
     @cached_property
@@ -339,10 +341,113 @@ class DynamicsResult:
         return self.load_power
 
     @cached_property
+    def bearings(self) -> BearingReactions:
+        """The upper shaft's front and rear bearing reactions (:func:`bearing_reactions`)."""
+        return bearing_reactions(self)
+
+    @cached_property
     def reduced_inertia(self) -> np.ndarray:
         """Equivalent moment of inertia at the upper shaft, J(phi) = 2 T / omega^2, kg mm^2."""
         return 2e3 * self.kinetic_energy / self.kin.omega_shaft ** 2
 
+
+
+@dataclass(frozen=True)
+class BearingReactions:
+    """Reactions of the upper shaft's bearings (the force each bearing puts on the shaft), N,
+    batch + (n_phi, 2); ``inertia_couple`` is dH/dt of the shaft about its axis point (x, y
+    components, N mm), the part that products of inertia add."""
+
+    front: np.ndarray
+    rear: np.ndarray
+    z_front: float
+    z_rear: float
+    inertia_couple: np.ndarray
+
+
+def bearing_reactions(res: DynamicsResult) -> BearingReactions:
+    """The upper shaft in 3-D: its parts turn about z; the pairs of each crank act in that
+    crank's plane (``[shaft] links``), gravity at each part's centre of mass; the two bearings
+    (``[shaft] bearings``) carry what is left. Moments about the axis point: the x and y
+    components of dH/dt = (J_xz alpha - J_yz omega^2, J_yz alpha + J_xz omega^2) with the
+    products of inertia J_xz, J_yz of the turning parts about that point.
+    """
+    machine = res.machine
+    shaft = machine.spec.shaft
+    if shaft is None:
+        raise ValueError(f"machine '{machine.name}' has no [shaft] table: give the z of its"
+                         " cranks' planes and of its two bearings")
+    kin = res.kin
+    names = machine.link_names
+    pivot = next(u.pivot for u in machine.spec.units
+                 if u.type == "crank" and (u.link or u.name) in shaft.links)
+    O = kin.point(pivot).p
+    bshape = kin.theta.shape[:-1]
+    S = np.zeros(bshape + (2,))  # sum of forces from outside the shaft (not the bearings)
+    Mx = np.zeros(bshape)  # their moments about the axis point, N mm
+    My = np.zeros(bshape)
+    dHx = np.zeros(bshape)
+    dHy = np.zeros(bshape)
+    mass_S = np.zeros(bshape + (2,))
+    for lname, z in shaft.links.items():
+        li = names.index(lname)
+        # pairs of this crank with links that are not the frame (the frame's share is the
+        # bearings' job) and not the shaft itself
+        for pair in res.pairs:
+            if pair.kind == "driver" or lname not in pair.links or FRAME in pair.links:
+                continue
+            if pair.links[0] in shaft.links and pair.links[1] in shaft.links:
+                continue
+            F = res.force(pair.name) * (1.0 if pair.links[1] == lname else -1.0)
+            S += F
+            Mx += -z * F[..., 1]
+            My += z * F[..., 0]
+        for (li_load, _pi, F) in _loads_of(res):
+            if li_load == li:
+                S += F
+                Mx += -z * F[..., 1]
+                My += z * F[..., 0]
+        mp = res.mass_props.get(lname)
+        if mp is None:
+            continue
+        if not np.isfinite(mp.inertia).all():
+            raise ValueError(f"link '{lname}' turns with the upper shaft but its [masses] table"
+                             " gives only inertia_zz: the bearing reactions need its products"
+                             " of inertia (give the full inertia tensor or solids)")
+        # mass frame origin -> the axis point, in link coordinates (a fixed offset)
+        th = kin.theta[..., li]
+        o = kin.p[..., res.mass.origins[li], :] - O
+        c, s = np.cos(th), np.sin(th)
+        ou = (c * o[..., 0] + s * o[..., 1]).ravel()[0]
+        ov = (-s * o[..., 0] + c * o[..., 1]).ravel()[0]
+        J = mp.about(np.array([-ou, -ov, 0.0]))  # about the axis point at z = 0
+        zc = mp.com[2]
+        w, e = kin.omega[..., li], kin.epsilon[..., li]
+        jxz = c * J[0, 2] - s * J[1, 2]
+        jyz = s * J[0, 2] + c * J[1, 2]
+        dHx += 1e-3 * (jxz * e - jyz * w * w)
+        dHy += 1e-3 * (jyz * e + jxz * w * w)
+        m = mp.mass
+        a = res.com_a[..., li, :]
+        mass_S += 1e-3 * m * a
+        if res.gravity:
+            S[..., 1] -= m * GRAVITY
+            Mx += zc * m * GRAVITY
+    # bearings: B_f + B_r + S = sum m a ; z x B terms + M = dH/dt
+    need = mass_S - S
+    zf, zr = shaft.bearings["front"], shaft.bearings["rear"]
+    Mx_need = dHx - Mx
+    My_need = dHy - My
+    bfy = (Mx_need + zr * need[..., 1]) / (zr - zf)
+    bfx = (My_need - zr * need[..., 0]) / (zf - zr)
+    front = np.stack([bfx, bfy], axis=-1)
+    rear = need - front
+    return BearingReactions(front, rear, zf, zr, np.stack([dHx, dHy], axis=-1))
+
+
+def _loads_of(res: DynamicsResult):
+    for k, name in enumerate(res.load_names):
+        yield res.load_links[k], -1, res.load_force[..., k, :]
 
 
 def _pair_direction(machine: Machine, kin: KinematicsResult, pair: Pair,
@@ -523,7 +628,8 @@ def inverse_dynamics(
         load_names=tuple(ld.name for ld in load_specs),
         load_force=(np.stack([F for _, _, F in lf], axis=-2) if lf
                     else np.zeros(shape[:-1] + (0, 2))),
-        load_power=load_power, mass=lm, com_p=gp, com_v=gv, com_a=ga, params=P)
+        load_power=load_power, mass=lm, com_p=gp, com_v=gv, com_a=ga, params=P,
+        mass_props={**machine.masses, **(masses or {})}, load_links=tuple(li for li, _, _ in lf))
 
 
 def _solve(A: np.ndarray, b: np.ndarray, kin: KinematicsResult, machine: Machine) -> np.ndarray:
