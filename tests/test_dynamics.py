@@ -402,3 +402,72 @@ def test_bearings_need_products_of_inertia():
     r = inverse_dynamics(m, [0.0, 1.0], loads=[])
     with pytest.raises(ValueError, match="gives only inertia_zz: the bearing reactions need"):
         r.bearings
+
+
+# ---- command line and load files ----------------------------------------------------------------
+
+
+def test_cli_dynamics_json(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from sewmech.cli import app
+
+    out = CliRunner().invoke(app, ["dynamics", "jb1-3", "--rpm", "600", "--step-deg", "10",
+                                   "--json", "--input", "regulator=30"])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.output)
+    rows = data["positions"]
+    assert len(rows) == 36 and data["rpm"] == 600.0 and data["settings_deg"]["regulator"] == 30
+    keys = {"phi_deg", "input_torque_Nm", "kinetic_energy_J", "potential_energy_J",
+            "external_power_W", "shaking_force_N", "shaking_moment_Nm", "bearing_front_N",
+            "bearing_rear_N"}
+    assert keys <= set(rows[0])
+    # the same numbers as the library, in SI
+    m = load_machine("jb1-3")
+    r = inverse_dynamics(m, np.radians(np.arange(0, 360, 10.0)), rpm=600,
+                         inputs={"regulator": math.radians(30)})
+    assert np.allclose([x["input_torque_Nm"] for x in rows], r.input_torque * 1e-3, atol=1e-12)
+    assert np.allclose([x["bearing_rear_N"] for x in rows], r.bearings.rear, atol=1e-12)
+    assert np.allclose([x["external_power_W"] for x in rows], r.external_power * 1e-3)
+    # power balance on the JSON figures alone: P_in = dT/dt + dV/dt - P_ext, with the energy
+    # derivatives from a periodic spline of the printed energies (a loose, independent check)
+    from scipy.interpolate import CubicSpline
+
+    t = np.radians([x["phi_deg"] for x in rows] + [360.0]) / (600 * 2 * math.pi / 60)
+    E = [x["kinetic_energy_J"] + x["potential_energy_J"] for x in rows]
+    dE = CubicSpline(t, E + E[:1], bc_type="periodic")(t[:-1], 1)
+    P = np.array([x["input_torque_Nm"] for x in rows]) * 600 * 2 * math.pi / 60
+    Pext = np.array([x["external_power_W"] for x in rows])
+    assert np.abs(P + Pext - dE).max() < 0.05 * np.abs(P).max() + 1e-9
+
+
+def test_load_file_errors(tmp_path):
+    from typer.testing import CliRunner
+
+    from sewmech.cli import app
+
+    bad = tmp_path / "loads.toml"
+    bad.write_text('[[loads]]\nname = "pull"\nlink = "take_up_lever"\npoint = "needle.eye"\n'
+                   'force_N = 3.0\nangle_deg = -90.0\n')
+    out = CliRunner().invoke(app, ["dynamics", "jb1-3", "--loads", str(bad)])
+    assert out.exit_code == 2
+    assert "loads.toml" in out.output and 'loads[0] "pull"' in out.output
+    assert "'needle.eye' is not a point of link 'take_up_lever'" in out.output
+    bad.write_text('[[loads]]\nname = "pull"\nlink = "take_up_lever"\npoint = "take_up.eye"\n'
+                   'force_N = 3.0\n')
+    out = CliRunner().invoke(app, ["dynamics", "jb1-3", "--loads", str(bad)])
+    assert out.exit_code == 2 and "exactly one of angle_deg" in out.output
+    good = tmp_path / "good.toml"
+    good.write_text('[[loads]]\nname = "pull"\nlink = "take_up_lever"\npoint = "take_up.eye"\n'
+                    'force_N = 3.0\nangle_deg = -90.0\nwindows_deg = [[350.0, 20.0]]\n')
+    out = CliRunner().invoke(app, ["dynamics", "jb1-3", "--loads", str(good), "--out",
+                                   str(tmp_path / "o")])
+    assert out.exit_code == 0, out.output
+    import pandas as pd
+
+    df = pd.read_csv(tmp_path / "o" / "jb1-3-dynamics.csv")
+    on = (df.phi_deg >= 350) | (df.phi_deg <= 20)
+    assert (df.external_power_W[~on] == 0).all() and (df.external_power_W[on] != 0).any()
+    assert (tmp_path / "o" / "jb1-3-pair-forces.csv").exists()

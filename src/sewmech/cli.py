@@ -53,6 +53,21 @@ def _phi_grid(machine: Machine, step_deg: float) -> np.ndarray:
     return np.radians(np.arange(n) * step_deg)
 
 
+def _settings(m: Machine, inputs: list[str] | None) -> dict[str, float]:
+    """--input NAME=DEG options -> {name: rad}."""
+    settings = {}
+    for item in inputs or ():
+        name, _, value = item.partition("=")
+        if name not in m.spec.inputs:
+            _fail(ValueError(f"--input {item!r}: machine '{m.name}' has no input '{name}'"
+                             f" (inputs: {', '.join(m.spec.inputs) or 'none'})"))
+        try:
+            settings[name] = math.radians(float(value))
+        except ValueError:
+            _fail(ValueError(f"--input {item!r}: expected NAME=DEGREES"))
+    return settings
+
+
 @app.command("machines")
 def machines_cmd():
     """List the machine files shipped with sewmech."""
@@ -128,16 +143,7 @@ def kinematics_cmd(
     from .kinematics import kinematics
 
     m = _load(machine)
-    settings = {}
-    for item in inputs or ():
-        name, _, value = item.partition("=")
-        if name not in m.spec.inputs:
-            _fail(ValueError(f"--input {item!r}: machine '{m.name}' has no input '{name}'"
-                             f" (inputs: {', '.join(m.spec.inputs) or 'none'})"))
-        try:
-            settings[name] = math.radians(float(value))
-        except ValueError:
-            _fail(ValueError(f"--input {item!r}: expected NAME=DEGREES"))
+    settings = _settings(m, inputs)
     try:
         res = kinematics(m, _phi_grid(m, step_deg), rpm=rpm, inputs=settings or None)
     except SewmechError as exc:
@@ -151,6 +157,95 @@ def kinematics_cmd(
         path = out / f"{m.name}-kinematics.{format.value}"
         (write_kinematics_csv if format is Format.csv else write_kinematics_json)(res, path)
         console.print(f"written: {path}")
+
+
+@app.command("dynamics")
+def dynamics_cmd(
+    machine: str = typer.Argument(DEFAULT_MACHINE, help="shipped machine name or TOML file"),
+    rpm: float = typer.Option(None, help="shaft speed, rev/min (default: the file's)"),
+    step_deg: float = typer.Option(5.0, help="shaft-angle step, deg (5: the report's 72"
+                                   " positions)"),
+    as_json: bool = typer.Option(False, "--json", help="print the per-position figures as JSON"),
+    inputs: list[str] = typer.Option(None, "--input", help="a setting input NAME=DEG, e.g."
+                                     " regulator=30; repeatable (default: the file's)"),
+    loads: Path = typer.Option(None, help="a load file ([[loads]] tables) that replaces the"
+                               " machine file's loads"),
+    no_loads: bool = typer.Option(False, "--no-loads", help="no process loads (no-load run)"),
+    gravity: bool = typer.Option(True, "--gravity/--no-gravity", help="weights of the links"),
+    out: Path = typer.Option(None, help="also write the per-position table (CSV) and the"
+                             " pair forces (CSV) into this directory"),
+):
+    """Inverse dynamics: driving torque, pair forces, shaking force and moment, energies,
+    upper-shaft bearing reactions."""
+    from .dynamics import inverse_dynamics
+    from .io import dynamics_to_dict, write_dynamics_csv
+    from .spec import load_load_file
+
+    m = _load(machine)
+    settings = _settings(m, inputs)
+    try:
+        load_specs = [] if no_loads else (load_load_file(loads) if loads is not None else None)
+        if load_specs:
+            m.check_loads(load_specs, str(loads))
+        res = inverse_dynamics(m, _phi_grid(m, step_deg), rpm=rpm, inputs=settings or None,
+                               gravity=gravity, loads=load_specs)
+        data = dynamics_to_dict(res)
+    except (SewmechError, ValueError) as exc:
+        _fail(exc)
+    if as_json:
+        json.dump(data, sys.stdout)
+        sys.stdout.write("\n")
+        return
+    console.print(_dynamics_summary(res, data))
+    console.print(_pair_table(res))
+    if out is not None:
+        for path in write_dynamics_csv(res, out):
+            console.print(f"written: {path}")
+
+
+def _dynamics_summary(res, data) -> Table:
+    rows = data["positions"]
+    rpm = res.kin.omega_shaft[0] * 60 / (2 * math.pi)
+    table = Table(title=f"{res.machine.name}: inverse dynamics over {len(rows)} positions"
+                        f" ({rpm:g} rpm, gravity {'on' if res.gravity else 'off'},"
+                        f" loads: {', '.join(res.load_names) or 'none'})")
+    for col in ("quantity", "unit", "min", "max", "at phi, deg (max |.|)"):
+        table.add_column(col, justify="left" if col in ("quantity", "unit") else "right")
+    phi = res.phi_deg
+
+    def add(label, unit, values):
+        values = np.asarray(values, dtype=float)
+        if values.ndim == 2:
+            values = np.linalg.norm(values, axis=-1)
+            label = f"|{label}|"
+        k = int(np.nanargmax(np.abs(values)))
+        table.add_row(label, unit, f"{np.nanmin(values):.4g}", f"{np.nanmax(values):.4g}",
+                      f"{phi[k]:g}")
+
+    add("input torque", "N m", [r["input_torque_Nm"] for r in rows])
+    add("input power", "W", [r["input_power_W"] for r in rows])
+    add("kinetic energy", "J", [r["kinetic_energy_J"] for r in rows])
+    add("reduced inertia J(phi)", "kg m^2", [r["reduced_inertia_kgm2"] for r in rows])
+    add("shaking force", "N", [r["shaking_force_N"] for r in rows])
+    add("shaking moment", "N m", [r["shaking_moment_Nm"] for r in rows])
+    if rows and rows[0]["bearing_front_N"] is not None:
+        add("front bearing", "N", [r["bearing_front_N"] for r in rows])
+        add("rear bearing", "N", [r["bearing_rear_N"] for r in rows])
+    for name, values in res.setting_torques.items():
+        add(f"torque holding '{name}'", "N m", values * 1e-3)
+    return table
+
+
+def _pair_table(res) -> Table:
+    table = Table(title="pairs: largest force (N) or driving torque (N m) over the cycle")
+    for col in ("pair", "kind", "links (action of first on second)", "max", "at phi, deg"):
+        table.add_column(col, justify="right" if col in ("max", "at phi, deg") else "left")
+    for pair in res.pairs:
+        mag = res.magnitude(pair.name) * (1e-3 if pair.kind == "driver" else 1.0)
+        k = int(np.nanargmax(mag))
+        table.add_row(pair.name, pair.kind, " -> ".join(pair.links), f"{mag[k]:.4g}",
+                      f"{res.phi_deg[k]:g}")
+    return table
 
 
 @app.command("feed")

@@ -570,6 +570,8 @@ def inverse_dynamics(
 
     # loads
     load_specs = list(machine.spec.loads if loads is None else loads)
+    if loads is not None:
+        machine.check_loads(load_specs)
     lf = load_forces(machine, kin, load_specs)
 
     # right-hand side: m a_G - F - m g ; I alpha - sum (X - G) x F, per moving link

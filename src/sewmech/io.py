@@ -81,3 +81,84 @@ def write_kinematics_csv(result: KinematicsResult, path: str | Path) -> Path:
     with atomic_write(path) as fh:
         df.to_csv(fh, index=False, float_format="%.10g")
     return path
+
+
+def dynamics_to_dict(res) -> dict:
+    """A JSON-ready dict of a single-design :class:`sewmech.dynamics.DynamicsResult`: per
+    position the driving torque, energies, powers, shaking force and moment and the upper
+    shaft's bearing reactions (SI units, named in the keys; null where not defined)."""
+    if res.kin.batch_shape:
+        raise ValueError("dynamics_to_dict takes one design (batch shape ()), got batch shape"
+                         f" {res.kin.batch_shape}")
+    try:
+        br = res.bearings
+    except ValueError:  # no [shaft] table (or planar-only shaft masses): no bearing figures
+        br = None
+    rows = []
+    for k, phi in enumerate(res.phi_deg.tolist()):
+        rows.append({
+            "phi_deg": phi,
+            "input_torque_Nm": _clean(float(res.input_torque[k]) * 1e-3),
+            "input_power_W": _clean(float(res.input_power[k]) * 1e-3),
+            "kinetic_energy_J": _clean(float(res.kinetic_energy[k]) * 1e-3),
+            "potential_energy_J": _clean(float(res.potential_energy[k]) * 1e-3),
+            "external_power_W": _clean(float(res.external_power[k]) * 1e-3),
+            "reduced_inertia_kgm2": _clean(float(res.reduced_inertia[k]) * 1e-6),
+            "shaking_force_N": [_clean(float(x)) for x in res.shaking_force[k]],
+            "shaking_moment_Nm": _clean(float(res.shaking_moment[k]) * 1e-3),
+            "bearing_front_N": None if br is None else [_clean(float(x)) for x in br.front[k]],
+            "bearing_rear_N": None if br is None else [_clean(float(x)) for x in br.rear[k]],
+        })
+    return {
+        "machine": res.machine.name,
+        "rpm": round(float(res.kin.omega_shaft[0] * 60 / (2 * math.pi)), 9),
+        "gravity": res.gravity,
+        "loads": list(res.load_names),
+        "settings_deg": {name: round(math.degrees(float(res.params[
+            res.machine.parameter_index(f"input.{name}")])), 9) for name in res.machine.spec.inputs},
+        "conventions": {
+            "input_torque_Nm": "torque of the motor on the upper shaft, counter-clockwise +",
+            "external_power_W": "power of the process loads on the machine (gravity excluded:"
+                                " it is in potential_energy_J)",
+            "shaking_force_N": "-sum m a_G of the moving links: what the frame feels",
+            "shaking_moment_Nm": "-sum (I alpha + r_G x m a_G) about the frame origin",
+            "bearing_front_N": "force of the front bearing on the upper shaft (x, y)",
+            "bearing_rear_N": "force of the rear bearing on the upper shaft (x, y)",
+        },
+        "positions": rows,
+    }
+
+
+def write_dynamics_csv(res, out_dir: str | Path) -> list[Path]:
+    """Two CSV files (atomically): MACHINE-dynamics.csv with the per-position figures of
+    :func:`dynamics_to_dict` and MACHINE-pair-forces.csv with every pair's unknowns (N, N mm)."""
+    import pandas as pd
+
+    out_dir = Path(out_dir)
+    data = dynamics_to_dict(res)
+    flat = []
+    for r in data["positions"]:
+        row = {}
+        for key, value in r.items():
+            if isinstance(value, list):
+                row[key.replace("_N", "_x_N")] = value[0]
+                row[key.replace("_N", "_y_N")] = value[1]
+            elif value is None and key.startswith("bearing"):
+                continue
+            else:
+                row[key] = value
+        flat.append(row)
+    main = out_dir / f"{res.machine.name}-dynamics.csv"
+    with atomic_write(main) as fh:
+        pd.DataFrame(flat).to_csv(fh, index=False, float_format="%.10g")
+    cols = {"phi_deg": res.phi_deg}
+    labels = {"revolute": ("Fx_N", "Fy_N"), "prismatic": ("N_N", "M_Nmm"), "cam": ("N_N",),
+              "slot": ("N_N",), "driver": ("torque_Nmm",)}
+    for pair in res.pairs:
+        x = res.pair(pair.name)
+        for j, label in enumerate(labels[pair.kind]):
+            cols[f"{pair.name}.{label}"] = x[:, j]
+    pairs = out_dir / f"{res.machine.name}-pair-forces.csv"
+    with atomic_write(pairs) as fh:
+        pd.DataFrame(cols).to_csv(fh, index=False, float_format="%.10g")
+    return [main, pairs]

@@ -270,6 +270,10 @@ class Machine:
         self._selections[key] = hit = tuple(out)
         return hit
 
+    def check_loads(self, loads, file: str = "<loads>") -> None:
+        """Check loads (e.g. from a load file) against this machine's links and points."""
+        check_loads(self.name, self.link_names, self.point_names, self.point_links, loads, file)
+
     @cached_property
     def _selections(self) -> dict:
         return {}
@@ -336,6 +340,26 @@ class Machine:
         for i, v in items.items():
             out[..., i] = v
         return out
+
+
+def check_loads(machine_name: str, links, points, point_links, loads, file: str) -> None:
+    """Raise :class:`MachineFileError` (file, load, key) if a load names a link or point the
+    machine lacks, or a point that is not on its link."""
+    for k, load in enumerate(loads):
+        table = f'loads[{k}] "{load.name}"'
+        for key, value, names in (("link", load.link, links), ("point", load.point, points)):
+            if value not in names or value == FRAME:
+                close = difflib.get_close_matches(value, list(names), n=3)
+                hint = f" Did you mean {', '.join(close)}?" if close else ""
+                raise MachineFileError(file, table, key, f"machine '{machine_name}' has no"
+                                       f" moving {key} '{value}'.{hint}")
+        if load.link not in point_links[load.point]:
+            raise MachineFileError(file, table, "point", f"'{load.point}' is not a point of link"
+                                   f" '{load.link}' (it is on: {', '.join(point_links[load.point])})")
+        for q in load.toward or ():
+            if q not in points:
+                raise MachineFileError(file, table, "toward", f"machine '{machine_name}' has no"
+                                       f" point '{q}'")
 
 
 # ---- compiler ---------------------------------------------------------------------------------
@@ -611,9 +635,8 @@ class _Compiler:
             else:
                 raise self.err(f"masses.{lname}", "origin", f"link '{lname}' has no points; put"
                                " a point unit on it and name its origin here")
-        for k, load in enumerate(spec.loads):
-            table = f'loads[{k}] "{load.name}"'
-            self.check_load(table, load)
+        check_loads(spec.machine.name, self.links, self.points, self.point_links, spec.loads,
+                    self.file)
         if spec.shaft is not None:
             cranks = {(u.link or u.name): u for u in spec.units if u.type == "crank"}
             pivots = set()
@@ -626,15 +649,6 @@ class _Compiler:
             if len(pivots) > 1:
                 raise self.err("shaft", "links", "the shaft's cranks turn about different"
                                f" points ({', '.join(sorted(pivots))}); they must share one axis")
-
-    def check_load(self, table: str, load) -> None:
-        self.known_link(table, "link", load.link)
-        self.known_point(table, "point", load.point)
-        if load.link not in self.point_links[load.point]:
-            raise self.err(table, "point", f"'{load.point}' is not a point of link '{load.link}'"
-                           f" (it is on: {', '.join(self.point_links[load.point])})")
-        for q in load.toward or ():
-            self.known_point(table, "toward", q)
 
     def unit_crank(self, ui, table, u: CrankUnit):
         pivot = self.known_point(table, "pivot", u.pivot)

@@ -697,3 +697,18 @@ def load_machine_spec(path: str | Path) -> MachineSpec:
     except OSError as exc:
         raise MachineFileError(str(path), "", "", f"cannot read the file: {exc.strerror}") from None
     return parse_machine(text, str(path))
+
+
+def load_load_file(path: str | Path) -> list[LoadSpec]:
+    """Read and validate a load file (``[[loads]]`` tables, as in machine files)."""
+    path = Path(path)
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise MachineFileError(str(path), "", "", f"cannot read the file: {exc.strerror}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise MachineFileError(str(path), "", "", f"not valid TOML: {exc}") from None
+    try:
+        return list(LoadFile.model_validate(raw).loads)
+    except ValidationError as exc:
+        raise _explain(exc.errors()[0], raw, str(path)) from None
