@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from sewmech import load_machine
+from sewmech.kinematics import kinematics
 from sewmech.dynamics import GRAVITY, SingularForceSystem, in_windows, inverse_dynamics
 from sewmech.machine import machine_from_toml
 from sewmech.mass import MassProperties
@@ -471,3 +472,60 @@ def test_load_file_errors(tmp_path):
     on = (df.phi_deg >= 350) | (df.phi_deg <= 20)
     assert (df.external_power_W[~on] == 0).all() and (df.external_power_W[on] != 0).any()
     assert (tmp_path / "o" / "jb1-3-pair-forces.csv").exists()
+
+
+# ---- speed fluctuation and force transmission ----------------------------------------------------
+
+
+def test_speed_fluctuation_obeys_the_equation_of_motion():
+    from sewmech.dynamics import speed_fluctuation
+
+    m = load_machine("jb1-3")
+    masses = jb_masses(m)
+    sf = speed_fluctuation(m, flywheel=2000.0, masses=masses, loads=jb_loads(), n_phi=1440)
+    # driven at the computed omega(phi), epsilon(phi), the force solve needs exactly the motor
+    # torque (less what the flywheel takes): the energy method and Newton-Euler agree
+    r = inverse_dynamics(m, sf.phi, omega=sf.omega, epsilon=sf.epsilon, masses=masses,
+                         loads=jb_loads())
+    tau = r.input_torque + 1e-3 * 2000.0 * sf.epsilon
+    assert np.abs(tau - sf.motor_torque).max() <= 1e-9 * np.abs(sf.load_torque).max()
+    # and omega(phi) is the integral of domega/dphi = epsilon / omega (trapezoids; the load
+    # windows make epsilon jump, so no spline derivative)
+    from scipy.integrate import cumulative_trapezoid
+
+    rate = sf.epsilon / sf.omega
+    rebuilt = sf.omega[0] + cumulative_trapezoid(rate, sf.phi, initial=0.0)
+    assert np.abs(rebuilt - sf.omega).max() <= 1e-4 * W
+    assert sf.delta > 1e-3
+    assert math.isclose(sf.omega.mean(), W, rel_tol=1e-9)
+    # a heavier flywheel smooths the speed about in proportion (delta ~ dE / (J w^2))
+    big = speed_fluctuation(m, flywheel=20000.0, masses=masses, loads=jb_loads())
+    assert 0.05 < big.delta / sf.delta < 0.2
+
+
+def test_pressure_angles_of_a_slider_crank():
+    from sewmech.transmission import pressure_angles
+
+    m = machine_from_toml(SC_TOML)
+    phi = np.linspace(0.0, 2 * math.pi, 73)
+    pa = pressure_angles(m, phi)
+    # the rod's angle from the vertical guide: sin(angle) = x_B / l
+    ref = np.degrees(np.arcsin(np.abs(15.0 * np.cos(phi)) / 44.0))
+    assert np.allclose(pa.angles["bar"], ref, atol=1e-9)
+    name, worst, at = pa.worst()[0]
+    assert name == "bar" and math.isclose(worst, math.degrees(math.asin(15 / 44)), rel_tol=1e-9)
+
+
+def test_needle_force_by_virtual_work():
+    from sewmech.transmission import needle_force
+
+    m = load_machine("jb1-3")
+    nf = needle_force(m, 500.0, n_phi=360)
+    assert (nf.depth >= 0).all() and nf.depth.max() > 10.0
+    # at one angle: (M - M0) = F * (-dy/dphi) with dy/dphi by central differences
+    k = len(nf.phi_deg) // 2
+    phi = math.radians(nf.phi_deg[k])
+    y = [kinematics(m, [phi + s * 1e-5]).point("needle.point").p[0, 1] for s in (1, -1)]
+    dy = (y[0] - y[1]) / 2e-5
+    M0 = inverse_dynamics(m, [phi], loads=[]).input_torque[0]
+    assert math.isclose(nf.force[k], (500.0 - M0) / -dy, rel_tol=1e-7)

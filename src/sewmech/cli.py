@@ -374,6 +374,8 @@ def report_cmd(
         steps += ["feed trajectories", "stitch curve", "sensitivity"]
     if m.spec.thread is not None and m.spec.thread.bobbin_case_radius:
         steps.append("thread")
+    if m.spec.masses:
+        steps.append("dynamics")
     if variants:
         steps.append("comparison")
     steps += ["tables", "page"]

@@ -660,3 +660,72 @@ def _solve(A: np.ndarray, b: np.ndarray, kin: KinematicsResult, machine: Machine
     if not feasible.all():
         x = np.where(feasible[..., None], x, np.nan)
     return x
+
+
+# ---- the shaft's speed over the cycle --------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SpeedFluctuation:
+    """Steady running with a constant motor torque and a flywheel (one machine, one cycle).
+
+    Attributes
+    ----------
+    phi : rad, (n_phi,)
+    omega : rad/s, the shaft's speed omega(phi)
+    epsilon : rad/s^2, its acceleration omega d omega / d phi
+    motor_torque : N mm, the constant motor torque (the cycle mean of the load torque)
+    load_torque : N mm, the torque the weights and process loads ask of the shaft at rest
+    reduced_inertia : kg mm^2, J(phi) of the mechanisms plus the flywheel
+    delta : coefficient of speed fluctuation (omega_max - omega_min) / omega_mean
+    """
+
+    phi: np.ndarray
+    omega: np.ndarray
+    epsilon: np.ndarray
+    motor_torque: float
+    load_torque: np.ndarray
+    reduced_inertia: np.ndarray
+    flywheel: float
+    delta: float
+
+
+def speed_fluctuation(machine: Machine, *, rpm: float | None = None, flywheel: float = 0.0,
+                      n_phi: int = 720, inputs: Mapping[str, ArrayLike] | None = None,
+                      loads: Sequence[LoadSpec] | None = None, gravity: bool = True,
+                      masses: Mapping[str, MassProperties] | None = None) -> SpeedFluctuation:
+    """omega(phi) of the upper shaft under a constant motor torque (beyond the JB report).
+
+    The machine is one degree of freedom: d/dphi (J(phi) omega^2 / 2) = M - Q(phi), where
+    J(phi) is the reduced inertia (mechanisms plus ``flywheel``, kg mm^2), M the motor torque
+    and Q(phi) the load torque at rest (weights and process loads, by virtual work from the
+    motion at unit speed). A steady cycle needs M = mean Q; the energy integral then gives
+    omega(phi), scaled so that its mean over the cycle is ``rpm``.
+    """
+    phi = np.linspace(0.0, 2 * math.pi, n_phi, endpoint=False)
+    unit = inverse_dynamics(machine, phi, omega=1.0, inputs=inputs, loads=loads,
+                            gravity=gravity, masses=masses)  # omega = 1 rad/s: rates = d/dphi
+    J = unit.reduced_inertia + flywheel  # kg mm^2
+    Q = unit.potential_energy_rate - unit.external_power  # N mm per rad
+    M = float(Q.mean())
+    # work of M - Q from phi = 0, by the trapezoidal rule on the periodic grid (closed cycle)
+    h = 2 * math.pi / n_phi
+    f = M - Q
+    W = np.concatenate([[0.0], np.cumsum(0.5 * h * (f[:-1] + f[1:]))])  # N mm
+    w_nom = (machine.rpm if rpm is None else rpm) * 2 * math.pi / 60
+
+    def omega_for(w0):  # 1/2 J w^2 = 1/2 J0 w0^2 + W, in kg mm^2/s^2 (W in N mm = 1e3 kg mm^2/s^2)
+        return np.sqrt(np.maximum(J[0] * w0 ** 2 + 2e3 * W, 0.0) / J)
+
+    from scipy.optimize import brentq
+
+    w0 = brentq(lambda w: omega_for(w).mean() - w_nom, 1e-3 * w_nom, 10 * w_nom, xtol=1e-12)
+    om = omega_for(w0)
+    if not (J[0] * w0 ** 2 + 2e3 * W > 0).all():
+        raise ValueError("the shaft stops within the cycle: the motor torque cannot carry the"
+                         " machine at this speed; add a flywheel or raise the speed")
+    # epsilon = omega domega/dphi = (M - Q - 1/2 J' omega^2) / J, J' from the motion (exact)
+    dJ = 2e3 * unit.kinetic_energy_rate  # d(2T)/dphi at unit speed = dJ/dphi, kg mm^2 / rad
+    eps = (1e3 * f - 0.5 * dJ * om ** 2) / J
+    return SpeedFluctuation(phi, om, eps, M, Q, J, flywheel,
+                            float((om.max() - om.min()) / om.mean()))

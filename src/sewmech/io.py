@@ -151,6 +151,18 @@ def write_dynamics_csv(res, out_dir: str | Path) -> list[Path]:
     main = out_dir / f"{res.machine.name}-dynamics.csv"
     with atomic_write(main) as fh:
         pd.DataFrame(flat).to_csv(fh, index=False, float_format="%.10g")
+    pairs = out_dir / f"{res.machine.name}-pair-forces.csv"
+    with atomic_write(pairs) as fh:
+        pair_forces_frame(res).to_csv(fh, index=False, float_format="%.10g")
+    return [main, pairs]
+
+
+def pair_forces_frame(res):
+    """Every pair's unknowns per position of a single-design dynamics result, one column each:
+    ``PAIR.Fx_N``/``Fy_N`` (revolute), ``N_N``/``M_Nmm`` (prismatic), ``N_N`` (cam, slot),
+    ``torque_Nmm`` (driver); the action of the pair's first link on its second."""
+    import pandas as pd
+
     cols = {"phi_deg": res.phi_deg}
     labels = {"revolute": ("Fx_N", "Fy_N"), "prismatic": ("N_N", "M_Nmm"), "cam": ("N_N",),
               "slot": ("N_N",), "driver": ("torque_Nmm",)}
@@ -158,7 +170,4 @@ def write_dynamics_csv(res, out_dir: str | Path) -> list[Path]:
         x = res.pair(pair.name)
         for j, label in enumerate(labels[pair.kind]):
             cols[f"{pair.name}.{label}"] = x[:, j]
-    pairs = out_dir / f"{res.machine.name}-pair-forces.csv"
-    with atomic_write(pairs) as fh:
-        pd.DataFrame(cols).to_csv(fh, index=False, float_format="%.10g")
-    return [main, pairs]
+    return pd.DataFrame(cols)

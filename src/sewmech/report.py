@@ -245,6 +245,15 @@ def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0
         if machine.spec.thread is not None and machine.spec.thread.bobbin_case_radius:
             _thread_section(figs, machine)
             step("thread")
+        if machine.spec.masses:
+            from .report_dynamics import dynamics_section
+
+            intro = len(figs.blocks)
+            key = dynamics_section(figs, machine, variants)
+            key.to_csv(root / f"{machine.name}-dynamics-key-figures.csv", index=False,
+                       float_format="%.10g")
+            figs.blocks.insert(intro, _dynamics_intro(machine, key))
+            step("dynamics")
         if variants:
             _comparison(figs, [machine] + list(variants))
             step("comparison")
@@ -510,6 +519,18 @@ def _adjust_figure(figs: _Figures, machine: Machine):
              f"The take-up's adjustable dimension {adj.parameter} over its range against fabric"
              " thickness: the margin to all the thread-balance checks, and the setting with the"
              " largest margin for each thickness (table).", data, table=r.table())
+
+
+def _dynamics_intro(machine: Machine, key: pd.DataFrame) -> str:
+    loads = "; ".join(f"{ld.name} {ld.force_N:g} N over "
+                      + ", ".join(f"{a:g}-{b:g}" for a, b in ld.windows_deg) + " deg"
+                      for ld in machine.spec.loads) or "none"
+    return (f'<h2 id="dynamics">Dynamics</h2><p>Inverse dynamics of the whole machine at'
+            f" {machine.rpm:g} rpm, gravity on, at the longest forward stitch (the JB dynamics"
+            f" report's hardest case). Process loads: {html.escape(loads)}. Link masses:"
+            " see the machine file's [masses] tables.</p>" + _table_html(key.round(5))
+            + f'<p>Data: <a href="{machine.name}-dynamics-key-figures.csv">key figures'
+            " (CSV)</a>.</p>")
 
 
 def _key_figures(m: Machine) -> dict:
