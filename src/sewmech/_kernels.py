@@ -895,3 +895,106 @@ evaluate_program.__doc__ = _DOC.format(which="One design after the other (small 
 evaluate_program_parallel.__doc__ = _DOC.format(
     which="Designs are split into n_chunks contiguous chunks run on the CPU cores (numba prange);"
     " worth it for large batches.")
+
+
+# ---- inverse dynamics: the Newton-Euler system of every position -------------------------------
+PAIR_REVOLUTE = 0
+PAIR_PRISMATIC = 1
+PAIR_CAM = 2
+PAIR_SLOT = 3
+PAIR_DRIVER = 4
+PAIR_COLS = 11
+# pair table columns: kind, link a, link b, point, line link, line var, line param, first
+#                     unknown column, cam sign (+1/-1), first row in cam_rows, number of rows
+# pair_angle: the fixed angle added to the line direction (rad)
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
+def _cam_point(t0, nt, cam_rows, terms, params, d, p, th, q, sign):
+    """Contact point of a cam pair: minus the sum of its loop's other terms (mm)."""
+    sx = 0.0
+    sy = 0.0
+    for r in range(t0, t0 + nt):
+        t = cam_rows[r]
+        sg = float(terms[t, 2])
+        if terms[t, 0] == TERM_POINT:
+            sx += sg * p[terms[t, 4], 0]
+            sy += sg * p[terms[t, 4], 1]
+            continue
+        L = params[d, terms[t, 4]] if terms[t, 3] == SRC_PARAM else q[terms[t, 4]]
+        a = th[terms[t, 6]] if terms[t, 5] == SRC_LINK else q[terms[t, 6]]
+        if terms[t, 7] >= 0:
+            a += params[d, terms[t, 7]]
+        sx += sg * L * math.cos(a)
+        sy += sg * L * math.sin(a)
+    return -sign * sx, -sign * sy
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
+def pair_solve(pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, RHS, X, MINPIV):
+    """Assemble and solve the pair forces of every design and position.
+
+    P (D, n_phi, n_pt, 2), TH (D, n_phi, n_l), Q (D, n_phi, n_v): the motion; GP (D, n_phi,
+    n_l, 2) the links' centres of mass (moment points); RHS (D, n_phi, n_eq) the inertia,
+    weight and load terms. Fills X (D, n_phi, n_eq) and MINPIV (D, n_phi), the smallest
+    pivot of each elimination relative to the matrix's largest entry (0: singular).
+    """
+    n_d, n_phi, n_eq = RHS.shape
+    M = np.empty((n_eq, n_eq))
+    b = np.empty(n_eq)
+    for d in range(n_d):
+        for k in range(n_phi):
+            p = P[d, k]
+            th = TH[d, k]
+            q = Q[d, k]
+            gp = GP[d, k]
+            M[:, :] = 0.0
+            for e in range(n_eq):
+                b[e] = RHS[d, k, e]
+            for i in range(pairs.shape[0]):
+                kind = pairs[i, 0]
+                la = pairs[i, 1]
+                lb = pairs[i, 2]
+                col = pairs[i, 7]
+                if kind == PAIR_DRIVER:
+                    M[3 * (lb - 1) + 2, col] = 1.0
+                    continue
+                if kind == PAIR_CAM:
+                    xx, xy = _cam_point(pairs[i, 9], pairs[i, 10], cam_rows, terms, params, d,
+                                        p, th, q, float(pairs[i, 8]))
+                else:
+                    xx = p[pairs[i, 3], 0]
+                    xy = p[pairs[i, 3], 1]
+                nf = 2 if kind == PAIR_REVOLUTE else 1
+                for j in range(nf):
+                    if kind == PAIR_REVOLUTE:
+                        fx = 1.0 if j == 0 else 0.0
+                        fy = 0.0 if j == 0 else 1.0
+                    else:
+                        a = th[pairs[i, 4]] if pairs[i, 4] >= 0 else q[pairs[i, 5]]
+                        a += pair_angle[i]
+                        if pairs[i, 6] >= 0:
+                            a += params[d, pairs[i, 6]]
+                        if kind != PAIR_CAM:
+                            a += 0.5 * math.pi
+                        fx = math.cos(a)
+                        fy = math.sin(a)
+                    for side in range(2):
+                        link = lb if side == 0 else la
+                        if link == 0:
+                            continue
+                        sg = 1.0 if side == 0 else -1.0
+                        r = 3 * (link - 1)
+                        dx = xx - gp[link, 0]
+                        dy = xy - gp[link, 1]
+                        M[r, col + j] = sg * fx
+                        M[r + 1, col + j] = sg * fy
+                        M[r + 2, col + j] = sg * (dx * fy - dy * fx)
+                if kind == PAIR_PRISMATIC:
+                    if lb:
+                        M[3 * (lb - 1) + 2, col + 1] = 1.0
+                    if la:
+                        M[3 * (la - 1) + 2, col + 1] = -1.0
+            MINPIV[d, k] = _gauss_solve(M, b, n_eq)
+            for e in range(n_eq):
+                X[d, k, e] = b[e]

@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -588,43 +588,11 @@ def inverse_dynamics(
         rhs[..., li, 2] -= d[..., 0] * F[..., 1] - d[..., 1] * F[..., 0]
         load_power = load_power + np.sum(F * kin.v[..., pi, :], axis=-1)
 
-    # the matrix: one column per unknown, rows 3 (link - 1) + (x, y, moment)
-    A = np.zeros(shape[:-1] + (n_eq, n_unk))
-    col = 0
-    for pair in pairs:
-        a, b = (names.index(x) for x in pair.links)
-        k = _N_UNKNOWN[pair.kind]
-        if pair.kind == "driver":
-            A[..., 3 * (b - 1) + 2, col] = 1.0
-            col += 1
-            continue
-        if pair.kind == "cam":
-            X = -float(machine.terms[pair.cam_term, 2]) * _term_values(machine, kin, P,
-                                                                        pair.terms)
-        else:
-            X = kin.p[..., kin.point_names.index(pair.point), :]
-        if pair.kind == "revolute":
-            dirs = [np.array([1.0, 0.0]), np.array([0.0, 1.0])]
-        else:
-            dirs = [_pair_direction(machine, kin, pair, P)]
-        for j, f in enumerate(dirs):
-            f = np.broadcast_to(f, X.shape)
-            for link, sgn in ((b, 1.0), (a, -1.0)):
-                if link == 0:
-                    continue
-                d = X - gp[..., link, :]
-                r = 3 * (link - 1)
-                A[..., r, col + j] = sgn * f[..., 0]
-                A[..., r + 1, col + j] = sgn * f[..., 1]
-                A[..., r + 2, col + j] = sgn * (d[..., 0] * f[..., 1] - d[..., 1] * f[..., 0])
-        if pair.kind == "prismatic":  # the couple
-            for link, sgn in ((b, 1.0), (a, -1.0)):
-                if link:
-                    A[..., 3 * (link - 1) + 2, col + 1] = sgn
-        col += k
-
-    b = rhs[..., 1:, :].reshape(shape[:-1] + (n_eq,))
-    x = _solve(A, b, kin, machine)
+    # the matrix (one column per unknown, rows 3 (link - 1) + (x, y, moment)) is assembled
+    # and solved per position in the compiled kernel
+    table, angles, cam_rows = _pair_table(machine)
+    rhs_flat = rhs[..., 1:, :].reshape(shape[:-1] + (n_eq,))
+    x = _solve(machine, kin, P, gp, rhs_flat, table, angles, cam_rows)
     return DynamicsResult(
         machine=machine, kin=kin, pairs=pairs, unknowns=x, gravity=gravity,
         load_names=tuple(ld.name for ld in load_specs),
@@ -634,32 +602,66 @@ def inverse_dynamics(
         mass_props={**machine.masses, **(masses or {})}, load_links=tuple(li for li, _, _ in lf))
 
 
-def _solve(A: np.ndarray, b: np.ndarray, kin: KinematicsResult, machine: Machine) -> np.ndarray:
-    feasible = np.broadcast_to(kin.feasible, A.shape[:-2])
-    if not feasible.all():  # infeasible positions stay NaN
-        A = np.where(feasible[..., None, None], A, np.eye(A.shape[-1]))
-        b = np.where(feasible[..., None], b, 0.0)
-    try:
-        x = np.linalg.solve(A, b[..., None])[..., 0]
-    except np.linalg.LinAlgError:
-        x = None
-    # a numerically singular system gives huge or non-finite unknowns: find and name it
-    cond_ok = None
-    if x is None or not np.isfinite(x[feasible]).all():
-        cond = np.linalg.cond(A)
-        cond_ok = cond < 1e12
-    if cond_ok is not None and not cond_ok.all():
-        idx = np.argwhere(~cond_ok)[0]
-        phi_deg = float(kin.phi_deg[idx[-1]])
-        design = tuple(int(i) for i in idx[:-1])
+_KIND_CODE = {"revolute": K.PAIR_REVOLUTE, "prismatic": K.PAIR_PRISMATIC, "cam": K.PAIR_CAM,
+              "slot": K.PAIR_SLOT, "driver": K.PAIR_DRIVER}
+
+
+@lru_cache(maxsize=64)
+def _pair_table(machine: Machine) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The machine's pairs as the kernel's integer table (see ``_kernels.PAIR_COLS``), their
+    fixed line angles (rad) and the cam pairs' loop-term rows."""
+    names = machine.link_names
+    rows, angles, cam_rows = [], [], []
+    col = 0
+    for pair in machine.pairs:
+        row = [_KIND_CODE[pair.kind], names.index(pair.links[0]), names.index(pair.links[1]),
+               machine.point_index(pair.point) if pair.point else -1,
+               names.index(pair.line_link) if pair.line_link else -1,
+               machine.variable_index(pair.line_var) if pair.line_var else -1,
+               pair.line_param, col, 0, len(cam_rows), len(pair.terms)]
+        if pair.kind == "cam":
+            row[8] = int(machine.terms[pair.cam_term, 2])
+            cam_rows.extend(pair.terms)
+        rows.append(row)
+        angles.append(pair.extra_angle)
+        col += _N_UNKNOWN[pair.kind]
+    table = np.asarray(rows, dtype=np.int64).reshape(-1, K.PAIR_COLS)
+    out = (table, np.asarray(angles, dtype=float), np.asarray(cam_rows, dtype=np.int64))
+    for a in out:
+        a.setflags(write=False)
+    return out
+
+
+def _solve(machine: Machine, kin: KinematicsResult, P: np.ndarray, gp: np.ndarray,
+           rhs: np.ndarray, table, angles, cam_rows) -> np.ndarray:
+    batch = kin.batch_shape
+    n_phi = kin.phi.shape[0]
+    n_eq = rhs.shape[-1]
+
+    n_d = int(np.prod(batch, dtype=np.int64))
+
+    def flat(a):
+        return np.ascontiguousarray(a.reshape((n_d, n_phi) + a.shape[len(batch) + 1:]))
+
+    X = np.empty((n_d, n_phi, n_eq))
+    minpiv = np.empty(X.shape[:2])
+    K.pair_solve(table, angles, cam_rows, machine.terms,
+                 np.ascontiguousarray(P.reshape(n_d, P.shape[-1])), flat(kin.p), flat(kin.theta),
+                 flat(kin.q), flat(gp), flat(rhs), X, minpiv)
+    feasible = np.broadcast_to(kin.feasible, batch + (n_phi,)).reshape(minpiv.shape)
+    bad = feasible & ~(minpiv > 1e-12)
+    if bad.any():
+        d, k = np.argwhere(bad)[0]
+        design = tuple(int(i) for i in np.unravel_index(d, batch)) if batch else ()
         at = f"design {design}, " if design else ""
         raise SingularForceSystem(
-            f"machine '{machine.name}' at {at}phi = {phi_deg:.6g} deg: the equilibrium"
-            " equations are singular (a mechanism at a dead centre with respect to its driver,"
-            " or a pair whose line passes through its link's pivot); step around this angle")
+            f"machine '{machine.name}' at {at}phi = {float(kin.phi_deg[k]):.6g} deg: the"
+            " equilibrium equations are singular (a mechanism at a dead centre with respect to"
+            " its driver, or a pair whose line passes through its link's pivot); step around"
+            " this angle")
     if not feasible.all():
-        x = np.where(feasible[..., None], x, np.nan)
-    return x
+        X[~feasible] = np.nan
+    return X.reshape(batch + (n_phi, n_eq))
 
 
 # ---- the shaft's speed over the cycle --------------------------------------------------------------

@@ -1,0 +1,120 @@
+"""Benchmark: inverse dynamics (issue 5).
+
+Targets:
+
+1. the whole JB1-3 machine, kinematics and inverse dynamics (every pair force, the driving
+   torque, the frame reactions, with the file's masses, loads and gravity) at 72 positions
+   (5 deg, the JB dynamics report's grid), one design: at most 10 ms. (The report's 1982
+   program took over ten minutes for this job.)
+2. inverse dynamics of the benchmark four-bar (fourbar-benchmark.toml with the masses of
+   tests/test_dynamics.py) over one revolution at 360 positions: at least 100 times faster than
+   Exudyn's solve of the same job (tests/exudyn_fourbar.py, prescribed crank angle, solve time
+   only) in the same run. Exudyn is optional (`pip install exudyn`); without it the ratio is
+   not measured. The run also prints the largest difference between the two engines.
+
+Best of several repeats after a warm-up. Prints a table and writes
+``benchmarks/results/dynamics.json``. Exits 0 when a target is missed (reported as MISSED).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import sewmech
+from sewmech.dynamics import inverse_dynamics
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent / "tests"))
+RESULTS = HERE / "results" / "dynamics.json"
+TARGET_JB_MS = 10.0
+TARGET_EXUDYN_RATIO = 100.0
+FB_MASS = {"crank": (0.05, 7.5, 0.0, 1.2), "coupler": (0.08, 20.0, 2.0, 12.0),
+           "rocker": (0.07, 17.5, -1.0, 8.0)}  # kg, mm, mm, kg mm^2 (as tests/test_dynamics.py)
+
+
+def best(fn, repeat=9):
+    fn()
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times), float(np.median(times))
+
+
+def main():
+    from sewmech.mass import MassProperties
+
+    m = sewmech.load_machine("jb1-3")
+    phi72 = np.radians(np.arange(0.0, 360.0, 5.0))
+    reg = {"regulator": math.radians(30.0)}
+    t_jb, t_jb_med = best(lambda: inverse_dynamics(m, phi72, inputs=reg))
+    r = inverse_dynamics(m, phi72, inputs=reg)
+    bal = r.input_power - r.kinetic_energy_rate - r.potential_energy_rate + r.external_power
+
+    fb = sewmech.load_machine("fourbar-benchmark")
+
+    def planar(mass, u, v, izz):
+        inertia = np.zeros((3, 3))
+        inertia[2, 2] = izz
+        return MassProperties(mass, np.array([u, v, 0.0]), inertia)
+
+    masses = {k: planar(*v) for k, v in FB_MASS.items()}
+    phi360 = np.linspace(0.0, 2 * math.pi, 360, endpoint=False)
+    t_fb, t_fb_med = best(lambda: inverse_dynamics(fb, phi360, masses=masses, loads=[],
+                                                   gravity=False), repeat=31)
+    ours = inverse_dynamics(fb, phi360, masses=masses, loads=[], gravity=False)
+    exu = None
+    try:
+        import exudyn  # noqa: F401
+
+        from exudyn_fourbar import solve_fourbar
+    except ImportError:
+        pass
+    else:
+        runs = [solve_fourbar(FB_MASS, rpm=1000.0, n_per_rev=360) for _ in range(3)]
+        ref = runs[0]
+        exu_t = min(x["solve_time_s"] for x in runs)
+        k = np.round(ref["phi"] / (2 * math.pi) * 360).astype(int) % 360
+        diff = max(np.abs(ours.input_torque[k] - ref["torque_Nmm"]).max()
+                   / np.abs(ref["torque_Nmm"]).max(),
+                   *(np.abs(ours.pair(p)[k] - ref[f"F_{p}"]).max() / np.abs(ref[f"F_{p}"]).max()
+                     for p in "ABCD"))
+        exu = {"exudyn_version": exudyn.__version__, "exudyn_solve_ms": exu_t * 1e3,
+               "ratio": exu_t / t_fb, "max_rel_difference": float(diff)}
+
+    def mark(ok):
+        return "met" if ok else "MISSED"
+
+    print(f"JB1-3 kinematics + inverse dynamics, 72 positions: {t_jb * 1e3:.2f} ms"
+          f" (median {t_jb_med * 1e3:.2f}); target <= {TARGET_JB_MS:g} ms:"
+          f" {mark(t_jb * 1e3 <= TARGET_JB_MS)}")
+    print(f"  power balance error {np.abs(bal).max() / np.abs(r.input_power).max():.2e}"
+          " of the peak input power")
+    print(f"four-bar inverse dynamics, 360 positions: {t_fb * 1e6:.0f} us"
+          f" (median {t_fb_med * 1e6:.0f})")
+    if exu is None:
+        print("  Exudyn not installed (pip install exudyn): ratio not measured")
+    else:
+        print(f"  Exudyn {exu['exudyn_version']} solve: {exu['exudyn_solve_ms']:.2f} ms;"
+              f" ratio {exu['ratio']:.1f}x; target >= {TARGET_EXUDYN_RATIO:g}x:"
+              f" {mark(exu['ratio'] >= TARGET_EXUDYN_RATIO)}")
+        print(f"  largest difference sewmech - Exudyn: {exu['max_rel_difference']:.2e}"
+              " (relative to each quantity's peak)")
+    RESULTS.parent.mkdir(exist_ok=True)
+    RESULTS.write_text(json.dumps({
+        "machine": platform.platform(), "cpus": os.cpu_count(),
+        "jb_72_ms": t_jb * 1e3, "fourbar_360_us": t_fb * 1e6, "exudyn": exu,
+    }, indent=1))
+
+
+if __name__ == "__main__":
+    main()
