@@ -18,17 +18,21 @@ ground coordinate and the crank's rotation coordinate, with ``offsetUserFunction
 (and ``offsetUserFunction_t`` = omega for index-2 solvers).  The Exudyn model is built in SI
 units (m, kg, kg*m^2, N, N*m); inputs and outputs are converted at the interface.
 
-Exudyn conventions (checked with a hanging-pendulum statics probe and by the Newton-Euler
-self-check below):
-* ``RevoluteJoint2D`` with ``markerNumbers=[m0, m1]``: ``OutputVariableType.Force`` (= the two
-  Lagrange multipliers) is the force that marker 0's body exerts ON MARKER 1's BODY, in global
-  x, y (the third component is 0).  Each joint here is built with marker 1 on the body whose
-  force the interface reports, so no sign flip is needed:
-  A: [ground, crank], B: [crank, coupler], C: [coupler, rocker], D: [ground, rocker].
-* ``CoordinateConstraint`` with ``markerNumbers=[ground coordinate, crank rotation]``: its
-  ``Force`` (Lagrange multiplier) is the generalised force ON THE MARKER-1 COORDINATE, i.e. the
-  driving torque on the crank about z (N*m here), counter-clockwise positive.
-  (Exudyn's equations read M q'' = f + C_q^T lambda, with C = value1 - value0 - offset.)
+Exudyn conventions (determined with a hanging-pendulum probe solved both with SolveStatic
+and SolveDynamic, and confirmed by the Newton-Euler self-check below):
+* In the DYNAMIC solvers (GeneralizedAlpha, TrapezoidalIndex2) the equations read
+  M q'' + ... + C_q^T lambda = f, with C = (marker 1 quantity) - (marker 0 quantity).  Hence
+  ``RevoluteJoint2D`` ([m0, m1], C = p1 - p0) reports as ``OutputVariableType.Force`` the two
+  Lagrange multipliers = the force ON MARKER 0's body FROM marker 1's body, global x, y (the
+  third component is 0); the force on marker 1's body is minus that.
+  ``CoordinateConstraint`` ([m0, m1], C = k*v1 - v0 - offset) reports lambda = minus the
+  generalised force on the marker-1 coordinate.
+* SURPRISE: the STATIC solver (SolveStatic) reports the OPPOSITE sign for the same
+  configuration (lambda = force on marker 1's body), so the sign below is only valid for
+  SolveDynamic.
+Here every joint has marker 1 on the body whose force the interface reports
+(A: [ground, crank], B: [crank, coupler], C: [coupler, rocker], D: [ground, rocker]) and the
+drive has marker 1 = crank rotation coordinate, so all outputs are -lambda.
 """
 
 from __future__ import annotations
@@ -132,7 +136,7 @@ def link_com_kinematics(kin, links):
 # --------------------------------------------------------------------------------------------
 def solve_fourbar(links, rpm=1000.0, n_per_rev=360, gravity=False,
                   A=(0.0, 0.0), D=(38.0, 0.0), lengths=(15.0, 40.0, 35.0),
-                  *, substeps=16, startup_revs=1, solver="GeneralizedAlpha",
+                  *, g=G_SI, substeps=16, startup_revs=1, solver="GeneralizedAlpha",
                   spectral_radius=0.6):
     """Inverse dynamics of the crank-rocker with Exudyn; see the module docstring.
 
@@ -141,7 +145,9 @@ def solve_fourbar(links, rpm=1000.0, n_per_rev=360, gravity=False,
     at phi_k = 2*pi*k/n_per_rev: "phi" (rad), "torque_Nmm", "F_A", "F_B", "F_C", "F_D" (N,
     shape (n, 2), conventions as in the task: force on crank from frame, on coupler from crank,
     on rocker from coupler, on rocker from frame), and "solve_time_s" (wall time of
-    SolveDynamic only).  ``substeps`` time steps per output angle; ``solver`` is
+    SolveDynamic only).  ``g``: gravity in m/s^2 along -y when ``gravity`` (default 9.81; note
+    sewmech.dynamics.GRAVITY is 9.80665, pass ``g=9.80665`` for a like-for-like comparison).
+    ``substeps`` time steps per output angle; ``solver`` is
     "GeneralizedAlpha" (index 3, numerical damping ``spectral_radius``) or "TrapezoidalIndex2".
     """
     import exudyn as exu
@@ -151,6 +157,8 @@ def solve_fourbar(links, rpm=1000.0, n_per_rev=360, gravity=False,
     if missing:
         raise ValueError(f"missing link data: {sorted(missing)}")
     n = int(n_per_rev)
+    if not (rpm > 0 and n >= 1 and substeps >= 1 and startup_revs >= 1):
+        raise ValueError("need rpm > 0, n_per_rev >= 1, substeps >= 1, startup_revs >= 1")
     omega = 2.0 * math.pi * rpm / 60.0  # rad/s
     T_rev = 2.0 * math.pi / omega
     dt_out = T_rev / n
@@ -185,7 +193,7 @@ def solve_fourbar(links, rpm=1000.0, n_per_rev=360, gravity=False,
         com_local[name] = np.array([cu, cv]) * mm
         if gravity and m != 0.0:
             mG = mbs.AddMarker(ii.MarkerBodyPosition(bodyNumber=bd, localPosition=[0, 0, 0]))
-            mbs.AddLoad(ii.LoadForceVector(markerNumber=mG, loadVector=[0.0, -m * G_SI, 0.0]))
+            mbs.AddLoad(ii.LoadForceVector(markerNumber=mG, loadVector=[0.0, -m * g, 0.0]))
 
     def body_marker(name, u):
         """Marker at link-frame point (u, 0) mm; body frame origin is the COM."""
@@ -198,7 +206,7 @@ def solve_fourbar(links, rpm=1000.0, n_per_rev=360, gravity=False,
     mD0 = mbs.AddMarker(ii.MarkerBodyPosition(bodyNumber=ground,
                                               localPosition=[D_si[0], D_si[1], 0.0]))
     joints = {
-        # marker 1 = body ON which the reported force acts
+        # marker 1 = body ON which the reported force acts (reported as -lambda, see top)
         "F_A": mbs.AddObject(ii.RevoluteJoint2D(markerNumbers=[mA0, body_marker("crank", 0.0)])),
         "F_B": mbs.AddObject(ii.RevoluteJoint2D(markerNumbers=[body_marker("crank", a),
                                                                body_marker("coupler", 0.0)])),
@@ -244,7 +252,6 @@ def solve_fourbar(links, rpm=1000.0, n_per_rev=360, gravity=False,
     ss.timeIntegration.newton.useModifiedNewton = False
     ss.timeIntegration.newton.relativeTolerance = 1e-12
     ss.timeIntegration.newton.absoluteTolerance = 1e-14
-    ss.displayStatistics = False if hasattr(ss, "displayStatistics") else None
     if solver == "GeneralizedAlpha":
         ss.timeIntegration.generalizedAlpha.spectralRadius = spectral_radius
         stype = exu.DynamicSolverType.GeneralizedAlpha
@@ -252,10 +259,9 @@ def solve_fourbar(links, rpm=1000.0, n_per_rev=360, gravity=False,
         stype = exu.DynamicSolverType.TrapezoidalIndex2
     else:
         raise ValueError(f"unknown solver {solver!r}")
-    try:
-        ss.show.solverInfo = False  # type: ignore[attr-defined]
-    except Exception:
-        pass
+    ss.show.statistics = False
+    ss.show.computationTime = False
+    ss.show.globalTimers = False
 
     t0 = time.perf_counter()
     ok = mbs.SolveDynamic(ss, solverType=stype)
@@ -272,9 +278,10 @@ def solve_fourbar(links, rpm=1000.0, n_per_rev=360, gravity=False,
         raise RuntimeError("sensor samples do not hit the output angles")
     phi = (2.0 * math.pi * np.arange(n) / n)
     out = {"phi": phi,
-           "torque_Nmm": data["torque"][idx, 1] * 1e3}
+           # dynamic-solver sign: generalised force on the marker-1 coordinate = -lambda
+           "torque_Nmm": -data["torque"][idx, 1] * 1e3}
     for key in joints:
-        out[key] = data[key][idx, 1:3].copy()
+        out[key] = -data[key][idx, 1:3]  # force on marker 1's body = -lambda
     out["solve_time_s"] = solve_time
     return out
 
@@ -283,7 +290,7 @@ def solve_fourbar(links, rpm=1000.0, n_per_rev=360, gravity=False,
 # self-checks
 # --------------------------------------------------------------------------------------------
 def newton_euler_residuals(res, links, rpm=1000.0, gravity=False,
-                           A=(0.0, 0.0), D=(38.0, 0.0), lengths=(15.0, 40.0, 35.0)):
+                           A=(0.0, 0.0), D=(38.0, 0.0), lengths=(15.0, 40.0, 35.0), g=G_SI):
     """Relative residuals of Newton's and Euler's laws per link, with the closed-form
     kinematics (SI internally).  Returns {link: (force_residual, moment_residual)} (max over
     samples, relative to the largest force / moment magnitude involved) and the power-balance
@@ -292,7 +299,7 @@ def newton_euler_residuals(res, links, rpm=1000.0, gravity=False,
     kin = fourbar_kinematics(res["phi"], omega, A, D, lengths)
     com = link_com_kinematics(kin, links)
     mm = 1e-3
-    g = np.array([0.0, -G_SI]) if gravity else np.zeros(2)
+    gv = np.array([0.0, -g]) if gravity else np.zeros(2)
     FA, FB, FC, FD = res["F_A"], res["F_B"], res["F_C"], res["F_D"]
     T = res["torque_Nmm"] * mm  # N*m
     P = {k: kin[k] * mm for k in "ABCD"}
@@ -302,7 +309,7 @@ def newton_euler_residuals(res, links, rpm=1000.0, gravity=False,
         k = com[name]
         m, I = k["m"], k["I"] * 1e-6
         G, aG = k["G"] * mm, k["aG"] * mm
-        Fsum = sum(F for F, _ in forces) + m * g
+        Fsum = sum(F for F, _ in forces) + m * gv
         Msum = sum(_cross(p - G, F) for F, p in forces) + torque
         r_f = Fsum - m * aG
         r_m = Msum - I * k["al"]
@@ -320,10 +327,46 @@ def newton_euler_residuals(res, links, rpm=1000.0, gravity=False,
         k = com[name]
         m, I = k["m"], k["I"] * 1e-6
         vG, aG = k["vG"] * mm, k["aG"] * mm
-        dE = dE + m * np.sum(vG * aG, -1) + I * k["w"] * k["al"] - m * np.sum(g * vG, -1)
+        dE = dE + m * np.sum(vG * aG, -1) + I * k["w"] * k["al"] - m * np.sum(gv * vG, -1)
     p_in = T * omega
     out["power"] = np.abs(p_in - dE).max() / max(np.abs(p_in).max(), np.abs(dE).max())
     return out
+
+
+def closed_form_inverse_dynamics(phi, links, rpm=1000.0, gravity=False,
+                                 A=(0.0, 0.0), D=(38.0, 0.0), lengths=(15.0, 40.0, 35.0),
+                                 g=G_SI):
+    """Exact inverse dynamics from the closed-form kinematics: solves the 9 x 9 linear
+    Newton-Euler system per sample for F_A, F_B, F_C, F_D, torque (same conventions and units as
+    ``solve_fourbar``).  Used by the self-check to measure Exudyn's discretisation error."""
+    omega = 2.0 * math.pi * rpm / 60.0
+    phi = np.atleast_1d(np.asarray(phi, float))
+    kin = fourbar_kinematics(phi, omega, A, D, lengths)
+    com = link_com_kinematics(kin, links)
+    mm = 1e-3
+    gv = np.array([0.0, -g]) if gravity else np.zeros(2)
+    # per link: [(joint index 0..3 = A,B,C,D, sign, point)], has driving torque
+    layout = [("crank", [(0, 1.0, "A"), (1, -1.0, "B")], True),
+              ("coupler", [(1, 1.0, "B"), (2, -1.0, "C")], False),
+              ("rocker", [(2, 1.0, "C"), (3, 1.0, "D")], False)]
+    sol = np.empty((len(phi), 9))
+    for k in range(len(phi)):
+        M = np.zeros((9, 9))
+        r = np.zeros(9)
+        for row, (name, terms, driven) in zip((0, 3, 6), layout):
+            c = com[name]
+            G = c["G"][k] * mm
+            for j, sgn, p in terms:
+                rp = kin[p][k] * mm - G
+                M[row:row + 2, 2 * j:2 * j + 2] += sgn * np.eye(2)
+                M[row + 2, 2 * j:2 * j + 2] += sgn * np.array([-rp[1], rp[0]])  # rp x F
+            if driven:
+                M[row + 2, 8] = 1.0
+            r[row:row + 2] = c["m"] * (c["aG"][k] * mm - gv)
+            r[row + 2] = c["I"] * 1e-6 * c["al"][k]
+        sol[k] = np.linalg.solve(M, r)
+    return {"phi": phi, "F_A": sol[:, 0:2], "F_B": sol[:, 2:4], "F_C": sol[:, 4:6],
+            "F_D": sol[:, 6:8], "torque_Nmm": sol[:, 8] * 1e3}
 
 
 TEST_LINKS = {"crank": (0.05, 7.5, 0.0, 1.2),
@@ -334,7 +377,7 @@ TEST_LINKS = {"crank": (0.05, 7.5, 0.0, 1.2),
 if __name__ == "__main__":
     import exudyn as exu
 
-    print("exudyn", exu.GetVersionString() if hasattr(exu, "GetVersionString") else exu.__version__)
+    print("exudyn", exu.__version__)
     kin = fourbar_kinematics(np.array([0.0]), 1.0)
     print("C at phi=0:", kin["C"][0], "(y must be > 0)")
     ok = True
@@ -347,6 +390,12 @@ if __name__ == "__main__":
             ok &= r[name][0] < 1e-5 and r[name][1] < 1e-5
         print(f"  power balance residual {r['power']:.2e}")
         ok &= r["power"] < 1e-5
+        ex = closed_form_inverse_dynamics(res["phi"], TEST_LINKS, rpm=1000.0, gravity=gravity)
+        errs = {k: np.abs(res[k] - ex[k]).max() / np.abs(ex[k]).max()
+                for k in ("torque_Nmm", "F_A", "F_B", "F_C", "F_D")}
+        print("  max rel. error vs closed-form inverse dynamics: "
+              + ", ".join(f"{k} {v:.2e}" for k, v in errs.items()))
+        ok &= max(errs.values()) < 1e-5
         print(f"  torque range [{res['torque_Nmm'].min():.4f}, {res['torque_Nmm'].max():.4f}] N*mm,"
               f" |F_A| max {np.linalg.norm(res['F_A'], axis=1).max():.4f} N")
         print("  phi=0: torque %.6f N*mm, F_A %s, F_B %s, F_C %s, F_D %s" % (
