@@ -116,7 +116,8 @@ def test_cli_report_writes_page_figures_and_tables(tmp_path):
     assert f"All {len(checks)} checks pass" in page and len(checks) == 11
     figures = ("motion", "eye-path", "timing-diagram", "feed-trajectories", "stitch-curve",
                "feed-sensitivity", "thread-balance", "take-up-adjustment", "thread-consumption",
-               "comparison")
+               "dyn-torque", "dyn-energy", "dyn-shaking", "dyn-bearings", "dyn-pairs",
+               "dyn-pressure", "dyn-regulator", "dyn-needle", "comparison")
     assert page.count("data:image/png;base64,") == len(figures)
     assert "jb1-3 against jb8-2" in page  # the file's variant, side by side
     for fig in figures:
@@ -132,6 +133,18 @@ def test_cli_report_writes_page_figures_and_tables(tmp_path):
     marks = pd.read_csv(out_dir / "jb1-3-scale-marks.csv")
     assert list(marks["stitch_mm"]) == [k * 0.5 for k in range(-8, 9)]
     assert (out_dir / "jb1-3.toml").exists()  # the machine data travel with the report
+    # the dynamics figures are the library's numbers at the longest forward stitch
+    from sewmech.dynamics import inverse_dynamics
+
+    torque = pd.read_csv(out_dir / "jb1-3-dyn-torque.csv")
+    d = inverse_dynamics(sewmech.load_machine("jb1-3"), np.radians(torque["phi_deg"]),
+                         inputs={"regulator": math.radians(30.0)})
+    np.testing.assert_allclose(torque["torque_Nm"], d.input_torque * 1e-3, rtol=1e-9,
+                               atol=1e-12)
+    key = pd.read_csv(out_dir / "jb1-3-dynamics-key-figures.csv").set_index("quantity")
+    assert math.isclose(key.loc["peak driving torque", "value"],
+                        np.abs(d.input_torque).max() * 1e-3, rel_tol=1e-9)
+    assert 'id="dynamics"' in page
     # demo is the same job on the default machine
     assert runner.invoke(app, ["demo", "--out", str(tmp_path / "demo")]).exit_code == 0
     assert (tmp_path / "demo" / "index.html").exists()

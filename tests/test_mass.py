@@ -180,3 +180,20 @@ def test_mass_table_errors(table, match):
 
     with pytest.raises(MachineFileError, match=match):
         sewmech.machine_from_toml(FOURBAR + "\n" + table, "fb.toml")
+
+
+def test_a_solid_can_have_its_own_material():
+    from sewmech.mass import MATERIALS, from_spec
+    from sewmech.spec import MassSpec
+
+    spec = MassSpec(material="steel", solids=[
+        {"type": "cylinder", "radius": 4.0, "length": 100.0},
+        {"type": "cylinder", "radius": 20.0, "length": 10.0, "base": [0.0, 0.0, 100.0],
+         "material": "cast_iron"}])
+    mp = from_spec(spec)
+    expect = (MATERIALS["steel"] * math.pi * 16.0 * 100.0
+              + MATERIALS["cast_iron"] * math.pi * 400.0 * 10.0) * 1e-9
+    assert math.isclose(mp.mass, expect, rel_tol=1e-12)
+    with pytest.raises(ValueError, match="solids\\[0\\]: unknown material 'brass2'"):
+        MassSpec(material="steel", solids=[{"type": "sphere", "radius": 1.0,
+                                            "material": "brass2"}])

@@ -72,6 +72,20 @@ def link_masses(machine: Machine,
                 overrides: Mapping[str, MassProperties] | None = None) -> LinkMasses:
     """Planar mass properties of every link from the machine file's ``[masses]`` (links without
     one are massless), with ``overrides`` (link -> :class:`MassProperties` in the link frame)."""
+    if not overrides:
+        return _file_masses(machine)
+    return _link_masses(machine, overrides)
+
+
+@lru_cache(maxsize=64)
+def _file_masses(machine: Machine) -> LinkMasses:
+    out = _link_masses(machine, None)
+    for a in (out.mass, out.com_u, out.com_v, out.inertia, out.origins):
+        a.setflags(write=False)
+    return out
+
+
+def _link_masses(machine: Machine, overrides) -> LinkMasses:
     n = len(machine.link_names)
     m, cu, cv, inertia = (np.zeros(n) for _ in range(4))
     origins = np.full(n, -1, dtype=np.int64)
@@ -547,6 +561,10 @@ def inverse_dynamics(
     if kin is None:
         kin = kinematics(machine, phi, params=params, inputs=inputs, rpm=rpm, omega=omega,
                          epsilon=epsilon)
+    elif (kin.point_names, kin.link_names, kin.variable_names) != (
+            machine.point_names, machine.link_names, machine.variable_names):
+        raise ValueError("kin must hold every point, link and variable of the machine (a"
+                         " kinematics() call without points=, links=, variables=)")
     P = machine.defaults if params is None else np.asarray(params, dtype=float)
     if inputs:
         P = machine.parameters(inputs=inputs, base=P)

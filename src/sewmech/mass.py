@@ -203,9 +203,11 @@ def from_spec(spec) -> MassProperties:
             inertia[2, 2] = spec.inertia_zz
             inertia[0, 1] = inertia[1, 0] = np.nan
         return MassProperties(float(spec.mass), com, inertia)
-    rho = spec.density if spec.density is not None else MATERIALS[spec.material]
+    link_rho = spec.density if spec.density is not None else MATERIALS[spec.material]
     parts = []
     for s in spec.solids:
+        rho = (s.density if s.density is not None else
+               MATERIALS[s.material] if s.material is not None else link_rho)
         if s.type == "cylinder":
             parts.append(cylinder(s.radius, s.length, rho, base=s.base, axis=s.axis, hole=s.hole))
         elif s.type == "hollow_cylinder":

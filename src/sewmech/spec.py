@@ -408,6 +408,8 @@ Vec3 = tuple[float, float, float]
 
 class _SolidBase(_Spec):
     hole: bool = False  # a negative solid (bore, pocket)
+    material: str | None = None  # this solid's own material (default: the link's)
+    density: PositiveFloat | None = None  # or density, kg/m^3
     note: str = ""
 
 
@@ -489,12 +491,15 @@ class MassSpec(_Spec):
         else:
             if (self.material is None) == (self.density is None):
                 raise ValueError("solids need exactly one of material, density")
-            if self.material is not None:
-                from .mass import MATERIALS
+            from .mass import MATERIALS
 
-                if self.material not in MATERIALS:
-                    raise ValueError(f"unknown material '{self.material}'; known:"
+            for k, solid in enumerate([self] + list(self.solids)):
+                if solid.material is not None and solid.material not in MATERIALS:
+                    where = "" if k == 0 else f"solids[{k - 1}]: "
+                    raise ValueError(f"{where}unknown material '{solid.material}'; known:"
                                      f" {', '.join(sorted(MATERIALS))} (or give density)")
+                if k and solid.material is not None and solid.density is not None:
+                    raise ValueError(f"solids[{k - 1}]: give material or density, not both")
         return self
 
 
