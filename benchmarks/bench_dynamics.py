@@ -23,7 +23,6 @@ import math
 import os
 import platform
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -31,23 +30,15 @@ import numpy as np
 import sewmech
 from sewmech.dynamics import inverse_dynamics
 
+from _timing import best  # noqa: E402 (benchmarks/ is the script's directory)
+
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
+from exudyn_fourbar import TEST_LINKS as FB_MASS  # noqa: E402 (imports exudyn only to solve)
+
 RESULTS = HERE / "results" / "dynamics.json"
 TARGET_JB_MS = 10.0
 TARGET_EXUDYN_RATIO = 100.0
-FB_MASS = {"crank": (0.05, 7.5, 0.0, 1.2), "coupler": (0.08, 20.0, 2.0, 12.0),
-           "rocker": (0.07, 17.5, -1.0, 8.0)}  # kg, mm, mm, kg mm^2 (as tests/test_dynamics.py)
-
-
-def best(fn, repeat=9):
-    fn()
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), float(np.median(times))
 
 
 def main():

@@ -9,31 +9,21 @@ takes l_max from the 1 deg grid itself (parabola through the best three samples)
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 import sewmech
 from sewmech.embroidery import thread_drawn
 
+from _timing import best  # noqa: E402 (benchmarks/ is the script's directory)
+
 TARGET_S = 2.0
-
-
-def best(fn, repeat=3):
-    fn()
-    out = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        out.append(time.perf_counter() - t0)
-    return min(out)
 
 
 def main():
     m = sewmech.load_machine("embroidery-131")
     a, b = np.meshgrid(np.linspace(5, 30, 100), np.linspace(33, 35, 100))
-    t1 = best(lambda: thread_drawn(m, a, b, n_points=360, refine=1))
-    t4 = best(lambda: thread_drawn(m, a, b, n_points=360))
+    t1 = best(lambda: thread_drawn(m, a, b, n_points=360, refine=1), repeat=3)[0]
+    t4 = best(lambda: thread_drawn(m, a, b, n_points=360), repeat=3)[0]
     _, L = thread_drawn(m, a, b, n_points=360, refine=1)
     print(f"{'job':58s} {'best':>8s}  target")
     print(f"{'10,000 designs x 360 positions (l_max from the 1 deg grid)':58s} {t1:8.3f} s"

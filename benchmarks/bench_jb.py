@@ -37,6 +37,8 @@ import sewmech
 from sewmech.feed import feed_cycles
 from sewmech.thread import thread_balance
 
+from _timing import best  # noqa: E402 (benchmarks/ is the script's directory)
+
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results" / "jb.json"
 N_DESIGN = 1000
@@ -44,16 +46,6 @@ SEED = 2026
 TARGET_MACHINE_72_MS = 5.0
 TARGET_FEED_BATCH_S = 2.0
 TARGET_THREAD_MS = 5.0
-
-
-def best(fn, repeat=7):
-    fn()  # warm-up (numba compile or cache load)
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), float(np.median(times))
 
 
 def main():

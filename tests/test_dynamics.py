@@ -7,6 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from conftest import SLIDER_CRANK
+from exudyn_fourbar import TEST_LINKS
 from sewmech import load_machine
 from sewmech.kinematics import kinematics
 from sewmech.dynamics import GRAVITY, SingularForceSystem, in_windows, inverse_dynamics
@@ -47,8 +49,7 @@ def rigid(p, v, a, th, om, ep, r_local):
 # ---- the four-bar: closed-form kinematics (Freudenstein's loop) and a sequential force solve ---
 
 FB = dict(A=np.array([0.0, 0.0]), D=np.array([38.0, 0.0]), r=15.0, l2=40.0, l3=35.0)
-FB_MASS = {"crank": (0.05, 7.5, 0.0, 1.2), "coupler": (0.08, 20.0, 2.0, 12.0),
-           "rocker": (0.07, 17.5, -1.0, 8.0)}
+FB_MASS = TEST_LINKS  # kg, (u, v) mm, kg mm^2 per link
 
 
 def fourbar_kinematics(phi):
@@ -123,31 +124,7 @@ def test_fourbar_against_closed_form(gravity):
 
 # ---- the slider-crank (the needle bar): closed form ------------------------------------------
 
-SC_TOML = """
-[machine]
-name = "slider-crank"
-[convention]
-reference_event = "crank along +x"
-reference_phi_deg = 0.0
-[points.O]
-x = 0.0
-y = 0.0
-[[units]]
-type = "crank"
-name = "crank"
-pivot = "O"
-points = { B = [15.0, 0.0] }
-[[units]]
-type = "rrp"
-name = "bar"
-pin = "B"
-rod = "rod"
-length = 44.0
-new = "C"
-slider = "bar"
-guide_point = "O"
-guide_angle_deg = 90.0
-branch = -1
+SC_TOML = SLIDER_CRANK.format(r=15.0, l=44.0, e=0.0, alpha=90.0, gx=0.0, gy=0.0, branch=-1) + """
 [masses.crank]
 mass = 0.2
 com = [-3.0, 1.0]
@@ -156,7 +133,7 @@ inertia_zz = 40.0
 mass = 0.012
 com = [20.0, 0.5]
 inertia_zz = 2.5
-[masses.bar]
+[masses.block]
 mass = 0.05
 com = [-40.0, 0.3]
 inertia_zz = 30.0
@@ -225,11 +202,11 @@ def test_slider_crank_against_closed_form():
     assert np.abs(res.pair("C") - FC).max() <= 1e-9 * peak
     assert np.abs(res.pair("B") - FBr).max() <= 1e-9 * peak
     assert np.abs(res.pair("O") - FA).max() <= 1e-9 * peak
-    assert np.allclose(res.pair("bar.guide")[..., 0], N, rtol=0, atol=1e-9 * peak)
+    assert np.allclose(res.pair("slider.guide")[..., 0], N, rtol=0, atol=1e-9 * peak)
     # the guide couple: moments on the bar about its COM: (C - G3) x F_C + M + (C - G3) x N n = 0
     n = np.array([-1.0, 0.0])
     Mref = -cross(C - G3, FC) - cross(C - G3, N[:, None] * n)
-    assert np.allclose(res.pair("bar.guide")[..., 1], Mref, rtol=0, atol=1e-9 * peak * 100)
+    assert np.allclose(res.pair("slider.guide")[..., 1], Mref, rtol=0, atol=1e-9 * peak * 100)
     assert np.allclose(res.input_torque, tau, rtol=0, atol=1e-9 * np.abs(tau).max())
 
 
@@ -511,9 +488,9 @@ def test_pressure_angles_of_a_slider_crank():
     pa = pressure_angles(m, phi)
     # the rod's angle from the vertical guide: sin(angle) = x_B / l
     ref = np.degrees(np.arcsin(np.abs(15.0 * np.cos(phi)) / 44.0))
-    assert np.allclose(pa.angles["bar"], ref, atol=1e-9)
+    assert np.allclose(pa.angles["slider"], ref, atol=1e-9)
     name, worst, at = pa.worst()[0]
-    assert name == "bar" and math.isclose(worst, math.degrees(math.asin(15 / 44)), rel_tol=1e-9)
+    assert name == "slider" and math.isclose(worst, math.degrees(math.asin(15 / 44)), rel_tol=1e-9)
 
 
 def test_needle_force_by_virtual_work():
