@@ -26,15 +26,14 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from _timing import best
 
 import sewmech
 from sewmech.dynamics import inverse_dynamics
 
-from _timing import best  # noqa: E402 (benchmarks/ is the script's directory)
-
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
-from exudyn_fourbar import TEST_LINKS as FB_MASS  # noqa: E402 (imports exudyn only to solve)
+from exudyn_fourbar import TEST_LINKS as FB_MASS
 
 RESULTS = HERE / "results" / "dynamics.json"
 TARGET_JB_MS = 10.0
@@ -65,7 +64,7 @@ def main():
     ours = inverse_dynamics(fb, phi360, masses=masses, loads=[], gravity=False)
     exu = None
     try:
-        import exudyn  # noqa: F401
+        import exudyn
 
         from exudyn_fourbar import solve_fourbar
     except ImportError:

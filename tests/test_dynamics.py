@@ -10,8 +10,8 @@ import pytest
 from conftest import SLIDER_CRANK
 from exudyn_fourbar import TEST_LINKS
 from sewmech import load_machine
-from sewmech.kinematics import kinematics
 from sewmech.dynamics import GRAVITY, SingularForceSystem, in_windows, inverse_dynamics
+from sewmech.kinematics import kinematics
 from sewmech.machine import machine_from_toml
 from sewmech.mass import MassProperties
 from sewmech.spec import LoadSpec
@@ -84,12 +84,12 @@ def fourbar_closed_form(phi, gravity):
     B, C, th2, th3, vB, aB, w2, w3, e2, e3 = fourbar_kinematics(phi)
     zero = np.zeros_like(phi)
     th1 = phi
-    m1, *g1, I1 = FB_MASS["crank"]
+    m1, *g1, _ = FB_MASS["crank"]  # the crank turns at constant speed: no I alpha
     m2, *g2, I2 = FB_MASS["coupler"]
     m3, *g3, I3 = FB_MASS["rocker"]
-    G1, v1, a1 = rigid(A, zero[:, None], zero[:, None], th1, W + zero, zero, g1)
-    G2, v2, a2 = rigid(B, vB, aB, th2, w2, e2, g2)
-    G3, v3, a3 = rigid(D, zero[:, None], zero[:, None], th3, w3, e3, g3)
+    G1, _, a1 = rigid(A, zero[:, None], zero[:, None], th1, W + zero, zero, g1)
+    G2, _, a2 = rigid(B, vB, aB, th2, w2, e2, g2)
+    G3, _, a3 = rigid(D, zero[:, None], zero[:, None], th3, w3, e3, g3)
     g = np.array([0.0, -GRAVITY if gravity else 0.0])
     # inertia "loads": m a - m g (N), I alpha (N mm)
     R1, R2, R3 = (m * (acc * 1e-3 - g) for m, acc in ((m1, a1), (m2, a2), (m3, a3)))
@@ -104,7 +104,7 @@ def fourbar_closed_form(phi, gravity):
     FB_ = R2 + FC  # on coupler from crank: F_B - F_C = R2
     FD = R3 - FC  # on rocker from frame
     FA = R1 + FB_  # on crank from frame
-    tau = I1 * 0.0 - cross(B - A, -FB_) + cross(G1 - A, R1)  # crank at constant speed
+    tau = -cross(B - A, -FB_) + cross(G1 - A, R1)
     return FA, FB_, FC, FD, tau
 
 
@@ -174,9 +174,9 @@ def test_slider_crank_against_closed_form():
     vB = np.stack([-r * s * W, r * c * W], -1)
     aB = np.stack([-r * c * W ** 2, -r * s * W ** 2], -1)
     g = np.array([0.0, -GRAVITY])
-    mc, gc, Ic = 0.2, (-3.0, 1.0), 40.0
-    mr, gr, Ir = 0.012, (20.0, 0.5), 2.5
-    mb, gb, Ib = 0.05, (-40.0, 0.3), 30.0
+    mc, gc = 0.2, (-3.0, 1.0)  # the crank turns at constant speed, the bar does not turn:
+    mr, gr, Ir = 0.012, (20.0, 0.5), 2.5  # only the rod's inertia enters
+    mb, gb = 0.05, (-40.0, 0.3)
     G1, _, a1 = rigid(np.zeros((len(phi), 2)), zero[:, None], zero[:, None], phi, W + zero, zero,
                       gc)
     G2, _, a2 = rigid(B, vB, aB, th2, w2, e2, gr)
@@ -379,7 +379,7 @@ def test_bearings_need_products_of_inertia():
                           "bearings = { front = 20.0, rear = 170.0 }\n")
     r = inverse_dynamics(m, [0.0, 1.0], loads=[])
     with pytest.raises(ValueError, match="gives only inertia_zz: the bearing reactions need"):
-        r.bearings
+        _ = r.bearings
 
 
 # ---- command line and load files ----------------------------------------------------------------

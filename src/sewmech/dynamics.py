@@ -265,7 +265,7 @@ class DynamicsResult:
         P = self.kin.p.shape[:-2]
         tau = np.zeros(P)
         params = self.params
-        for name, (c, pair) in self._columns.items():
+        for c, pair in self._columns.values():
             if pair.kind == "driver" and pair.input == SHAFT:
                 tau = tau + self.unknowns[..., c] * params[..., None, pair.ratio_param]
         return tau

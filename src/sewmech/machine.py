@@ -21,8 +21,8 @@ from numpy.typing import ArrayLike
 
 from . import _kernels as K
 from .cams import CONSTANT_WIDTH_KEYS, constant_width_arcs
-from .mass import from_spec as mass_from_spec
 from .errors import MachineFileError
+from .mass import from_spec as mass_from_spec
 from .spec import (
     FRAME,
     SHAFT,
