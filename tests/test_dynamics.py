@@ -449,6 +449,15 @@ def test_load_file_errors(tmp_path):
     on = (df.phi_deg >= 350) | (df.phi_deg <= 20)
     assert (df.external_power_W[~on] == 0).all() and (df.external_power_W[on] != 0).any()
     assert (tmp_path / "o" / "jb1-3-pair-forces.csv").exists()
+    # and the figures at the command's settings: the torque figure sees the load file's window
+    fig = pd.read_csv(tmp_path / "o" / "jb1-3-dyn-torque.csv")
+    m = load_machine("jb1-3")
+    r = inverse_dynamics(m, np.radians(fig.phi_deg), loads=[LoadSpec(
+        name="pull", link="take_up_lever", point="take_up.eye", force_N=3.0, angle_deg=-90.0,
+        windows_deg=[(350.0, 20.0)])])
+    assert np.allclose(fig.torque_Nm, r.input_torque * 1e-3, rtol=1e-9, atol=1e-12)
+    for name in ("dyn-bearings", "dyn-shaking", "dyn-needle"):
+        assert (tmp_path / "o" / f"jb1-3-{name}.png").stat().st_size > 1000
 
 
 # ---- speed fluctuation and force transmission ----------------------------------------------------

@@ -172,8 +172,8 @@ def dynamics_cmd(
                                " machine file's loads"),
     no_loads: bool = typer.Option(False, "--no-loads", help="no process loads (no-load run)"),
     gravity: bool = typer.Option(True, "--gravity/--no-gravity", help="weights of the links"),
-    out: Path = typer.Option(None, help="also write the per-position table (CSV) and the"
-                             " pair forces (CSV) into this directory"),
+    out: Path = typer.Option(None, help="also write the per-position table and the pair"
+                             " forces (CSV) and the dynamics figures (PNG, SVG, CSV) here"),
 ):
     """Inverse dynamics: driving torque, pair forces, shaking force and moment, energies,
     upper-shaft bearing reactions."""
@@ -201,6 +201,37 @@ def dynamics_cmd(
     if out is not None:
         for path in write_dynamics_csv(res, out):
             console.print(f"written: {path}")
+        if m.spec.sewing is not None:
+            _dynamics_figures(m, out, settings, rpm, load_specs, gravity)
+
+
+def _dynamics_figures(m, out, settings, rpm, load_specs, gravity):
+    """The report's dynamics figures for the CLI's settings, written into ``out``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from rich.progress import Progress
+
+    from .report import _Figures
+    from .report_dynamics import dynamics_section
+
+    out.mkdir(parents=True, exist_ok=True)
+    figs = _Figures(out, m.name)
+    with Progress(console=console, transient=True) as progress:
+        progress.add_task("dynamics figures", total=None)
+        try:
+            # the command's settings (the file's defaults unless --input), as its tables
+            inputs = {n: math.radians(i.default_deg) for n, i in m.spec.inputs.items()}
+            key = dynamics_section(figs, m, inputs={**inputs, **settings}, rpm=rpm,
+                                   loads=load_specs, gravity=gravity)
+        except (SewmechError, ValueError) as exc:
+            _fail(exc)
+    from .io import atomic_write
+
+    path = out / f"{m.name}-dynamics-key-figures.csv"
+    with atomic_write(path) as fh:
+        key.to_csv(fh, index=False, float_format="%.10g")
+    console.print(f"written: {path} and {len(figs.blocks)} figures (PNG, SVG, CSV) in {out}")
 
 
 def _dynamics_summary(res, data) -> Table:

@@ -30,6 +30,7 @@ import pandas as pd
 
 from . import feed as FD
 from . import timing as T
+from .io import atomic_write
 from .kinematics import kinematics
 from .machine import Machine
 
@@ -51,10 +52,14 @@ class _Figures:
         stem = f"{self.machine}-{name}"
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=120)
-        (self.root / f"{stem}.png").write_bytes(buf.getvalue())
-        fig.savefig(self.root / f"{stem}.svg", format="svg")
+        svg = io.BytesIO()
+        fig.savefig(svg, format="svg")
         plt.close(fig)
-        data.to_csv(self.root / f"{stem}.csv", index=False, float_format="%.10g")
+        for ext, payload in (("png", buf.getvalue()), ("svg", svg.getvalue())):
+            with atomic_write(self.root / f"{stem}.{ext}", "wb", encoding=None) as fh:
+                fh.write(payload)
+        with atomic_write(self.root / f"{stem}.csv") as fh:
+            data.to_csv(fh, index=False, float_format="%.10g")
         b64 = base64.b64encode(buf.getvalue()).decode("ascii")
         self.blocks.append(
             f'<figure id="{name}"><h3>{html.escape(title)}</h3>'

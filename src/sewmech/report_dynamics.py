@@ -25,21 +25,29 @@ NEEDLE_VIEW_TORQUE_NMM = 500.0
 PENETRATION_RESISTANCE_N = 8.0
 
 
-def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = ()) -> pd.DataFrame:
-    """Add the dynamics figures to ``figs`` (a report ``_Figures``); return the key figures."""
+def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *,
+                     inputs: dict[str, float] | None = None, rpm: float | None = None,
+                     loads=None, gravity: bool = True) -> pd.DataFrame:
+    """Add the dynamics figures to ``figs`` (a report ``_Figures``); return the key figures.
+
+    inputs: setting inputs, rad (default: the stitch regulator at its longest forward stitch);
+    rpm: shaft speed (default: the file's); loads: process loads (default: the file's);
+    gravity: the links' weights.
+    """
     import matplotlib.pyplot as plt
 
     s = machine.spec.sewing
-    settings = {}
-    if s is not None and s.regulator is not None:
+    settings = dict(inputs or {})
+    if not settings and s is not None and s.regulator is not None:
         settings = {s.regulator: math.radians(FD.regulator_range_deg(machine)[1])}
     phi_deg = np.arange(0.0, 360.0, 1.0)
     phi = np.radians(phi_deg)
-    full = inverse_dynamics(machine, phi, inputs=settings)
-    noload = inverse_dynamics(machine, phi, inputs=settings, loads=[])
-    rest = inverse_dynamics(machine, phi, inputs=settings, omega=1e-6)
+    rpm = machine.rpm if rpm is None else rpm
+    common = {"inputs": settings, "gravity": gravity}
+    full = inverse_dynamics(machine, phi, rpm=rpm, loads=loads, **common)
+    noload = inverse_dynamics(machine, phi, rpm=rpm, loads=[], **common)
+    rest = inverse_dynamics(machine, phi, omega=1e-6, loads=loads, **common)
     at = "".join(f", {k} at {math.degrees(v):g} deg" for k, v in settings.items())
-    rpm = machine.rpm
     rows = []
 
     # ---- driving torque -------------------------------------------------------------------------
@@ -47,7 +55,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = ()) -
     ax.plot(phi_deg, full.input_torque * 1e-3, lw=1.6, label="with the process loads")
     ax.plot(phi_deg, noload.input_torque * 1e-3, lw=1.2, ls="--", label="no load")
     ax.plot(phi_deg, rest.input_torque * 1e-3, lw=1.0, ls=":", label="at rest (loads, weights)")
-    for k, load in enumerate(machine.spec.loads):
+    for k, load in enumerate(machine.spec.loads if loads is None else loads):
         on = in_windows(phi_deg, load.windows_deg)
         ax.fill_between(phi_deg, 0, 1, where=on, transform=ax.get_xaxis_transform(),
                         color=f"C{k + 3}", alpha=0.12, step="mid", label=load.name)
@@ -74,7 +82,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = ()) -
              ("mean power with loads", float(full.input_power.mean() * 1e-3), "W")]
 
     # ---- energy, reduced inertia, speed fluctuation -------------------------------------------
-    sf = speed_fluctuation(machine, inputs=settings, n_phi=720)
+    sf = speed_fluctuation(machine, rpm=rpm, n_phi=720, loads=loads, **common)
     fig, axs = plt.subplots(3, 1, figsize=(9, 7.5), sharex=True, constrained_layout=True)
     axs[0].plot(phi_deg, full.kinetic_energy * 1e-3, label="kinetic T")
     axs[0].plot(phi_deg, (full.potential_energy - full.potential_energy.mean()) * 1e-3,
@@ -207,7 +215,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = ()) -
         for k, mm in enumerate([machine] + list(variants)):
             lo, hi = FD.regulator_range_deg(mm)
             for j, setting in enumerate((lo, 0.0, hi)):
-                tau = regulator_torques(mm, [setting])[setting] * 1e-3
+                tau = regulator_torques(mm, [setting], rpm=rpm)[setting] * 1e-3
                 ax.plot(data["phi_deg"], tau, color=f"C{k}", ls=("-", ":", "--")[j], lw=1.2,
                         label=f"{mm.name}, regulator {setting:+g} deg")
                 data[f"{mm.name}_{setting:+g}deg_Nm"] = tau
@@ -230,7 +238,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = ()) -
                      float(np.abs(full.setting_torques[s.regulator]).max() * 1e-3), "N m"))
 
     if s is not None:
-        nf = needle_force(machine, NEEDLE_VIEW_TORQUE_NMM)
+        nf = needle_force(machine, NEEDLE_VIEW_TORQUE_NMM, rpm=rpm)
         fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
         order = np.argsort(nf.depth)
         ax.plot(nf.depth[order], nf.force[order], lw=1.6, label=f"available at"
