@@ -538,3 +538,21 @@ def test_fourbar_against_exudyn(gravity):
         assert np.abs(r.pair(name) - ref[f"F_{name}"]).max() <= 1e-3 * peak, name
     peak = np.abs(ref["torque_Nmm"]).max()
     assert np.abs(r.input_torque - ref["torque_Nmm"]).max() <= 1e-3 * peak
+
+
+def test_one_sided_contacts_are_reported(tmp_path):
+    from sewmech.report import _Figures
+    from sewmech.report_dynamics import dynamics_section
+
+    m = load_machine("jb1-3")
+    sided = {p.name for p in m.pairs if p.one_sided}
+    assert sided == {"lift.cam", "lift.roller.slot"}
+    r = inverse_dynamics(m, np.radians(np.arange(0.0, 360.0, 1.0)),
+                         inputs={"regulator": math.radians(30.0)})
+    key = dynamics_section(_Figures(tmp_path, m.name), m)
+    for name in sorted(sided):
+        row = key[key.quantity.str.contains(f"one-sided contact {name} ")]
+        assert len(row) == 1
+        least = r.pair(name)[..., 0].min()
+        assert math.isclose(float(row.value.iloc[0]), least, rel_tol=1e-9)
+        assert ("opens" in row.quantity.iloc[0]) == (least < 0)

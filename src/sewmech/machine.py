@@ -70,6 +70,7 @@ class Pair:
     cam_term: int = -1  # cam: the cam term's global row
     input: str | None = None  # driver: "shaft" or a setting input's name
     ratio_param: int = -1  # driver: parameter index of the crank's speed ratio
+    one_sided: bool = False  # cam, slot: the contact can only push (N >= 0), else it opens
 
 
 @dataclass(frozen=True, eq=False)
@@ -602,7 +603,7 @@ class _Compiler:
                         f"{u.name}.{c.cam}", "cam", (cam_link, follower), u.name,
                         line_link=term.normal_link,
                         line_var=term.normal_angle, line_param=trow[7], terms=others,
-                        cam_term=row))
+                        cam_term=row, one_sided=c.one_sided))
                 else:
                     self.known_point(table, key + ".slot", c.slot)
                     for lk in ("link", "slot_link"):
@@ -614,7 +615,7 @@ class _Compiler:
                     self.pairs.append(Pair(
                         f"{c.slot}.slot", "slot", (c.slot_link, c.link), u.name,
                         point=c.slot, line_link=c.slot_link,
-                        extra_angle=math.radians(c.slot_deg)))
+                        extra_angle=math.radians(c.slot_deg), one_sided=c.one_sided))
         # every point shared by links is a pin between the first of them and each other one
         for p in self.points:
             links = self.point_links[p]

@@ -174,6 +174,13 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
         peak.append({"pair": pair.name, "kind": pair.kind, "links": " -> ".join(pair.links),
                      "peak": float(mag[k] * scale), "unit": unit, "at_phi_deg": phi_deg[k],
                      "mean": float(mag.mean() * scale)})
+    for pair in full.pairs:  # a contact that can only push must not pull
+        if pair.one_sided:
+            n = full.pair(pair.name)[..., 0]
+            k = int(np.argmin(n))
+            rows.append((f"least force in the one-sided contact {pair.name}"
+                         f" ({'opens' if n[k] < 0 else 'stays closed'}; at phi {phi_deg[k]:g} deg)",
+                         float(n[k]), "N"))
     peak_df = pd.DataFrame(peak)
     forces = peak_df[peak_df.unit == "N"].sort_values("peak")
     fig, ax = plt.subplots(figsize=(9, 0.28 * len(forces) + 1.2), constrained_layout=True)

@@ -263,6 +263,7 @@ class CamContact(_Spec):
 
     cam: Name
     follower: Name | None = None
+    one_sided: bool = False  # a contact that can only push (a cam under a pad): it opens at N < 0
 
 
 class SlotContact(_Spec):
@@ -277,6 +278,7 @@ class SlotContact(_Spec):
     link: Name
     slot_link: Name
     slot_deg: float = 0.0
+    one_sided: bool = False  # a roller on one flat face only: it lifts off at N < 0
 
 
 class LoopUnit(_Spec):
