@@ -304,6 +304,16 @@ def test_batch_equals_loop():
         assert np.allclose(batch.unknowns[k], one.unknowns, rtol=1e-12, atol=1e-9)
 
 
+def test_large_batch_runs_in_parallel_and_equals_one_design():
+    m = load_machine("jb1-3")
+    phi = np.radians(np.arange(0.0, 360.0, 5.0))
+    P = m.parameters({"needle_bar.length": np.linspace(42.0, 46.0, 300)})  # 21,600 systems
+    batch = inverse_dynamics(m, phi, params=P)
+    for k in (0, 137, 299):
+        one = inverse_dynamics(m, phi, params=P[k])
+        assert np.array_equal(batch.unknowns[k], one.unknowns)
+
+
 def test_windows():
     deg = np.array([0.0, 80.0, 90.0, 120.0, 175.0, 176.0, 350.0, 359.9])
     assert in_windows(deg, [(90.0, 175.0)]).tolist() == [0, 0, 1, 1, 1, 0, 0, 0]

@@ -931,6 +931,68 @@ def _cam_point(t0, nt, cam_rows, terms, params, d, p, th, q, sign):
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
+def _pair_solve_design(d, pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, RHS, X,
+                       MINPIV, M, b):
+    n_phi = RHS.shape[1]
+    n_eq = RHS.shape[2]
+    for k in range(n_phi):
+        p = P[d, k]
+        th = TH[d, k]
+        q = Q[d, k]
+        gp = GP[d, k]
+        M[:, :] = 0.0
+        for e in range(n_eq):
+            b[e] = RHS[d, k, e]
+        for i in range(pairs.shape[0]):
+            kind = pairs[i, 0]
+            la = pairs[i, 1]
+            lb = pairs[i, 2]
+            col = pairs[i, 7]
+            if kind == PAIR_DRIVER:
+                M[3 * (lb - 1) + 2, col] = 1.0
+                continue
+            if kind == PAIR_CAM:
+                xx, xy = _cam_point(pairs[i, 9], pairs[i, 10], cam_rows, terms, params, d,
+                                    p, th, q, float(pairs[i, 8]))
+            else:
+                xx = p[pairs[i, 3], 0]
+                xy = p[pairs[i, 3], 1]
+            nf = 2 if kind == PAIR_REVOLUTE else 1
+            for j in range(nf):
+                if kind == PAIR_REVOLUTE:
+                    fx = 1.0 if j == 0 else 0.0
+                    fy = 0.0 if j == 0 else 1.0
+                else:
+                    a = th[pairs[i, 4]] if pairs[i, 4] >= 0 else q[pairs[i, 5]]
+                    a += pair_angle[i]
+                    if pairs[i, 6] >= 0:
+                        a += params[d, pairs[i, 6]]
+                    if kind != PAIR_CAM:
+                        a += 0.5 * math.pi
+                    fx = math.cos(a)
+                    fy = math.sin(a)
+                for side in range(2):
+                    link = lb if side == 0 else la
+                    if link == 0:
+                        continue
+                    sg = 1.0 if side == 0 else -1.0
+                    r = 3 * (link - 1)
+                    dx = xx - gp[link, 0]
+                    dy = xy - gp[link, 1]
+                    M[r, col + j] = sg * fx
+                    M[r + 1, col + j] = sg * fy
+                    M[r + 2, col + j] = sg * (dx * fy - dy * fx)
+            if kind == PAIR_PRISMATIC:
+                if lb:
+                    M[3 * (lb - 1) + 2, col + 1] = 1.0
+                if la:
+                    M[3 * (la - 1) + 2, col + 1] = -1.0
+        MINPIV[d, k] = _gauss_solve(M, b, n_eq)
+        for e in range(n_eq):
+            X[d, k, e] = b[e]
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def pair_solve(pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, RHS, X, MINPIV):
     """Assemble and solve the pair forces of every design and position.
 
@@ -939,62 +1001,21 @@ def pair_solve(pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, RHS, X,
     weight and load terms. Fills X (D, n_phi, n_eq) and MINPIV (D, n_phi), the smallest
     pivot of each elimination relative to the matrix's largest entry (0: singular).
     """
-    n_d, n_phi, n_eq = RHS.shape
+    n_eq = RHS.shape[2]
     M = np.empty((n_eq, n_eq))
     b = np.empty(n_eq)
-    for d in range(n_d):
-        for k in range(n_phi):
-            p = P[d, k]
-            th = TH[d, k]
-            q = Q[d, k]
-            gp = GP[d, k]
-            M[:, :] = 0.0
-            for e in range(n_eq):
-                b[e] = RHS[d, k, e]
-            for i in range(pairs.shape[0]):
-                kind = pairs[i, 0]
-                la = pairs[i, 1]
-                lb = pairs[i, 2]
-                col = pairs[i, 7]
-                if kind == PAIR_DRIVER:
-                    M[3 * (lb - 1) + 2, col] = 1.0
-                    continue
-                if kind == PAIR_CAM:
-                    xx, xy = _cam_point(pairs[i, 9], pairs[i, 10], cam_rows, terms, params, d,
-                                        p, th, q, float(pairs[i, 8]))
-                else:
-                    xx = p[pairs[i, 3], 0]
-                    xy = p[pairs[i, 3], 1]
-                nf = 2 if kind == PAIR_REVOLUTE else 1
-                for j in range(nf):
-                    if kind == PAIR_REVOLUTE:
-                        fx = 1.0 if j == 0 else 0.0
-                        fy = 0.0 if j == 0 else 1.0
-                    else:
-                        a = th[pairs[i, 4]] if pairs[i, 4] >= 0 else q[pairs[i, 5]]
-                        a += pair_angle[i]
-                        if pairs[i, 6] >= 0:
-                            a += params[d, pairs[i, 6]]
-                        if kind != PAIR_CAM:
-                            a += 0.5 * math.pi
-                        fx = math.cos(a)
-                        fy = math.sin(a)
-                    for side in range(2):
-                        link = lb if side == 0 else la
-                        if link == 0:
-                            continue
-                        sg = 1.0 if side == 0 else -1.0
-                        r = 3 * (link - 1)
-                        dx = xx - gp[link, 0]
-                        dy = xy - gp[link, 1]
-                        M[r, col + j] = sg * fx
-                        M[r + 1, col + j] = sg * fy
-                        M[r + 2, col + j] = sg * (dx * fy - dy * fx)
-                if kind == PAIR_PRISMATIC:
-                    if lb:
-                        M[3 * (lb - 1) + 2, col + 1] = 1.0
-                    if la:
-                        M[3 * (la - 1) + 2, col + 1] = -1.0
-            MINPIV[d, k] = _gauss_solve(M, b, n_eq)
-            for e in range(n_eq):
-                X[d, k, e] = b[e]
+    for d in range(RHS.shape[0]):
+        _pair_solve_design(d, pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, RHS, X,
+                           MINPIV, M, b)
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, parallel=True)
+def pair_solve_parallel(pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, RHS, X,
+                        MINPIV):
+    """:func:`pair_solve` with the designs shared among threads (large batches)."""
+    n_eq = RHS.shape[2]
+    for d in prange(RHS.shape[0]):
+        M = np.empty((n_eq, n_eq))
+        b = np.empty(n_eq)
+        _pair_solve_design(d, pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, RHS, X,
+                           MINPIV, M, b)

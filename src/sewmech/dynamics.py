@@ -663,7 +663,8 @@ def _solve(machine: Machine, kin: KinematicsResult, P: np.ndarray, gp: np.ndarra
 
     X = np.empty((n_d, n_phi, n_eq))
     minpiv = np.empty(X.shape[:2])
-    K.pair_solve(table, angles, cam_rows, machine.terms,
+    solve = K.pair_solve_parallel if n_d >= 4 and n_d * n_phi >= 20000 else K.pair_solve
+    solve(table, angles, cam_rows, machine.terms,
                  np.ascontiguousarray(P.reshape(n_d, P.shape[-1])), flat(kin.p), flat(kin.theta),
                  flat(kin.q), flat(gp), flat(rhs), X, minpiv)
     feasible = np.broadcast_to(kin.feasible, batch + (n_phi,)).reshape(minpiv.shape)
