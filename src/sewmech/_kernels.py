@@ -101,17 +101,19 @@ def _gauss_solve(M, b, n):
             minpiv = abs(piv)
         if piv == 0.0:
             return 0.0
+        inv = 1.0 / piv  # one division per column, not per row
+        M[k, k] = inv  # kept for the back substitution
         for i in range(k + 1, n):
-            f = M[i, k] / piv
+            f = M[i, k] * inv
             if f != 0.0:
-                for j in range(k, n):
+                for j in range(k + 1, n):
                     M[i, j] -= f * M[k, j]
                 b[i] -= f * b[k]
     for k in range(n - 1, -1, -1):
         acc = b[k]
         for j in range(k + 1, n):
             acc -= M[k, j] * b[j]
-        b[k] = acc / M[k, k]
+        b[k] = acc * M[k, k]
     return minpiv / scale
 
 
