@@ -383,6 +383,15 @@ def test_bearings_by_the_lever_rule(gravity):
     assert np.abs(br.inertia_couple).max() > 1.0  # the masses at different z make a couple
 
 
+def test_shaft_masses_are_about_the_axis():
+    m = machine_from_toml(SHAFT_TOML.replace('[masses.crank]\nmaterial = "steel"',
+                                             '[masses.crank]\nmaterial = "steel"\norigin = "B"'))
+    r = inverse_dynamics(m, [0.0, 1.0], loads=[])
+    with pytest.raises(ValueError, match="its \\[masses\\] origin must be the shaft's axis"
+                                         " point 'O' \\(it is 'B'\\)"):
+        _ = r.bearings
+
+
 def test_bearings_need_products_of_inertia():
     # the slider-crank's crank has measured planar values only (mass, com, inertia_zz)
     m = machine_from_toml(SC_TOML + "[shaft]\nlinks = { crank = 0.0 }\n"

@@ -428,13 +428,13 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
             raise ValueError(f"link '{lname}' turns with the upper shaft but its [masses] table"
                              " gives only inertia_zz: the bearing reactions need its products"
                              " of inertia (give the full inertia tensor or solids)")
-        # mass frame origin -> the axis point, in link coordinates (a fixed offset)
+        if machine.point_names[res.mass.origins[li]] != pivot:
+            raise ValueError(f"link '{lname}' turns with the upper shaft: its [masses] origin"
+                             f" must be the shaft's axis point '{pivot}' (it is"
+                             f" '{machine.point_names[res.mass.origins[li]]}')")
         th = kin.theta[..., li]
-        o = kin.p[..., res.mass.origins[li], :] - O
         c, s = np.cos(th), np.sin(th)
-        ou = (c * o[..., 0] + s * o[..., 1]).ravel()[0]
-        ov = (-s * o[..., 0] + c * o[..., 1]).ravel()[0]
-        J = mp.about(np.array([-ou, -ov, 0.0]))  # about the axis point at z = 0
+        J = mp.about(np.zeros(3))  # about the axis point at z = 0
         zc = mp.com[2]
         w, e = kin.omega[..., li], kin.epsilon[..., li]
         jxz = c * J[0, 2] - s * J[1, 2]
