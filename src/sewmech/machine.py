@@ -100,6 +100,10 @@ class Machine:
     cam_designs : dict[str, dict[str, float]]
         Design values (width, stroke mm; dwell, orientation rad) of every cam built from
         ``constant_width``; ``Machine.parameters`` accepts them as ``CAM.width`` etc.
+    pairs : tuple[Pair, ...]
+        The kinematic pairs of the force analysis (see :class:`Pair`), in unknown order.
+    mass_origins : dict[str, str]
+        The point at the origin of each ``[masses]`` link's frame.
     """
 
     spec: MachineSpec
