@@ -90,6 +90,15 @@ def test_cli_machines_check_kinematics(tmp_path):
     assert out.exit_code == 0 and "jb1-3" in out.stdout
     out = runner.invoke(app, ["check", "jb1-3"])
     assert out.exit_code == 0 and "assembles" in out.stdout
+    assert "force analysis" in out.stdout
+    from sewmech.dynamics import force_system
+
+    line = force_system(sewmech.load_machine("jb1-3"))
+    assert "48 unknowns for 48 equations, ready" in line and "bearings from [shaft]" in line
+    path = sewmech.load_machine("jb1-3").file
+    text = open(path).read().replace('contacts = [ { cam = "cam", one_sided = true } ]\n', "")
+    short = force_system(sewmech.machine_from_toml(text))
+    assert "47 unknowns for 48 equations, NOT READY" in short
     out = runner.invoke(app, ["kinematics", "jb1-3", "--json", "--step-deg", "10"])
     data = json.loads(out.stdout)
     assert len(data["phi_deg"]) == 36 and "p_take_up.eye_y" in data["channels"]

@@ -101,6 +101,9 @@ def check_cmd(file: Path = typer.Argument(..., help="machine file (TOML) or ship
     table.add_row("branches", ", ".join(f"{k}: {v:+d}" for k, v in m.branches.items()) or "-")
     table.add_row("parameters", str(len(m.parameter_names)))
     table.add_row("assembles", f"at all {res.phi.size} positions (step {step_deg:g} deg)")
+    from .dynamics import force_system
+
+    table.add_row("force analysis", escape(force_system(m)))
     console.print(table)
 
 

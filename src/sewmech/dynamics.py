@@ -503,6 +503,21 @@ def _term_values(machine: Machine, kin: KinematicsResult, params: np.ndarray,
     return total
 
 
+def force_system(machine: Machine) -> str:
+    """One line on the machine's force analysis: pairs, unknowns against equations, masses,
+    loads and whether the upper shaft's bearings can be computed."""
+    n_eq = 3 * (len(machine.link_names) - 1)
+    n_unk = sum(_N_UNKNOWN[p.kind] for p in machine.pairs)
+    kinds = ", ".join(f"{sum(1 for p in machine.pairs if p.kind == k)} {k}"
+                      for k in _N_UNKNOWN if any(p.kind == k for p in machine.pairs))
+    state = ("ready" if n_unk == n_eq else
+             "NOT READY: declare the missing cam/slot contacts or pins")
+    return (f"{len(machine.pairs)} pairs ({kinds}): {n_unk} unknowns for {n_eq} equations,"
+            f" {state}; masses for {len(machine.masses)} of {len(machine.link_names) - 1} links;"
+            f" {len(machine.spec.loads)} loads; bearings"
+            f" {'from [shaft]' if machine.spec.shaft is not None else 'not computed (no [shaft])'}")
+
+
 def inverse_dynamics(
     machine: Machine,
     phi: ArrayLike,
