@@ -428,6 +428,10 @@ def test_cli_dynamics_json(tmp_path):
     assert np.allclose([x["input_torque_Nm"] for x in rows], r.input_torque * 1e-3, atol=1e-12)
     assert np.allclose([x["bearing_rear_N"] for x in rows], r.bearings.rear, atol=1e-12)
     assert np.allclose([x["external_power_W"] for x in rows], r.external_power * 1e-3)
+    e = data["pairs"]["E"]
+    assert e["kind"] == "revolute" and e["links"] == ["hook_crank", "big_rod"]
+    assert e["components"] == ["Fx_N", "Fy_N"] and np.allclose(e["values"], r.pair("E"))
+    assert data["pairs"]["lift.cam"]["components"] == ["N_N"]
     # power balance on the JSON figures alone: P_in = dT/dt + dV/dt - P_ext, with the energy
     # derivatives from a periodic spline of the printed energies (a loose, independent check)
     from scipy.interpolate import CubicSpline

@@ -83,10 +83,16 @@ def write_kinematics_csv(result: KinematicsResult, path: str | Path) -> Path:
     return path
 
 
+#: the unknowns of each pair kind, with their units (see sewmech.machine.Pair)
+_PAIR_LABELS = {"revolute": ("Fx_N", "Fy_N"), "prismatic": ("N_N", "M_Nmm"), "cam": ("N_N",),
+                "slot": ("N_N",), "driver": ("torque_Nmm",)}
+
+
 def dynamics_to_dict(res) -> dict:
     """A JSON-ready dict of a single-design :class:`sewmech.dynamics.DynamicsResult`: per
     position the driving torque, energies, powers, shaking force and moment and the upper
-    shaft's bearing reactions (SI units, named in the keys; null where not defined)."""
+    shaft's bearing reactions (SI units, named in the keys; null where not defined), and every
+    pair's unknowns per position (``pairs``: kind, links, components with units, values)."""
     if res.kin.batch_shape:
         raise ValueError("dynamics_to_dict takes one design (batch shape ()), got batch shape"
                          f" {res.kin.batch_shape}")
@@ -126,6 +132,12 @@ def dynamics_to_dict(res) -> dict:
             "bearing_rear_N": "force of the rear bearing on the upper shaft (x, y)",
         },
         "positions": rows,
+        "pairs": {pair.name: {"kind": pair.kind, "links": list(pair.links),
+                              "point": pair.point,
+                              "components": list(_PAIR_LABELS[pair.kind]),
+                              "values": [[_clean(float(v)) for v in row]
+                                         for row in res.pair(pair.name)]}
+                  for pair in res.pairs},
     }
 
 
@@ -164,10 +176,8 @@ def pair_forces_frame(res):
     import pandas as pd
 
     cols = {"phi_deg": res.phi_deg}
-    labels = {"revolute": ("Fx_N", "Fy_N"), "prismatic": ("N_N", "M_Nmm"), "cam": ("N_N",),
-              "slot": ("N_N",), "driver": ("torque_Nmm",)}
     for pair in res.pairs:
         x = res.pair(pair.name)
-        for j, label in enumerate(labels[pair.kind]):
+        for j, label in enumerate(_PAIR_LABELS[pair.kind]):
             cols[f"{pair.name}.{label}"] = x[:, j]
     return pd.DataFrame(cols)
