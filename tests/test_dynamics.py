@@ -512,6 +512,21 @@ def test_speed_fluctuation_obeys_the_equation_of_motion():
     assert 0.05 < big.delta / sf.delta < 0.2
 
 
+def test_speed_fluctuation_needs_inertia():
+    from sewmech.dynamics import speed_fluctuation
+
+    with pytest.raises(ValueError, match="reduced inertia J\\(phi\\) is zero"):
+        speed_fluctuation(load_machine("fourbar-benchmark"))
+    # and a JSON without [shaft] says why its bearings are null
+    from sewmech.io import dynamics_to_dict
+
+    m = load_machine("fourbar-benchmark")
+    d = dynamics_to_dict(inverse_dynamics(m, [0.0, 1.0], masses={"crank": planar(0.1, 5, 0, 1)}))
+    assert d["positions"][0]["bearing_front_N"] is None
+    assert "null here: machine 'fourbar-benchmark' has no [shaft] table" in \
+        d["conventions"]["bearing_rear_N"]
+
+
 def test_pressure_angles_of_a_slider_crank():
     from sewmech.transmission import pressure_angles
 

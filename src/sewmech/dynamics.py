@@ -742,6 +742,9 @@ def speed_fluctuation(machine: Machine, *, rpm: float | None = None, flywheel: f
     unit = inverse_dynamics(machine, phi, omega=1.0, inputs=inputs, loads=loads,
                             gravity=gravity, masses=masses)  # omega = 1 rad/s: rates = d/dphi
     J = unit.reduced_inertia + flywheel  # kg mm^2
+    if not (J > 0).all():
+        raise ValueError(f"machine '{machine.name}': the reduced inertia J(phi) is zero (no"
+                         " [masses] and no flywheel); the speed cannot be computed")
     Q = unit.potential_energy_rate - unit.external_power  # N mm per rad
     M = float(Q.mean())
     # work of M - Q from phi = 0, by the trapezoidal rule on the periodic grid (closed cycle)

@@ -97,9 +97,9 @@ def dynamics_to_dict(res) -> dict:
         raise ValueError("dynamics_to_dict takes one design (batch shape ()), got batch shape"
                          f" {res.kin.batch_shape}")
     try:
-        br = res.bearings
-    except ValueError:  # no [shaft] table (or planar-only shaft masses): no bearing figures
-        br = None
+        br, why = res.bearings, None
+    except ValueError as exc:  # no [shaft] table, or planar-only shaft masses: say why
+        br, why = None, str(exc)
     rows = []
     for k, phi in enumerate(res.phi_deg.tolist()):
         rows.append({
@@ -129,7 +129,8 @@ def dynamics_to_dict(res) -> dict:
             "shaking_force_N": "-sum m a_G of the moving links: what the frame feels",
             "shaking_moment_Nm": "-sum (I alpha + r_G x m a_G) about the frame origin",
             "bearing_front_N": "force of the front bearing on the upper shaft (x, y)",
-            "bearing_rear_N": "force of the rear bearing on the upper shaft (x, y)",
+            "bearing_rear_N": "force of the rear bearing on the upper shaft (x, y)"
+                              + (f"; null here: {why}" if why else ""),
         },
         "positions": rows,
         "pairs": {pair.name: {"kind": pair.kind, "links": list(pair.links),
