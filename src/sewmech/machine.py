@@ -626,6 +626,9 @@ class _Compiler:
             for other in links[1:]:
                 name = p if len(links) == 2 else f"{p}:{other}"
                 self.pairs.append(Pair(name, "revolute", (links[0], other), "", point=p))
+        # reading order: by the later of the two links in solve order, driver first
+        rank = {"driver": 0, "revolute": 1, "prismatic": 2, "slot": 3, "cam": 4}
+        self.pairs.sort(key=lambda p: (max(self.links.index(x) for x in p.links), rank[p.kind]))
         self.mass_origins = {}
         for lname, m in spec.masses.items():
             on = [p for p in self.points if lname in self.point_links[p]]
