@@ -933,6 +933,43 @@ def _cam_point(t0, nt, cam_rows, terms, params, d, p, th, q, sign):
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
+def _pair_geometry(i, pairs, pair_angle, cam_rows, terms, params, d, p, th, q):
+    """Where pair i's force acts (x, y mm) and the direction of its single force (cos, sin):
+    the line's left normal (prismatic, slot) or the cam's outward normal. Revolute pairs: the
+    pin and (1, 0)."""
+    kind = pairs[i, 0]
+    if kind == PAIR_CAM:
+        xx, xy = _cam_point(pairs[i, 9], pairs[i, 10], cam_rows, terms, params, d, p, th, q,
+                            float(pairs[i, 8]))
+    else:
+        xx = p[pairs[i, 3], 0]
+        xy = p[pairs[i, 3], 1]
+    if kind == PAIR_REVOLUTE:
+        return xx, xy, 1.0, 0.0
+    a = th[pairs[i, 4]] if pairs[i, 4] >= 0 else q[pairs[i, 5]]
+    a += pair_angle[i]
+    if pairs[i, 6] >= 0:
+        a += params[d, pairs[i, 6]]
+    if kind != PAIR_CAM:
+        a += 0.5 * math.pi
+    return xx, xy, math.cos(a), math.sin(a)
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
+def pair_geometry(pairs, pair_angle, cam_rows, terms, params, P, TH, Q, X, N):
+    """Force points X (D, n_phi, n_pairs, 2) and force directions N of every pair (drivers
+    left untouched) at every design and position; the same geometry :func:`pair_solve` uses."""
+    for d in range(X.shape[0]):
+        for k in range(X.shape[1]):
+            for i in range(pairs.shape[0]):
+                if pairs[i, 0] == PAIR_DRIVER:
+                    continue
+                X[d, k, i, 0], X[d, k, i, 1], N[d, k, i, 0], N[d, k, i, 1] = _pair_geometry(
+                    i, pairs, pair_angle, cam_rows, terms, params, d, P[d, k], TH[d, k],
+                    Q[d, k])
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _pair_solve_design(d, pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, RHS, X,
                        MINPIV, M, b):
     n_phi = RHS.shape[1]
@@ -953,26 +990,13 @@ def _pair_solve_design(d, pairs, pair_angle, cam_rows, terms, params, P, TH, Q, 
             if kind == PAIR_DRIVER:
                 M[3 * (lb - 1) + 2, col] = 1.0
                 continue
-            if kind == PAIR_CAM:
-                xx, xy = _cam_point(pairs[i, 9], pairs[i, 10], cam_rows, terms, params, d,
-                                    p, th, q, float(pairs[i, 8]))
-            else:
-                xx = p[pairs[i, 3], 0]
-                xy = p[pairs[i, 3], 1]
+            xx, xy, fx, fy = _pair_geometry(i, pairs, pair_angle, cam_rows, terms, params, d,
+                                            p, th, q)
             nf = 2 if kind == PAIR_REVOLUTE else 1
             for j in range(nf):
-                if kind == PAIR_REVOLUTE:
-                    fx = 1.0 if j == 0 else 0.0
-                    fy = 0.0 if j == 0 else 1.0
-                else:
-                    a = th[pairs[i, 4]] if pairs[i, 4] >= 0 else q[pairs[i, 5]]
-                    a += pair_angle[i]
-                    if pairs[i, 6] >= 0:
-                        a += params[d, pairs[i, 6]]
-                    if kind != PAIR_CAM:
-                        a += 0.5 * math.pi
-                    fx = math.cos(a)
-                    fy = math.sin(a)
+                if j == 1:  # a pin's second unknown: the force along y
+                    fx = 0.0
+                    fy = 1.0
                 for side in range(2):
                     link = lb if side == 0 else la
                     if link == 0:

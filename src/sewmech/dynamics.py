@@ -248,7 +248,7 @@ class DynamicsResult:
             return x
         if pair.kind == "driver":
             raise ValueError(f"pair '{name}' is a driver: it transmits a torque, not a force")
-        return x[..., :1] * _pair_direction(self.machine, self.kin, pair, self.params)
+        return x[..., :1] * self._geometry[1][..., self.pairs.index(pair), :]
 
     def magnitude(self, name: str) -> np.ndarray:
         """|force| (N) of a pair, or |torque| (N mm) of a driver, batch + (n_phi,)."""
@@ -256,6 +256,10 @@ class DynamicsResult:
         if pair.kind == "driver":
             return np.abs(self.unknowns[..., c])
         return np.linalg.norm(self.force(name), axis=-1)
+
+    @cached_property
+    def _geometry(self) -> tuple[np.ndarray, np.ndarray]:
+        return pair_geometry(self.machine, self.kin, self.params)
 
     # ---- driving
     @cached_property
@@ -337,8 +341,7 @@ class DynamicsResult:
     def potential_energy(self) -> np.ndarray:
         """Potential energy of gravity, N mm, above y = 0 of the frame (zero without gravity)."""
         if not self.gravity:
-            return np.zeros(self.kin.phi.shape if not self.kin.batch_shape else
-                            self.kin.batch_shape + self.kin.phi.shape)
+            return np.zeros_like(self.kinetic_energy)
         return GRAVITY * np.sum(self._m * self.com_p[..., 1], axis=-1)
 
     @cached_property
@@ -395,7 +398,6 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
     names = machine.link_names
     pivot = next(u.pivot for u in machine.spec.units
                  if u.type == "crank" and (u.link or u.name) in shaft.links)
-    O = kin.point(pivot).p
     bshape = kin.theta.shape[:-1]
     S = np.zeros(bshape + (2,))  # sum of forces from outside the shaft (not the bearings)
     Mx = np.zeros(bshape)  # their moments about the axis point, N mm
@@ -416,8 +418,9 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
             S += F
             Mx += -z * F[..., 1]
             My += z * F[..., 0]
-        for (li_load, _pi, F) in _loads_of(res):
+        for k, li_load in enumerate(res.load_links):
             if li_load == li:
+                F = res.load_force[..., k, :]
                 S += F
                 Mx += -z * F[..., 1]
                 My += z * F[..., 0]
@@ -459,48 +462,30 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
     return BearingReactions(front, rear, zf, zr, np.stack([dHx, dHy], axis=-1))
 
 
-def _loads_of(res: DynamicsResult):
-    for k, name in enumerate(res.load_names):
-        yield res.load_links[k], -1, res.load_force[..., k, :]
+def _flat(kin: KinematicsResult, a: np.ndarray) -> np.ndarray:
+    """batch + (n_phi, ...) -> (n_designs, n_phi, ...), contiguous, for the kernels."""
+    n_d = int(np.prod(kin.batch_shape, dtype=np.int64))
+    return np.ascontiguousarray(a.reshape((n_d, kin.phi.shape[0])
+                                          + a.shape[len(kin.batch_shape) + 1:]))
 
 
-def _pair_direction(machine: Machine, kin: KinematicsResult, pair: Pair,
-                    params: np.ndarray | None = None) -> np.ndarray:
-    """Unit vector of a pair's single force: the line's normal (prismatic, slot) or the cam's
-    outward normal, batch + (n_phi, 2)."""
-    if pair.line_var is not None:
-        ang = kin.q[..., kin.variable_names.index(pair.line_var)]
-    else:
-        ang = kin.theta[..., kin.link_names.index(pair.line_link)]
-    ang = ang + pair.extra_angle
-    if pair.line_param >= 0:
-        P = machine.defaults if params is None else params
-        ang = ang + np.asarray(P)[..., None, pair.line_param]
-    if pair.kind != "cam":  # the normal of a line
-        ang = ang + 0.5 * math.pi
-    return np.stack([np.cos(ang), np.sin(ang)], axis=-1)
-
-
-def _term_values(machine: Machine, kin: KinematicsResult, params: np.ndarray,
-                 rows: Sequence[int]) -> np.ndarray:
-    """Sum of the given loop terms (signed vectors, mm), batch + (n_phi, 2)."""
-    total = np.zeros(kin.p.shape[:-2] + (2,))
-    for t in rows:
-        row = machine.terms[t]
-        sign = float(row[2])
-        if row[0] == K.TERM_POINT:
-            total = total + sign * kin.p[..., int(row[4]), :]
-            continue
-        if row[0] != K.TERM_VEC:
-            raise ValueError("a cam loop may hold only one cam term")
-        L = (params[..., None, row[4]] if row[3] == K.SRC_PARAM
-             else kin.q[..., int(row[4])])
-        th = (kin.theta[..., int(row[6])] if row[5] == K.SRC_LINK
-              else kin.q[..., int(row[6])])
-        if row[7] >= 0:
-            th = th + params[..., None, row[7]]
-        total = total + sign * np.stack([L * np.cos(th), L * np.sin(th)], axis=-1)
-    return total
+def pair_geometry(machine: Machine, kin: KinematicsResult,
+                  params: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Where each pair's force acts (mm) and the direction of its single force (unit vector;
+    revolute: (1, 0); drivers: zeros), batch + (n_phi, n_pairs, 2) each; the geometry the
+    force solve itself uses."""
+    table, angles, cam_rows = _pair_table(machine)
+    batch, n_phi = kin.batch_shape, kin.phi.shape[0]
+    P = np.broadcast_to(machine.defaults if params is None else params,
+                        batch + machine.defaults.shape)
+    n_d = int(np.prod(batch, dtype=np.int64))
+    X = np.zeros((n_d, n_phi, len(machine.pairs), 2))
+    N = np.zeros_like(X)
+    K.pair_geometry(table, angles, cam_rows, machine.terms,
+                    np.ascontiguousarray(P.reshape(n_d, P.shape[-1])), _flat(kin, kin.p),
+                    _flat(kin, kin.theta), _flat(kin, kin.q), X, N)
+    shape = batch + (n_phi, len(machine.pairs), 2)
+    return X.reshape(shape), N.reshape(shape)
 
 
 def force_system(machine: Machine) -> str:
@@ -670,18 +655,13 @@ def _solve(machine: Machine, kin: KinematicsResult, P: np.ndarray, gp: np.ndarra
     batch = kin.batch_shape
     n_phi = kin.phi.shape[0]
     n_eq = rhs.shape[-1]
-
     n_d = int(np.prod(batch, dtype=np.int64))
-
-    def flat(a):
-        return np.ascontiguousarray(a.reshape((n_d, n_phi) + a.shape[len(batch) + 1:]))
-
     X = np.empty((n_d, n_phi, n_eq))
     minpiv = np.empty(X.shape[:2])
     solve = K.pair_solve_parallel if n_d >= 4 and n_d * n_phi >= 20000 else K.pair_solve
     solve(table, angles, cam_rows, machine.terms,
-                 np.ascontiguousarray(P.reshape(n_d, P.shape[-1])), flat(kin.p), flat(kin.theta),
-                 flat(kin.q), flat(gp), flat(rhs), X, minpiv)
+          np.ascontiguousarray(P.reshape(n_d, P.shape[-1])), _flat(kin, kin.p),
+          _flat(kin, kin.theta), _flat(kin, kin.q), _flat(kin, gp), _flat(kin, rhs), X, minpiv)
     feasible = np.broadcast_to(kin.feasible, batch + (n_phi,)).reshape(minpiv.shape)
     bad = feasible & ~(minpiv > 1e-12)
     if bad.any():

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .dynamics import DynamicsResult, _pair_direction, _term_values, inverse_dynamics
+from .dynamics import DynamicsResult, _first_point, inverse_dynamics, pair_geometry
 from .kinematics import kinematics
 from .machine import Machine
 
@@ -78,18 +78,13 @@ def pressure_angles(machine: Machine, phi: ArrayLike, *,
             d = kin.link(u.rod).theta - kin.link(u.slider).theta
             out[u.name] = _fold(d)
             what[u.name] = f"{u.rod} against the guide of {u.slider}"
-    for pair in machine.pairs:
+    X_all, N_all = pair_geometry(machine, kin, P)
+    for i, pair in enumerate(machine.pairs):
         if pair.kind not in ("cam", "slot"):
             continue
-        n = _pair_direction(machine, kin, pair, P)
-        if pair.kind == "cam":
-            X = -float(machine.terms[pair.cam_term, 2]) * _term_values(machine, kin, P,
-                                                                        pair.terms)
-        else:
-            X = kin.point(pair.point).p
+        n, X = N_all[:, i], X_all[:, i]
         driven = pair.links[1] if pair.kind == "cam" else pair.links[0]
-        origin = next(p for p in machine.point_names if driven in machine.point_links[p])
-        mo = kin.point(origin)
+        mo = kin.point(_first_point(machine, driven))
         w = kin.link(driven).omega
         r = X - mo.p
         v = mo.v + w[..., None] * np.stack([-r[..., 1], r[..., 0]], axis=-1)
