@@ -566,6 +566,12 @@ def _solve_group(g, grp, unk, terms, cams_i, arcs_i, params, d, p, v, a, th, om,
 # ---- the interpreter -------------------------------------------------------------------------------
 
 
+#: march steps evaluated together: every unit runs over the whole block before the next unit,
+#: so the CPU overlaps the independent angles of a closed-form unit instead of waiting on one
+#: angle's chain of roots and divisions (see BENCHMARKS.md); the block's state stays in cache.
+BLOCK = 32
+
+
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_omega, march_eps, grp,
                  unk,
@@ -573,6 +579,12 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
                  pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code,
                  loop_res, loop_worst):
     """Walk the program along the march for designs d0 <= d < d1 (see :func:`evaluate_program`).
+
+    The march is taken in blocks of :data:`BLOCK` steps; within a block every unit is evaluated
+    at all of the block's steps before the next unit (the state has one slot per step), so that
+    the steps of a closed-form unit, which are independent, run overlapped. Loop units march
+    through the block's steps in order (continuation). A step where a unit failed is skipped by
+    every later unit, exactly as if the units were walked step by step.
 
     Link orientation is carried as (cos, sin) next to the angle, so that rigid points and dyads
     need no trigonometry; the angle itself (an atan2) is computed only for links with
@@ -583,6 +595,7 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
     n_units = units.shape[0]
     n_groups = grp.shape[0]
     n_unk = unk.shape[0]
+    n_march = march_phi.shape[0]
     max_n = 1
     for g in range(n_groups):
         if grp[g, 0] > max_n:
@@ -595,17 +608,19 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
     q = np.empty(max_n)
     dq = np.empty(max_n)
     Jw = np.empty((max_n, max_n))
-    p = np.empty((n_points, 2))
-    v = np.empty((n_points, 2))
-    a = np.empty((n_points, 2))
-    th = np.zeros(n_links)
-    om = np.zeros(n_links)
-    ep = np.zeros(n_links)
-    lc = np.ones(n_links)  # cos theta; link 0 (the frame) keeps theta = 0
-    ls = np.zeros(n_links)  # sin theta
-    s = np.empty(n_vars)
-    sd = np.empty(n_vars)
-    sdd = np.empty(n_vars)
+    p = np.empty((BLOCK, n_points, 2))
+    v = np.empty((BLOCK, n_points, 2))
+    a = np.empty((BLOCK, n_points, 2))
+    th = np.zeros((BLOCK, n_links))
+    om = np.zeros((BLOCK, n_links))
+    ep = np.zeros((BLOCK, n_links))
+    lc = np.ones((BLOCK, n_links))  # cos theta; link 0 (the frame) keeps theta = 0
+    ls = np.zeros((BLOCK, n_links))  # sin theta
+    s = np.empty((BLOCK, n_vars))
+    sd = np.empty((BLOCK, n_vars))
+    sdd = np.empty((BLOCK, n_vars))
+    fu = np.empty(BLOCK, dtype=np.int64)  # failed unit of each step of the block (-1: none)
+    fc = np.empty(BLOCK, dtype=np.int64)
     q_prev = np.empty(n_unk)
     dq1_prev = np.empty(n_unk)  # d q / d phi at the last solution
     dq2_prev = np.empty(n_unk)  # d2 q / d phi2
@@ -627,153 +642,205 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
             op = units[u, 0]
             if op == OP_FIXED:  # frame points: once per design, no unit overwrites them
                 i = units[u, 1]
-                p[i, 0] = params[d, units[u, 2]]
-                p[i, 1] = params[d, units[u, 3]]
-                v[i, 0] = 0.0
-                v[i, 1] = 0.0
-                a[i, 0] = 0.0
-                a[i, 1] = 0.0
+                x = params[d, units[u, 2]]
+                y = params[d, units[u, 3]]
+                for kb in range(BLOCK):
+                    p[kb, i, 0] = x
+                    p[kb, i, 1] = y
+                    v[kb, i, 0] = 0.0
+                    v[kb, i, 1] = 0.0
+                    a[kb, i, 0] = 0.0
+                    a[kb, i, 1] = 0.0
             elif op == OP_CRANK:
                 pc[u] = math.cos(params[d, units[u, 2]])
                 psn[u] = math.sin(params[d, units[u, 2]])
-        for k in range(march_phi.shape[0]):
-            phi = march_phi[k]
-            ws = march_omega[k]
-            es = march_eps[k]
-            # every unit writes its outputs before any later unit reads them, so the state needs
-            # no reset between angles; a failed angle is written out as NaN below
-            fu = -1
-            fc = FAIL_NONE
+        for k0 in range(0, n_march, BLOCK):
+            nb = min(BLOCK, n_march - k0)
+            # every unit writes its outputs before any later unit reads them, so the state
+            # needs no reset between blocks; a failed step is written out as NaN below
+            fu[:nb] = -1
+            fc[:nb] = FAIL_NONE
             for ui in range(n_moving):
                 u = moving[ui]
                 op = units[u, 0]
-                code = FAIL_NONE
-                if op == OP_CRANK:
+                if op == OP_CRANK:  # cannot fail
                     L = units[u, 1]
                     phase = params[d, units[u, 2]]
                     if units[u, 4] >= 0:
                         t = phase + params[d, units[u, 4]]
-                        om[L] = 0.0
-                        ep[L] = 0.0
-                        lc[L] = math.cos(t)
-                        ls[L] = math.sin(t)
+                        ct = math.cos(t)
+                        st = math.sin(t)
+                        for kb in range(nb):
+                            om[kb, L] = 0.0
+                            ep[kb, L] = 0.0
+                            lc[kb, L] = ct
+                            ls[kb, L] = st
+                            th[kb, L] = t
                     else:
                         ratio = params[d, units[u, 3]]
-                        t = phase + ratio * phi
-                        om[L] = ratio * ws
-                        ep[L] = ratio * es
-                        if ratio == 1.0:
-                            lc[L] = pc[u] * mc[k] - psn[u] * ms[k]
-                            ls[L] = psn[u] * mc[k] + pc[u] * ms[k]
-                        else:
-                            lc[L] = math.cos(t)
-                            ls[L] = math.sin(t)
-                    th[L] = t
-                elif op == OP_POINT:
+                        c0 = pc[u]
+                        s0 = psn[u]
+                        for kb in range(nb):
+                            k = k0 + kb
+                            t = phase + ratio * march_phi[k]
+                            om[kb, L] = ratio * march_omega[k]
+                            ep[kb, L] = ratio * march_eps[k]
+                            if ratio == 1.0:
+                                lc[kb, L] = c0 * mc[k] - s0 * ms[k]
+                                ls[kb, L] = s0 * mc[k] + c0 * ms[k]
+                            else:
+                                lc[kb, L] = math.cos(t)
+                                ls[kb, L] = math.sin(t)
+                            th[kb, L] = t
+                elif op == OP_POINT:  # cannot fail
                     i = units[u, 1]
                     L = units[u, 2]
                     o = units[u, 3]
-                    r = rigid_point(p[o, 0], p[o, 1], v[o, 0], v[o, 1], a[o, 0], a[o, 1],
-                                    lc[L], ls[L], om[L], ep[L],
-                                    params[d, units[u, 4]], params[d, units[u, 5]])
-                    p[i, 0] = r[0]
-                    p[i, 1] = r[1]
-                    v[i, 0] = r[2]
-                    v[i, 1] = r[3]
-                    a[i, 0] = r[4]
-                    a[i, 1] = r[5]
+                    pu = params[d, units[u, 4]]
+                    pv = params[d, units[u, 5]]
+                    for kb in range(nb):
+                        if fu[kb] >= 0:
+                            continue
+                        r = rigid_point(p[kb, o, 0], p[kb, o, 1], v[kb, o, 0], v[kb, o, 1],
+                                        a[kb, o, 0], a[kb, o, 1], lc[kb, L], ls[kb, L],
+                                        om[kb, L], ep[kb, L], pu, pv)
+                        p[kb, i, 0] = r[0]
+                        p[kb, i, 1] = r[1]
+                        v[kb, i, 0] = r[2]
+                        v[kb, i, 1] = r[3]
+                        a[kb, i, 0] = r[4]
+                        a[kb, i, 1] = r[5]
                 elif op == OP_RRR:
                     i1 = units[u, 1]
                     i2 = units[u, 2]
+                    i = units[u, 3]
+                    L1 = units[u, 4]
+                    L2 = units[u, 5]
                     l1 = params[d, units[u, 6]]
                     l2 = params[d, units[u, 7]]
-                    code = rrr_dyad(p[i1, 0], p[i1, 1], v[i1, 0], v[i1, 1], a[i1, 0], a[i1, 1],
-                                    p[i2, 0], p[i2, 1], v[i2, 0], v[i2, 1], a[i2, 0], a[i2, 1],
-                                    l1, l2, float(units[u, 8]), out)
-                    if code == FAIL_NONE:
-                        i = units[u, 3]
+                    br = float(units[u, 8])
+                    il1 = 1.0 / l1
+                    il2 = 1.0 / l2
+                    th1 = need_th[L1]
+                    th2 = need_th[L2]
+                    for kb in range(nb):
+                        if fu[kb] >= 0:
+                            continue
+                        code = rrr_dyad(p[kb, i1, 0], p[kb, i1, 1], v[kb, i1, 0], v[kb, i1, 1],
+                                        a[kb, i1, 0], a[kb, i1, 1], p[kb, i2, 0], p[kb, i2, 1],
+                                        v[kb, i2, 0], v[kb, i2, 1], a[kb, i2, 0], a[kb, i2, 1],
+                                        l1, l2, br, out)
+                        if code != FAIL_NONE:
+                            fu[kb] = u
+                            fc[kb] = code
+                            continue
                         for c in range(2):
-                            p[i, c] = out[c]
-                            v[i, c] = out[2 + c]
-                            a[i, c] = out[4 + c]
-                        L1 = units[u, 4]
-                        L2 = units[u, 5]
-                        om[L1] = out[6]
-                        ep[L1] = out[7]
-                        om[L2] = out[8]
-                        ep[L2] = out[9]
-                        lc[L1] = out[10] / l1
-                        ls[L1] = out[11] / l1
-                        lc[L2] = out[12] / l2
-                        ls[L2] = out[13] / l2
-                        if need_th[L1]:
-                            th[L1] = math.atan2(out[11], out[10])
-                        if need_th[L2]:
-                            th[L2] = math.atan2(out[13], out[12])
+                            p[kb, i, c] = out[c]
+                            v[kb, i, c] = out[2 + c]
+                            a[kb, i, c] = out[4 + c]
+                        om[kb, L1] = out[6]
+                        ep[kb, L1] = out[7]
+                        om[kb, L2] = out[8]
+                        ep[kb, L2] = out[9]
+                        lc[kb, L1] = out[10] * il1
+                        ls[kb, L1] = out[11] * il1
+                        lc[kb, L2] = out[12] * il2
+                        ls[kb, L2] = out[13] * il2
+                        if th1:
+                            th[kb, L1] = math.atan2(out[11], out[10])
+                        if th2:
+                            th[kb, L2] = math.atan2(out[13], out[12])
                 elif op == OP_RRP:
                     b = units[u, 1]
                     gp = units[u, 2]
                     gl = units[u, 3]
+                    i = units[u, 4]
+                    L1 = units[u, 5]
+                    Ls = units[u, 6]
                     l = params[d, units[u, 7]]
                     alpha = params[d, units[u, 8]]
-                    code = rrp_dyad(p[b, 0], p[b, 1], v[b, 0], v[b, 1], a[b, 0], a[b, 1],
-                                    p[gp, 0], p[gp, 1], v[gp, 0], v[gp, 1], a[gp, 0], a[gp, 1],
-                                    th[gl], om[gl], ep[gl], l, alpha,
-                                    params[d, units[u, 9]], float(units[u, 10]), out)
-                    if code == FAIL_NONE:
-                        i = units[u, 4]
+                    e = params[d, units[u, 9]]
+                    br = float(units[u, 10])
+                    var = units[u, 11]
+                    il = 1.0 / l
+                    th1 = need_th[L1]
+                    for kb in range(nb):
+                        if fu[kb] >= 0:
+                            continue
+                        code = rrp_dyad(p[kb, b, 0], p[kb, b, 1], v[kb, b, 0], v[kb, b, 1],
+                                        a[kb, b, 0], a[kb, b, 1], p[kb, gp, 0], p[kb, gp, 1],
+                                        v[kb, gp, 0], v[kb, gp, 1], a[kb, gp, 0], a[kb, gp, 1],
+                                        th[kb, gl], om[kb, gl], ep[kb, gl], l, alpha, e, br, out)
+                        if code != FAIL_NONE:
+                            fu[kb] = u
+                            fc[kb] = code
+                            continue
                         for c in range(2):
-                            p[i, c] = out[c]
-                            v[i, c] = out[2 + c]
-                            a[i, c] = out[4 + c]
-                        L1 = units[u, 5]
-                        om[L1] = out[6]
-                        ep[L1] = out[7]
-                        lc[L1] = out[8] / l
-                        ls[L1] = out[9] / l
-                        if need_th[L1]:
-                            th[L1] = math.atan2(out[9], out[8])
-                        Ls = units[u, 6]
-                        th[Ls] = th[gl] + alpha
-                        om[Ls] = om[gl]
-                        ep[Ls] = ep[gl]
-                        lc[Ls] = out[10]
-                        ls[Ls] = out[11]
-                        var = units[u, 11]
-                        s[var] = out[12]
-                        sd[var] = out[13]
-                        sdd[var] = out[14]
+                            p[kb, i, c] = out[c]
+                            v[kb, i, c] = out[2 + c]
+                            a[kb, i, c] = out[4 + c]
+                        om[kb, L1] = out[6]
+                        ep[kb, L1] = out[7]
+                        lc[kb, L1] = out[8] * il
+                        ls[kb, L1] = out[9] * il
+                        if th1:
+                            th[kb, L1] = math.atan2(out[9], out[8])
+                        th[kb, Ls] = th[kb, gl] + alpha
+                        om[kb, Ls] = om[kb, gl]
+                        ep[kb, Ls] = ep[kb, gl]
+                        lc[kb, Ls] = out[10]
+                        ls[kb, Ls] = out[11]
+                        s[kb, var] = out[12]
+                        sd[kb, var] = out[13]
+                        sdd[kb, var] = out[14]
                 elif op == OP_RPR:
                     b = units[u, 1]
-                    pv = units[u, 2]
-                    code = rpr_guide(p[b, 0], p[b, 1], v[b, 0], v[b, 1], a[b, 0], a[b, 1],
-                                     p[pv, 0], p[pv, 1], v[pv, 0], v[pv, 1], a[pv, 0], a[pv, 1],
-                                     params[d, units[u, 5]], float(units[u, 6]), out)
-                    if code == FAIL_NONE:
-                        L = units[u, 3]
-                        th[L] = out[0]
-                        om[L] = out[1]
-                        ep[L] = out[2]
-                        lc[L] = out[6]
-                        ls[L] = out[7]
-                        Lb = units[u, 4]
+                    pv_ = units[u, 2]
+                    L = units[u, 3]
+                    Lb = units[u, 4]
+                    e = params[d, units[u, 5]]
+                    br = float(units[u, 6])
+                    var = units[u, 7]
+                    for kb in range(nb):
+                        if fu[kb] >= 0:
+                            continue
+                        code = rpr_guide(p[kb, b, 0], p[kb, b, 1], v[kb, b, 0], v[kb, b, 1],
+                                         a[kb, b, 0], a[kb, b, 1], p[kb, pv_, 0], p[kb, pv_, 1],
+                                         v[kb, pv_, 0], v[kb, pv_, 1], a[kb, pv_, 0],
+                                         a[kb, pv_, 1], e, br, out)
+                        if code != FAIL_NONE:
+                            fu[kb] = u
+                            fc[kb] = code
+                            continue
+                        th[kb, L] = out[0]
+                        om[kb, L] = out[1]
+                        ep[kb, L] = out[2]
+                        lc[kb, L] = out[6]
+                        ls[kb, L] = out[7]
                         if Lb >= 0:
-                            th[Lb] = out[0]
-                            om[Lb] = out[1]
-                            ep[Lb] = out[2]
-                            lc[Lb] = out[6]
-                            ls[Lb] = out[7]
-                        var = units[u, 7]
-                        s[var] = out[3]
-                        sd[var] = out[4]
-                        sdd[var] = out[5]
-                elif op == OP_LOOP:
+                            th[kb, Lb] = out[0]
+                            om[kb, Lb] = out[1]
+                            ep[kb, Lb] = out[2]
+                            lc[kb, Lb] = out[6]
+                            ls[kb, Lb] = out[7]
+                        s[kb, var] = out[3]
+                        sd[kb, var] = out[4]
+                        sdd[kb, var] = out[5]
+                elif op == OP_LOOP:  # continuation: the block's steps in order
                     g = units[u, 1]
                     u0 = grp[g, 1]
                     n = grp[g, 0]
-                    if lost[g]:
-                        code = FAIL_LOST
-                    else:
+                    for kb in range(nb):
+                        if fu[kb] >= 0:
+                            continue
+                        k = k0 + kb
+                        if lost[g]:
+                            fu[kb] = u
+                            fc[kb] = FAIL_LOST
+                            continue
+                        phi = march_phi[k]
+                        ws = march_omega[k]
+                        es = march_eps[k]
                         if n_hist[g] == 0:
                             for j in range(n):
                                 q[j] = params[d, unk[u0 + j, 3]]
@@ -787,71 +854,70 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
                                                              + 0.5 * h * dq2_prev[u0 + j])
                             iters = max_iter
                         code = _solve_group(g, grp, unk, terms, cams_i, arcs_i, params, d,
-                                            p, v, a, th, om, ep, s, sd, sdd, q, tol, iters,
-                                            F, J, dq, Jw, res, info)
+                                            p[kb], v[kb], a[kb], th[kb], om[kb], ep[kb], s[kb],
+                                            sd[kb], sdd[kb], q, tol, iters, F, J, dq, Jw, res,
+                                            info)
                         if march_store[k] >= 0:
                             loop_res[d, march_store[k], g] = info[0]
                             loop_worst[d, march_store[k], g] = int(info[2])
-                        if code == FAIL_NONE:
-                            for j in range(n):
-                                q_prev[u0 + j] = q[j]
-                                L = unk[u0 + j, 1]
-                                if unk[u0 + j, 0] == 0:
-                                    r1 = om[L]
-                                    r2 = ep[L]
-                                else:
-                                    r1 = sd[L]
-                                    r2 = sdd[L]
-                                if ws != 0.0:  # d/dphi = (d/dt) / omega
-                                    dq1_prev[u0 + j] = r1 / ws
-                                    dq2_prev[u0 + j] = (r2 - r1 / ws * es) / (ws * ws)
-                                else:
-                                    dq1_prev[u0 + j] = 0.0
-                                    dq2_prev[u0 + j] = 0.0
-                                if unk[u0 + j, 0] == 0:
-                                    L = unk[u0 + j, 1]
-                                    lc[L] = math.cos(th[L])
-                                    ls[L] = math.sin(th[L])
-                            phi_prev[g] = phi
-                            n_hist[g] += 1
-                        else:
+                        if code != FAIL_NONE:
                             lost[g] = True
-                if code != FAIL_NONE:
-                    fu = u
-                    fc = code
-                    break
-            row = march_store[k]
-            if row < 0:
-                continue
-            fail_unit[d, row] = fu
-            fail_code[d, row] = fc
-            if fc != FAIL_NONE:
-                P[d, row] = np.nan
-                V[d, row] = np.nan
-                A[d, row] = np.nan
-                TH[d, row] = np.nan
-                OM[d, row] = np.nan
-                EP[d, row] = np.nan
-                S[d, row] = np.nan
-                SD[d, row] = np.nan
-                SDD[d, row] = np.nan
-                continue
-            for j in range(pt_sel.shape[0]):
-                i = pt_sel[j]
-                for c in range(2):
-                    P[d, row, j, c] = p[i, c]
-                    V[d, row, j, c] = v[i, c]
-                    A[d, row, j, c] = a[i, c]
-            for j in range(lk_sel.shape[0]):
-                i = lk_sel[j]
-                TH[d, row, j] = th[i]
-                OM[d, row, j] = om[i]
-                EP[d, row, j] = ep[i]
-            for j in range(var_sel.shape[0]):
-                i = var_sel[j]
-                S[d, row, j] = s[i]
-                SD[d, row, j] = sd[i]
-                SDD[d, row, j] = sdd[i]
+                            fu[kb] = u
+                            fc[kb] = code
+                            continue
+                        for j in range(n):
+                            q_prev[u0 + j] = q[j]
+                            L = unk[u0 + j, 1]
+                            if unk[u0 + j, 0] == 0:
+                                r1 = om[kb, L]
+                                r2 = ep[kb, L]
+                            else:
+                                r1 = sd[kb, L]
+                                r2 = sdd[kb, L]
+                            if ws != 0.0:  # d/dphi = (d/dt) / omega
+                                dq1_prev[u0 + j] = r1 / ws
+                                dq2_prev[u0 + j] = (r2 - r1 / ws * es) / (ws * ws)
+                            else:
+                                dq1_prev[u0 + j] = 0.0
+                                dq2_prev[u0 + j] = 0.0
+                            if unk[u0 + j, 0] == 0:
+                                lc[kb, L] = math.cos(th[kb, L])
+                                ls[kb, L] = math.sin(th[kb, L])
+                        phi_prev[g] = phi
+                        n_hist[g] += 1
+            for kb in range(nb):
+                row = march_store[k0 + kb]
+                if row < 0:
+                    continue
+                fail_unit[d, row] = fu[kb]
+                fail_code[d, row] = fc[kb]
+                if fc[kb] != FAIL_NONE:
+                    P[d, row] = np.nan
+                    V[d, row] = np.nan
+                    A[d, row] = np.nan
+                    TH[d, row] = np.nan
+                    OM[d, row] = np.nan
+                    EP[d, row] = np.nan
+                    S[d, row] = np.nan
+                    SD[d, row] = np.nan
+                    SDD[d, row] = np.nan
+                    continue
+                for j in range(pt_sel.shape[0]):
+                    i = pt_sel[j]
+                    for c in range(2):
+                        P[d, row, j, c] = p[kb, i, c]
+                        V[d, row, j, c] = v[kb, i, c]
+                        A[d, row, j, c] = a[kb, i, c]
+                for j in range(lk_sel.shape[0]):
+                    i = lk_sel[j]
+                    TH[d, row, j] = th[kb, i]
+                    OM[d, row, j] = om[kb, i]
+                    EP[d, row, j] = ep[kb, i]
+                for j in range(var_sel.shape[0]):
+                    i = var_sel[j]
+                    S[d, row, j] = s[kb, i]
+                    SD[d, row, j] = sd[kb, i]
+                    SDD[d, row, j] = sdd[kb, i]
 
 
 _DOC = """Evaluate the program for every design (axis 0 of params) along the march of shaft angles.
