@@ -383,3 +383,48 @@ def test_parameters_on_a_given_base():
     assert list(p[:, m.parameter_index("dyad.length1")]) == [39.0, 41.0]
     with pytest.raises(ValueError, match="base must end in"):
         m.parameters({}, base=np.zeros(3))
+
+
+def test_plan_equals_kinematics_and_reuses_its_arrays():
+    """A prepared plan gives bit for bit what kinematics() gives (loops, setting inputs, a
+    batch); its result views the plan's arrays, so the next call of the same batch shape
+    overwrites it, while a call with another batch shape leaves it alone."""
+    m = sewmech.load_machine("jb1-3")
+    phi = np.radians(np.arange(0.0, 360.0, 7.5))
+    pts = ["feed_dog.tip", "take_up.eye"]
+    plan = sewmech.KinematicsPlan(m, phi, points=pts, links=["feed_bar"], rpm=800)
+    batch = m.parameters({"feed_cam.stroke": [6.5, 7.0, 7.5]})
+    for params, inputs in ((None, {"regulator": 0.3}), (batch, {"regulator": -0.2}),
+                           (batch[1], None)):
+        ref = sewmech.kinematics(m, phi, params=params, inputs=inputs, points=pts,
+                                 links=["feed_bar"], rpm=800)
+        got = plan(params, inputs=inputs)
+        for name in ("p", "v", "a", "theta", "omega", "epsilon", "feasible", "loop_residual"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+    first = plan(batch, inputs={"regulator": 0.3})
+    kept = first.p.copy()
+    again = plan(batch, inputs={"regulator": -0.3})  # same batch shape: same arrays
+    assert again is first and not np.array_equal(first.p, kept)
+    kept = first.p.copy()
+    other = plan(batch[0])  # another batch shape: new arrays, the old result is left alone
+    assert np.array_equal(first.p, kept) and other.p.shape == kept.shape[1:]
+    assert plan(batch) is not first and np.array_equal(first.p, kept)
+    assert not first.p.flags.writeable
+
+
+def test_plan_clears_the_failures_of_its_last_call():
+    """feasible and failure_unit are reset when a design that failed is followed by one that
+    assembles; on_failure='raise' names the unit and the angle as kinematics() does."""
+    m = fourbar()
+    plan = sewmech.KinematicsPlan(m, PHI, on_failure="mask")
+    bad = m.parameters({"B.u": 39.0})  # this crank cannot turn fully
+    r = plan(bad)
+    assert 0 < (~r.feasible).sum() < r.feasible.size
+    assert set(np.unique(r.failure_unit)) == {-1, m.unit_names.index("dyad")}
+    assert np.isnan(r.p[~r.feasible]).all()
+    r = plan()
+    assert r.all_feasible and (r.failure_unit == -1).all()
+    strict = sewmech.KinematicsPlan(m, PHI)
+    with pytest.raises(sewmech.AssemblyError, match="dyad"):
+        strict(bad)
+    assert strict().all_feasible

@@ -5,7 +5,7 @@ plots) and are named so (``phi_deg``).
 """
 
 from .errors import AssemblyError, ConvergenceError, MachineFileError, SewmechError
-from .kinematics import kinematics, rpm_to_rad_s
+from .kinematics import KinematicsPlan, kinematics, rpm_to_rad_s
 from .machine import Machine, compile_machine, load_machine, machine_from_toml, shipped_machines
 from .results import KinematicsResult, LinkMotion, PointMotion, VariableMotion
 from .spec import MachineSpec, load_machine_spec, parse_machine
@@ -15,6 +15,7 @@ __version__ = "0.1.0"
 __all__ = [
     "AssemblyError",
     "ConvergenceError",
+    "KinematicsPlan",
     "KinematicsResult",
     "LinkMotion",
     "Machine",

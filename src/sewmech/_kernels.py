@@ -635,6 +635,7 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
         if units[u, 0] != OP_FIXED:
             moving[n_moving] = u
             n_moving += 1
+    n_failed = 0
     for d in range(d0, d1):
         n_hist[:] = 0
         lost[:] = False
@@ -892,6 +893,7 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
                 fail_unit[d, row] = fu[kb]
                 fail_code[d, row] = fc[kb]
                 if fc[kb] != FAIL_NONE:
+                    n_failed += 1
                     P[d, row] = np.nan
                     V[d, row] = np.nan
                     A[d, row] = np.nan
@@ -918,45 +920,46 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
                     S[d, row, j] = s[kb, i]
                     SD[d, row, j] = sd[kb, i]
                     SDD[d, row, j] = sdd[kb, i]
+    return n_failed
 
 
 _DOC = """Evaluate the program for every design (axis 0 of params) along the march of shaft angles.
 
-    march_store[k] is the output row for march step k, or -1 for an intermediate continuation
-    step. need_th[link] says whether that link's angle is returned or read by a later unit.
+    mc, ms are cos and sin of the march angles (computed once by the caller, see
+    :class:`sewmech.kinematics.KinematicsPlan`). march_store[k] is the output row for march step
+    k, or -1 for an intermediate continuation step. need_th[link] says whether that link's angle is returned or read by a later unit.
     Output arrays are (n_design, n_out, n_selected, ...) for the selected points, links and
     variables (pt_sel, lk_sel, var_sel); fail_unit is -1 where all units assembled, and a failed
-    row is NaN throughout. {which}
+    row is NaN throughout. Returns the number of failed rows. {which}
     """
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
-def evaluate_program(units, params, march_phi, march_store, march_omega, march_eps, grp, unk,
-                     terms, cams_i, arcs_i, n_points, n_links, n_vars, tol, max_iter, need_th,
-                     pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD, fail_unit,
-                     fail_code, loop_res, loop_worst):
-    mc = np.cos(march_phi)
-    ms = np.sin(march_phi)
-    _eval_designs(0, params.shape[0], units, params, march_phi, mc, ms, march_store,
-                  march_omega, march_eps, grp, unk, terms, cams_i, arcs_i, n_points, n_links,
-                  n_vars, tol, max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP,
-                  S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst)
+def evaluate_program(units, params, march_phi, mc, ms, march_store, march_omega, march_eps,
+                     grp, unk, terms, cams_i, arcs_i, n_points, n_links, n_vars, tol, max_iter,
+                     need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD,
+                     fail_unit, fail_code, loop_res, loop_worst):
+    return _eval_designs(0, params.shape[0], units, params, march_phi, mc, ms, march_store,
+                         march_omega, march_eps, grp, unk, terms, cams_i, arcs_i, n_points,
+                         n_links, n_vars, tol, max_iter, need_th, pt_sel, lk_sel, var_sel, P, V,
+                         A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst)
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def evaluate_program_parallel(units, params, march_phi, march_store, march_omega, march_eps,
-                              grp, unk, terms, cams_i, arcs_i, n_points, n_links, n_vars, tol,
-                              max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP,
-                              S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst, n_chunks):
-    mc = np.cos(march_phi)
-    ms = np.sin(march_phi)
+def evaluate_program_parallel(units, params, march_phi, mc, ms, march_store, march_omega,
+                              march_eps, grp, unk, terms, cams_i, arcs_i, n_points, n_links,
+                              n_vars, tol, max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A,
+                              TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst,
+                              n_chunks):
     n = params.shape[0]
+    n_failed = 0
     for c in prange(n_chunks):
-        _eval_designs(c * n // n_chunks, (c + 1) * n // n_chunks, units, params, march_phi, mc,
-                      ms, march_store, march_omega, march_eps, grp, unk, terms, cams_i, arcs_i,
-                      n_points, n_links, n_vars, tol, max_iter, need_th, pt_sel, lk_sel,
-                      var_sel, P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res,
-                      loop_worst)
+        n_failed += _eval_designs(c * n // n_chunks, (c + 1) * n // n_chunks, units, params,
+                                  march_phi, mc, ms, march_store, march_omega, march_eps, grp,
+                                  unk, terms, cams_i, arcs_i, n_points, n_links, n_vars, tol,
+                                  max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM,
+                                  EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst)
+    return n_failed
 
 
 evaluate_program.__doc__ = _DOC.format(which="One design after the other (small batches).")

@@ -74,6 +74,187 @@ def _march(phi: np.ndarray, start: float, max_step: float):
     return march, store, where
 
 
+class KinematicsPlan:
+    """A kinematics call prepared once and run for many designs: the fast path for loops.
+
+    Everything that does not depend on the design is done here once: argument checks, the
+    continuation march, cos and sin of the march angles, the output selection and the pruned
+    program. Each call then fills preallocated arrays in one compiled call and returns a
+    :class:`KinematicsResult` that *views those arrays*: it stays valid until the plan's next
+    call with the same batch shape, which overwrites it (``result.copy()`` is not needed for
+    :func:`kinematics`, which uses a fresh plan per call). Use it where one machine is
+    evaluated over and over, e.g. in an optimisation loop::
+
+        plan = KinematicsPlan(m, phi, points=["P"], links=[])
+        for x in candidates:
+            p = plan(m.parameters({"coupler.length": x})).point("P").p   # (n_phi, 2) mm
+
+    Parameters are those of :func:`kinematics` (which see); ``params`` and ``inputs`` are given
+    per call.
+    """
+
+    def __init__(
+        self,
+        machine: Machine,
+        phi: ArrayLike,
+        *,
+        rpm: float | None = None,
+        omega: ArrayLike | None = None,
+        epsilon: ArrayLike = 0.0,
+        on_failure: Literal["raise", "mask"] = "raise",
+        points: Sequence[str] | None = None,
+        links: Sequence[str] | None = None,
+        variables: Sequence[str] | None = None,
+        max_step_deg: float = 5.0,
+        tol: float = 1e-10,
+        max_iter: int = 25,
+    ):
+        if on_failure not in ("raise", "mask"):
+            raise ValueError(f"on_failure must be 'raise' or 'mask', got {on_failure!r}")
+        phi = np.array(phi, dtype=float, ndmin=1)  # a private copy: the result freezes it
+        if phi.ndim != 1:
+            raise ValueError(f"phi must be one-dimensional (n_phi,), got shape {phi.shape}")
+        if not np.isfinite(phi).all():
+            raise ValueError("phi contains NaN or infinite angles")
+        n_phi = phi.shape[0]
+        if omega is None:
+            omega = rpm_to_rad_s(machine.rpm if rpm is None else rpm)
+        omega_arr = np.empty(n_phi)
+        omega_arr[...] = omega
+        eps_arr = np.empty(n_phi)
+        eps_arr[...] = epsilon
+        if machine.has_loops:
+            march, store, where = _march(phi, machine.assembly_phi, math.radians(max_step_deg))
+            march_omega, march_eps = omega_arr[where], eps_arr[where]
+        else:
+            march, store = phi, np.arange(n_phi, dtype=np.int64)
+            march_omega, march_eps = omega_arr, eps_arr
+        (self._pt_names, pt_sel, self._lk_names, lk_sel, self._var_names, var_sel, need_th,
+         rows) = machine.selection(points, links, variables)
+        program = machine.program if len(rows) == len(machine.program) else machine.program[rows]
+        for a in (phi, omega_arr, eps_arr):
+            a.setflags(write=False)
+        self.machine = machine
+        self.phi = phi
+        self.omega = omega_arr
+        self.epsilon = eps_arr
+        self.on_failure = on_failure
+        self._store = store
+        self._rows = rows
+        self._var_units = tuple(machine.variable_units[i] for i in var_sel)
+        # the kernel's arguments before the design and after it (see _kernels.evaluate_program)
+        self._head = (program,)
+        self._tail = (march, np.cos(march), np.sin(march), store, march_omega, march_eps,
+                      machine.groups, machine.unknowns, machine.terms, machine.cams,
+                      machine.arcs, len(machine.point_names), len(machine.link_names),
+                      len(machine.variable_names), tol, max_iter, need_th, pt_sel, lk_sel,
+                      var_sel)
+        self._sizes = (len(pt_sel), len(lk_sel), len(var_sel), machine.groups.shape[0])
+        self._live: tuple | None = None  # (batch, buffers, result) of the last batch shape
+
+    @property
+    def n_phi(self) -> int:
+        return self.phi.shape[0]
+
+    def _designs(self, params, inputs) -> np.ndarray:
+        machine = self.machine
+        if params is None and not inputs:
+            return machine.defaults
+        if params is None:
+            return machine.parameters(inputs=inputs)
+        P0 = np.asarray(params, dtype=float)
+        if P0.shape[-1:] != machine.defaults.shape:
+            raise ValueError(f"params must have shape batch + ({machine.defaults.size},),"
+                             f" got {P0.shape}")
+        if inputs:
+            extra = machine.parameters(inputs=inputs)
+            P0 = np.broadcast_to(P0, np.broadcast_shapes(P0.shape, extra.shape)).copy()
+            for name in inputs:
+                i = machine.parameter_index(f"input.{name}")
+                P0[..., i] = extra[..., i]
+        return P0
+
+    def _buffers(self, batch: tuple[int, ...]):
+        """Output arrays and the result that views them, for a batch shape (kept for reuse)."""
+        if self._live is not None and self._live[0] == batch:
+            return self._live[1], self._live[2]
+        n_design = int(np.prod(batch, dtype=np.int64))
+        n_phi = self.n_phi
+        n_pt, n_l, n_v, n_g = self._sizes
+        P, V, A = (np.empty((n_design, n_phi, n_pt, 2)) for _ in range(3))
+        TH, OM, EP = (np.empty((n_design, n_phi, n_l)) for _ in range(3))
+        S, SD, SDD = (np.empty((n_design, n_phi, n_v)) for _ in range(3))
+        fail_unit = np.empty((n_design, n_phi), dtype=np.int64)
+        fail_code = np.empty((n_design, n_phi), dtype=np.int64)
+        loop_res = np.empty((n_design, n_phi, n_g))
+        loop_worst = np.zeros((n_design, n_phi, n_g), dtype=np.int64)
+        feasible = np.empty((n_design, n_phi), dtype=bool)
+        failure_unit = np.empty((n_design, n_phi), dtype=np.int64)
+        out = (P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst)
+        m = self.machine
+
+        def shape(x, tail=()):
+            return x.reshape(batch + (n_phi,) + tail)
+
+        result = KinematicsResult(
+            machine=m.name, phi=self.phi, omega_shaft=self.omega, epsilon_shaft=self.epsilon,
+            point_names=self._pt_names, link_names=self._lk_names,
+            variable_names=self._var_names, variable_units=self._var_units,
+            unit_names=m.unit_names,
+            p=shape(P, (n_pt, 2)), v=shape(V, (n_pt, 2)), a=shape(A, (n_pt, 2)),
+            theta=shape(TH, (n_l,)), omega=shape(OM, (n_l,)), epsilon=shape(EP, (n_l,)),
+            q=shape(S, (n_v,)), q_dot=shape(SD, (n_v,)), q_ddot=shape(SDD, (n_v,)),
+            feasible=shape(feasible), failure_unit=shape(failure_unit),
+            loop_residual=shape(loop_res, (n_g,)), branches=dict(m.branches))
+        buffers = (out, feasible, failure_unit)
+        self._live = (batch, buffers, result)
+        self._dirty = True  # feasible and failure_unit are not filled yet
+        return buffers, result
+
+    def __call__(self, params: ArrayLike | None = None, *,
+                 inputs: Mapping[str, ArrayLike] | None = None) -> KinematicsResult:
+        """Evaluate designs (see :func:`kinematics` for ``params`` and ``inputs``).
+
+        The returned result views the plan's arrays: the next call with the same batch shape
+        overwrites it.
+        """
+        P0 = self._designs(params, inputs)
+        batch = P0.shape[:-1]
+        flat = P0.reshape(-1, P0.shape[-1])
+        if not flat.flags.c_contiguous:
+            flat = np.ascontiguousarray(flat)
+        (out, feasible, failure_unit), result = self._buffers(batch)
+        loop_res = out[11]
+        if loop_res.size:
+            loop_res.fill(np.nan)  # NaN where a loop unit was not solved
+        n_design = flat.shape[0]
+        args = self._head + (flat,) + self._tail + out
+        if n_design >= 4 and n_design * self._tail[0].shape[0] >= _PARALLEL_MIN_WORK:
+            # the threaded kernel pays some tens of microseconds to start; worth it for big
+            # batches. A few contiguous chunks per thread balance the load (4 per thread best)
+            n_failed = K.evaluate_program_parallel(*args,
+                                                   min(n_design, 4 * numba.get_num_threads()))
+        else:
+            n_failed = K.evaluate_program(*args)
+        if not n_failed:
+            if self._dirty:  # the last call's failures are still marked
+                feasible.fill(True)
+                failure_unit.fill(-1)
+                self._dirty = False
+            return result
+        self._dirty = True
+        fail_unit = out[9]
+        np.less(fail_unit, 0, out=feasible)
+        # fail_unit holds rows of the evaluated program: back to the machine's
+        machine = self.machine
+        fail_unit = np.where(fail_unit >= 0, self._rows[np.maximum(fail_unit, 0)], fail_unit)
+        if self.on_failure == "raise":
+            _raise_first(machine, self.phi, self._store, batch, fail_unit, out[10], loop_res,
+                         out[12])
+        failure_unit[...] = machine.unit_of_row[fail_unit]  # units; fixed points have none: -1
+        return result
+
+
 def kinematics(
     machine: Machine,
     phi: ArrayLike,
@@ -125,107 +306,16 @@ def kinematics(
     Returns
     -------
     KinematicsResult
+
+    See Also
+    --------
+    KinematicsPlan : the same call prepared once, for loops over many designs.
     """
-    if on_failure not in ("raise", "mask"):
-        raise ValueError(f"on_failure must be 'raise' or 'mask', got {on_failure!r}")
-    phi = np.array(phi, dtype=float, ndmin=1)  # a private copy: the result freezes it
-    if phi.ndim != 1:
-        raise ValueError(f"phi must be one-dimensional (n_phi,), got shape {phi.shape}")
-    if not np.isfinite(phi).all():
-        raise ValueError("phi contains NaN or infinite angles")
-    n_phi = phi.shape[0]
-    if omega is None:
-        omega = rpm_to_rad_s(machine.rpm if rpm is None else rpm)
-    omega_arr = np.empty(n_phi)
-    omega_arr[...] = omega
-    eps_arr = np.empty(n_phi)
-    eps_arr[...] = epsilon
-
-    if params is None and not inputs:
-        P0 = machine.defaults
-    elif params is None:
-        P0 = machine.parameters(inputs=inputs)
-    else:
-        P0 = np.asarray(params, dtype=float)
-        if P0.shape[-1:] != machine.defaults.shape:
-            raise ValueError(f"params must have shape batch + ({machine.defaults.size},),"
-                             f" got {P0.shape}")
-        if inputs:
-            extra = machine.parameters(inputs=inputs)
-            P0 = np.broadcast_to(P0, np.broadcast_shapes(P0.shape, extra.shape)).copy()
-            for name in inputs:
-                i = machine.parameter_index(f"input.{name}")
-                P0[..., i] = extra[..., i]
-    batch = P0.shape[:-1]
-    flat = np.ascontiguousarray(P0.reshape(-1, P0.shape[-1]))
-    n_design = flat.shape[0]
-
-    if machine.has_loops:
-        march, store, where = _march(phi, machine.assembly_phi, math.radians(max_step_deg))
-        march_omega, march_eps = omega_arr[where], eps_arr[where]
-    else:
-        march, store = phi, np.arange(n_phi, dtype=np.int64)
-        march_omega, march_eps = omega_arr, eps_arr
-    pt_names, pt_sel, lk_names, lk_sel, var_names, var_sel, need_th, rows = machine.selection(
-        points, links, variables)
-    program = machine.program if len(rows) == len(machine.program) else machine.program[rows]
-    var_units = tuple(machine.variable_units[i] for i in var_sel)
-    n_pt, n_l, n_v = len(pt_sel), len(lk_sel), len(var_sel)
-    n_g = machine.groups.shape[0]
-    P = np.empty((n_design, n_phi, n_pt, 2))
-    V = np.empty_like(P)
-    A = np.empty_like(P)
-    TH = np.empty((n_design, n_phi, n_l))
-    OM = np.empty_like(TH)
-    EP = np.empty_like(TH)
-    S = np.empty((n_design, n_phi, n_v))
-    SD = np.empty_like(S)
-    SDD = np.empty_like(S)
-    fail_unit = np.empty((n_design, n_phi), dtype=np.int64)
-    fail_code = np.empty((n_design, n_phi), dtype=np.int64)
-    loop_res = np.full((n_design, n_phi, n_g), np.nan) if n_g else np.empty((n_design, n_phi, 0))
-    loop_worst = np.zeros((n_design, n_phi, n_g), dtype=np.int64)
-    args = (program, flat, march, store, march_omega, march_eps, machine.groups,
-            machine.unknowns, machine.terms, machine.cams, machine.arcs,
-            len(machine.point_names), len(machine.link_names), len(machine.variable_names), tol,
-            max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD,
-            fail_unit, fail_code, loop_res, loop_worst)
-    if n_design >= 4 and n_design * march.shape[0] >= _PARALLEL_MIN_WORK:
-        # the threaded kernel pays some tens of microseconds to start; worth it for big batches.
-        # A few contiguous chunks per thread balance the load (measured: 4 per thread is best)
-        K.evaluate_program_parallel(*args, min(n_design, 4 * numba.get_num_threads()))
-    else:
-        K.evaluate_program(*args)
-    feasible = fail_unit < 0
-    all_ok = feasible.all()
-    if not all_ok:  # fail_unit holds rows of the evaluated program: back to the machine's
-        fail_unit = np.where(fail_unit >= 0, rows[np.maximum(fail_unit, 0)], fail_unit)
-    if on_failure == "raise" and not all_ok:
-        _raise_first(machine, phi, store, batch, fail_unit, fail_code, loop_res, loop_worst)
-    # fail_unit holds kernel rows; the result names units (fixed points have none: -1)
-    failure_unit = fail_unit if all_ok else machine.unit_of_row[fail_unit]
-
-    def shape(x, tail):
-        return x.reshape(batch + (n_phi,) + tail)
-
-    return KinematicsResult(
-        machine=machine.name,
-        phi=phi,
-        omega_shaft=omega_arr,
-        epsilon_shaft=eps_arr,
-        point_names=pt_names,
-        link_names=lk_names,
-        variable_names=var_names,
-        variable_units=var_units,
-        unit_names=machine.unit_names,
-        p=shape(P, (n_pt, 2)), v=shape(V, (n_pt, 2)), a=shape(A, (n_pt, 2)),
-        theta=shape(TH, (n_l,)), omega=shape(OM, (n_l,)), epsilon=shape(EP, (n_l,)),
-        q=shape(S, (n_v,)), q_dot=shape(SD, (n_v,)), q_ddot=shape(SDD, (n_v,)),
-        feasible=shape(feasible, ()),
-        failure_unit=shape(failure_unit, ()),
-        loop_residual=shape(loop_res, (n_g,)),
-        branches=dict(machine.branches),
-    )
+    plan = KinematicsPlan(machine, phi, rpm=rpm, omega=omega, epsilon=epsilon,
+                          on_failure=on_failure, points=points, links=links,
+                          variables=variables, max_step_deg=max_step_deg, tol=tol,
+                          max_iter=max_iter)
+    return plan(params, inputs=inputs)
 
 
 def _raise_first(machine, phi, store, batch, fail_unit, fail_code, loop_res, loop_worst):
