@@ -594,3 +594,35 @@ def test_one_sided_contacts_are_reported(tmp_path):
         least = r.pair(name)[..., 0].min()
         assert math.isclose(float(row.value.iloc[0]), least, rel_tol=1e-9)
         assert ("opens" in row.quantity.iloc[0]) == (least < 0)
+
+
+def test_force_structure_blocks_and_plan_reuse():
+    """The force equations split into the blocks of the Assur groups (four-bar: the driver, the
+    crank's pin, the dyad); every block's coupling goes to later blocks only. A DynamicsPlan
+    gives what inverse_dynamics gives and reuses its arrays call after call."""
+    from sewmech.dynamics import DynamicsPlan, force_structure
+
+    fb = load_machine("fourbar-benchmark")
+    st = force_structure(fb)
+    assert st.block_sizes == (1, 2, 6)
+    P = st.pattern[np.ix_(st.rperm, st.cperm)]
+    ends = st.blk_ptr
+    for b in range(len(ends) - 1):  # nothing to the left of a diagonal block
+        assert not P[ends[b]:ends[b + 1], :ends[b]].any()
+    jb = load_machine("jb1-3")
+    sj = force_structure(jb)
+    assert sum(sj.block_sizes) == 3 * (len(jb.link_names) - 1) and max(sj.block_sizes) < 20
+    phi = np.radians(np.arange(0.0, 360.0, 15.0))
+    plan = DynamicsPlan(jb, phi, rpm=900)
+    designs = jb.parameters({"needle_bar.length": [43.0, 44.0, 45.0]},
+                            inputs={"regulator": 0.4})
+    for params in (designs, designs[2]):
+        ref = inverse_dynamics(jb, phi, params=params, rpm=900)
+        got = plan(params)
+        np.testing.assert_array_equal(got.unknowns, ref.unknowns)
+        np.testing.assert_array_equal(got.load_force, ref.load_force)
+        np.testing.assert_array_equal(got.com_a, ref.com_a)
+    first = plan(designs)
+    again = plan(designs[::-1].copy())
+    assert np.shares_memory(first.unknowns, again.unknowns)
+    np.testing.assert_array_equal(again.unknowns[0], ref.unknowns)

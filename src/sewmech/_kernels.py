@@ -577,7 +577,7 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
                  unk,
                  terms, cams_i, arcs_i, n_points, n_links, n_vars, tol, max_iter, need_th,
                  pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code,
-                 loop_res, loop_worst):
+                 loop_res, loop_worst, ex_tab, ex_uv, GP, GV, GA):
     """Walk the program along the march for designs d0 <= d < d1 (see :func:`evaluate_program`).
 
     The march is taken in blocks of :data:`BLOCK` steps; within a block every unit is evaluated
@@ -903,7 +903,30 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
                     S[d, row] = np.nan
                     SD[d, row] = np.nan
                     SDD[d, row] = np.nan
+                    GP[d, row] = np.nan
+                    GV[d, row] = np.nan
+                    GA[d, row] = np.nan
                     continue
+                for j in range(ex_tab.shape[0]):  # extra points: e.g. the centres of mass
+                    L = ex_tab[j, 0]
+                    o = ex_tab[j, 1]
+                    if o < 0:
+                        ox = oy = ovx = ovy = oax = oay = 0.0
+                    else:
+                        ox = p[kb, o, 0]
+                        oy = p[kb, o, 1]
+                        ovx = v[kb, o, 0]
+                        ovy = v[kb, o, 1]
+                        oax = a[kb, o, 0]
+                        oay = a[kb, o, 1]
+                    r = rigid_point(ox, oy, ovx, ovy, oax, oay, lc[kb, L], ls[kb, L], om[kb, L],
+                                    ep[kb, L], ex_uv[j, 0], ex_uv[j, 1])
+                    GP[d, row, j, 0] = r[0]
+                    GP[d, row, j, 1] = r[1]
+                    GV[d, row, j, 0] = r[2]
+                    GV[d, row, j, 1] = r[3]
+                    GA[d, row, j, 0] = r[4]
+                    GA[d, row, j, 1] = r[5]
                 for j in range(pt_sel.shape[0]):
                     i = pt_sel[j]
                     for c in range(2):
@@ -930,7 +953,9 @@ _DOC = """Evaluate the program for every design (axis 0 of params) along the mar
     k, or -1 for an intermediate continuation step. need_th[link] says whether that link's angle is returned or read by a later unit.
     Output arrays are (n_design, n_out, n_selected, ...) for the selected points, links and
     variables (pt_sel, lk_sel, var_sel); fail_unit is -1 where all units assembled, and a failed
-    row is NaN throughout. Returns the number of failed rows. {which}
+    row is NaN throughout. Extra points (ex_tab rows: link, origin point or -1 for the frame
+    origin; ex_uv: their (u, v) mm in the link frame, e.g. centres of mass) are written to GP, GV,
+    GA (n_design, n_out, n_extra, 2). Returns the number of failed rows. {which}
     """
 
 
@@ -938,11 +963,12 @@ _DOC = """Evaluate the program for every design (axis 0 of params) along the mar
 def evaluate_program(units, params, march_phi, mc, ms, march_store, march_omega, march_eps,
                      grp, unk, terms, cams_i, arcs_i, n_points, n_links, n_vars, tol, max_iter,
                      need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD,
-                     fail_unit, fail_code, loop_res, loop_worst):
+                     fail_unit, fail_code, loop_res, loop_worst, ex_tab, ex_uv, GP, GV, GA):
     return _eval_designs(0, params.shape[0], units, params, march_phi, mc, ms, march_store,
                          march_omega, march_eps, grp, unk, terms, cams_i, arcs_i, n_points,
                          n_links, n_vars, tol, max_iter, need_th, pt_sel, lk_sel, var_sel, P, V,
-                         A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst)
+                         A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst,
+                         ex_tab, ex_uv, GP, GV, GA)
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
@@ -950,7 +976,7 @@ def evaluate_program_parallel(units, params, march_phi, mc, ms, march_store, mar
                               march_eps, grp, unk, terms, cams_i, arcs_i, n_points, n_links,
                               n_vars, tol, max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A,
                               TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst,
-                              n_chunks):
+                              ex_tab, ex_uv, GP, GV, GA, n_chunks):
     n = params.shape[0]
     n_failed = 0
     for c in prange(n_chunks):
@@ -958,7 +984,8 @@ def evaluate_program_parallel(units, params, march_phi, mc, ms, march_store, mar
                                   march_phi, mc, ms, march_store, march_omega, march_eps, grp,
                                   unk, terms, cams_i, arcs_i, n_points, n_links, n_vars, tol,
                                   max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM,
-                                  EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst)
+                                  EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst,
+                                  ex_tab, ex_uv, GP, GV, GA)
     return n_failed
 
 
@@ -980,20 +1007,21 @@ PAIR_COLS = 11
 # pair_angle: the fixed angle added to the line direction (rad)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def _cam_point(t0, nt, cam_rows, terms, params, d, p, th, q, sign):
-    """Contact point of a cam pair: minus the sum of its loop's other terms (mm)."""
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+def _cam_point(t0, nt, cam_rows, terms, params, d, k, P, TH, Q, sign):
+    """Contact point of a cam pair at design d, position k: minus the sum of its loop's other
+    terms (mm)."""
     sx = 0.0
     sy = 0.0
     for r in range(t0, t0 + nt):
         t = cam_rows[r]
         sg = float(terms[t, 2])
         if terms[t, 0] == TERM_POINT:
-            sx += sg * p[terms[t, 4], 0]
-            sy += sg * p[terms[t, 4], 1]
+            sx += sg * P[d, k, terms[t, 4], 0]
+            sy += sg * P[d, k, terms[t, 4], 1]
             continue
-        L = params[d, terms[t, 4]] if terms[t, 3] == SRC_PARAM else q[terms[t, 4]]
-        a = th[terms[t, 6]] if terms[t, 5] == SRC_LINK else q[terms[t, 6]]
+        L = params[d, terms[t, 4]] if terms[t, 3] == SRC_PARAM else Q[d, k, terms[t, 4]]
+        a = TH[d, k, terms[t, 6]] if terms[t, 5] == SRC_LINK else Q[d, k, terms[t, 6]]
         if terms[t, 7] >= 0:
             a += params[d, terms[t, 7]]
         sx += sg * L * math.cos(a)
@@ -1001,21 +1029,22 @@ def _cam_point(t0, nt, cam_rows, terms, params, d, p, th, q, sign):
     return -sign * sx, -sign * sy
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def _pair_geometry(i, pairs, pair_angle, cam_rows, terms, params, d, p, th, q):
-    """Where pair i's force acts (x, y mm) and the direction of its single force (cos, sin):
-    the line's left normal (prismatic, slot) or the cam's outward normal. Revolute pairs: the
-    pin and (1, 0)."""
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+def _pair_geometry(i, pairs, pair_angle, cam_rows, terms, params, d, k, P, TH, Q):
+    """Where pair i's force acts (x, y mm) and the direction of its single force (cos, sin) at
+    design d, position k: the line's left normal (prismatic, slot) or the cam's outward normal.
+    Revolute pairs: the pin and (1, 0). (Full arrays and indices, not per-position views: a
+    view costs reference counting in the inner loop.)"""
     kind = pairs[i, 0]
     if kind == PAIR_CAM:
-        xx, xy = _cam_point(pairs[i, 9], pairs[i, 10], cam_rows, terms, params, d, p, th, q,
+        xx, xy = _cam_point(pairs[i, 9], pairs[i, 10], cam_rows, terms, params, d, k, P, TH, Q,
                             float(pairs[i, 8]))
     else:
-        xx = p[pairs[i, 3], 0]
-        xy = p[pairs[i, 3], 1]
+        xx = P[d, k, pairs[i, 3], 0]
+        xy = P[d, k, pairs[i, 3], 1]
     if kind == PAIR_REVOLUTE:
         return xx, xy, 1.0, 0.0
-    a = th[pairs[i, 4]] if pairs[i, 4] >= 0 else q[pairs[i, 5]]
+    a = TH[d, k, pairs[i, 4]] if pairs[i, 4] >= 0 else Q[d, k, pairs[i, 5]]
     a += pair_angle[i]
     if pairs[i, 6] >= 0:
         a += params[d, pairs[i, 6]]
@@ -1027,90 +1056,180 @@ def _pair_geometry(i, pairs, pair_angle, cam_rows, terms, params, d, p, th, q):
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
 def pair_geometry(pairs, pair_angle, cam_rows, terms, params, P, TH, Q, X, N):
     """Force points X (D, n_phi, n_pairs, 2) and force directions N of every pair (drivers
-    left untouched) at every design and position; the same geometry :func:`pair_solve` uses."""
+    left untouched) at every design and position; the same geometry :func:`force_solve` uses."""
     for d in range(X.shape[0]):
         for k in range(X.shape[1]):
             for i in range(pairs.shape[0]):
                 if pairs[i, 0] == PAIR_DRIVER:
                     continue
                 X[d, k, i, 0], X[d, k, i, 1], N[d, k, i, 0], N[d, k, i, 1] = _pair_geometry(
-                    i, pairs, pair_angle, cam_rows, terms, params, d, P[d, k], TH[d, k],
-                    Q[d, k])
+                    i, pairs, pair_angle, cam_rows, terms, params, d, k, P, TH, Q)
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+def _assemble_pairs(d, k, pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, M):
+    """The matrix of the pair unknowns at design d, position k: row 3 (link - 1) + (x, y,
+    moment about the link's centre of mass GP[d, k, link]), one column per unknown (see
+    :func:`force_solve`)."""
+    M[:, :] = 0.0
+    for i in range(pairs.shape[0]):
+        kind = pairs[i, 0]
+        la = pairs[i, 1]
+        lb = pairs[i, 2]
+        col = pairs[i, 7]
+        if kind == PAIR_DRIVER:
+            M[3 * (lb - 1) + 2, col] = 1.0
+            continue
+        if kind == PAIR_REVOLUTE:  # the common case, without the general call (measured
+            xx = P[d, k, pairs[i, 3], 0]  # 45 ns a pin)
+            xy = P[d, k, pairs[i, 3], 1]
+            fx = 1.0
+            fy = 0.0
+        else:
+            xx, xy, fx, fy = _pair_geometry(i, pairs, pair_angle, cam_rows, terms, params, d, k,
+                                            P, TH, Q)
+        nf = 2 if kind == PAIR_REVOLUTE else 1
+        for j in range(nf):
+            if j == 1:  # a pin's second unknown: the force along y
+                fx = 0.0
+                fy = 1.0
+            for side in range(2):
+                link = lb if side == 0 else la
+                if link == 0:
+                    continue
+                sg = 1.0 if side == 0 else -1.0
+                r = 3 * (link - 1)
+                dx = xx - GP[d, k, link, 0]
+                dy = xy - GP[d, k, link, 1]
+                M[r, col + j] = sg * fx
+                M[r + 1, col + j] = sg * fy
+                M[r + 2, col + j] = sg * (dx * fy - dy * fx)
+        if kind == PAIR_PRISMATIC:
+            if lb:
+                M[3 * (lb - 1) + 2, col + 1] = 1.0
+            if la:
+                M[3 * (la - 1) + 2, col + 1] = -1.0
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
-def _pair_solve_design(d, pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, RHS, X,
-                       MINPIV, M, b):
-    n_phi = RHS.shape[1]
-    n_eq = RHS.shape[2]
+def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA, mass,
+                  inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, rperm, cperm, cpl_ptr,
+                  cpl_row, cpl_col, LF, LPOW, X, MINPIV, M, b, Mb, bb, x):
+    n_phi = X.shape[1]
+    n_links = mass.shape[0]
+    n_blocks = blk_ptr.shape[0] - 1
     for k in range(n_phi):
-        p = P[d, k]
-        th = TH[d, k]
-        q = Q[d, k]
-        gp = GP[d, k]
-        M[:, :] = 0.0
-        for e in range(n_eq):
-            b[e] = RHS[d, k, e]
-        for i in range(pairs.shape[0]):
-            kind = pairs[i, 0]
-            la = pairs[i, 1]
-            lb = pairs[i, 2]
-            col = pairs[i, 7]
-            if kind == PAIR_DRIVER:
-                M[3 * (lb - 1) + 2, col] = 1.0
-                continue
-            xx, xy, fx, fy = _pair_geometry(i, pairs, pair_angle, cam_rows, terms, params, d,
-                                            p, th, q)
-            nf = 2 if kind == PAIR_REVOLUTE else 1
-            for j in range(nf):
-                if j == 1:  # a pin's second unknown: the force along y
-                    fx = 0.0
-                    fy = 1.0
-                for side in range(2):
-                    link = lb if side == 0 else la
-                    if link == 0:
-                        continue
-                    sg = 1.0 if side == 0 else -1.0
-                    r = 3 * (link - 1)
-                    dx = xx - gp[link, 0]
-                    dy = xy - gp[link, 1]
-                    M[r, col + j] = sg * fx
-                    M[r + 1, col + j] = sg * fy
-                    M[r + 2, col + j] = sg * (dx * fy - dy * fx)
-            if kind == PAIR_PRISMATIC:
-                if lb:
-                    M[3 * (lb - 1) + 2, col + 1] = 1.0
-                if la:
-                    M[3 * (la - 1) + 2, col + 1] = -1.0
-        MINPIV[d, k] = _gauss_solve(M, b, n_eq)
-        for e in range(n_eq):
-            X[d, k, e] = b[e]
+        # right-hand side per moving link: m a_G - m g - sum F ; I alpha - sum (X - G) x F
+        for li in range(1, n_links):
+            r = 3 * (li - 1)
+            b[r] = 1e-3 * mass[li] * GA[d, k, li, 0]
+            b[r + 1] = 1e-3 * mass[li] * GA[d, k, li, 1] + gravity * mass[li]
+            b[r + 2] = 1e-3 * inertia[li] * EP[d, k, li]
+        power = 0.0
+        for j in range(ld_int.shape[0]):
+            li = ld_int[j, 0]
+            pi = ld_int[j, 1]
+            if ld_int[j, 3] == 0:  # a fixed direction
+                ux = ld_f[j, 1]
+                uy = ld_f[j, 2]
+            else:  # along the bisector of the unit vectors toward the given points
+                ux = 0.0
+                uy = 0.0
+                for t in range(ld_int[j, 2], ld_int[j, 2] + ld_int[j, 3]):
+                    ex = P[d, k, ld_tw[t], 0] - P[d, k, pi, 0]
+                    ey = P[d, k, ld_tw[t], 1] - P[d, k, pi, 1]
+                    n = math.sqrt(ex * ex + ey * ey)
+                    ux += ex / n
+                    uy += ey / n
+                n = math.sqrt(ux * ux + uy * uy)
+                ux /= n
+                uy /= n
+            f = ld_f[j, 0] * ld_on[j, k]
+            fx = f * ux
+            fy = f * uy
+            LF[d, k, j, 0] = fx
+            LF[d, k, j, 1] = fy
+            power += fx * V[d, k, pi, 0] + fy * V[d, k, pi, 1]
+            if li > 0:
+                r = 3 * (li - 1)
+                b[r] -= fx
+                b[r + 1] -= fy
+                b[r + 2] -= ((P[d, k, pi, 0] - GP[d, k, li, 0]) * fy
+                             - (P[d, k, pi, 1] - GP[d, k, li, 1]) * fx)
+        LPOW[d, k] = power
+        _assemble_pairs(d, k, pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, M)
+        # block upper-triangular form: the last block first, each with the unknowns of the
+        # later blocks already known (coupling terms moved to the right-hand side)
+        worst = np.inf
+        for blk in range(n_blocks - 1, -1, -1):
+            r0 = blk_ptr[blk]
+            nb = blk_ptr[blk + 1] - r0
+            for i in range(nb):
+                ri = rperm[r0 + i]
+                bb[i] = b[ri]
+                for j in range(nb):
+                    Mb[i, j] = M[ri, cperm[r0 + j]]
+            for c in range(cpl_ptr[blk], cpl_ptr[blk + 1]):
+                i = cpl_row[c]
+                bb[i] -= M[rperm[r0 + i], cpl_col[c]] * x[cpl_col[c]]
+            rel = _gauss_solve(Mb, bb, nb)
+            if rel < worst:
+                worst = rel
+            for j in range(nb):
+                x[cperm[r0 + j]] = bb[j]
+        MINPIV[d, k] = worst
+        for e in range(x.shape[0]):
+            X[d, k, e] = x[e]
+
+
+_FORCE_DOC = """Loads, right-hand sides and pair forces of every design and position.
+
+    The motion comes from the kinematics kernel: P, V (D, n_phi, n_pt, 2) of the points, EP,
+    TH (D, n_phi, n_links) of the links, Q (D, n_phi, n_var), GP, GA (D, n_phi, n_links, 2) of
+    the centres of mass. mass (kg), inertia (kg mm^2 about the centre of mass) per link;
+    gravity (m/s^2, along -y). Loads: ld_int rows (link, point, first row in ld_tw, number of
+    toward points: 0 for a fixed direction), ld_f rows (force N, cos, sin of the fixed
+    direction), ld_on (n_loads, n_phi) 1 inside the load's windows. The system is solved block
+    by block in the block upper-triangular order given by blk_ptr, rperm (equation rows),
+    cperm (unknown columns) and the coupling entries (cpl_row local to the block, cpl_col) of
+    each block (from the sparsity of the pairs, see :func:`sewmech.dynamics.force_structure`).
+    Fills LF (D, n_phi, n_loads, 2) N, LPOW (D, n_phi) N mm/s, X (D, n_phi, n_eq) and MINPIV
+    (D, n_phi), the smallest pivot of each block relative to that block's largest entry (0:
+    singular). {which}
+    """
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
-def pair_solve(pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, RHS, X, MINPIV):
-    """Assemble and solve the pair forces of every design and position.
-
-    P (D, n_phi, n_pt, 2), TH (D, n_phi, n_l), Q (D, n_phi, n_v): the motion; GP (D, n_phi,
-    n_l, 2) the links' centres of mass (moment points); RHS (D, n_phi, n_eq) the inertia,
-    weight and load terms. Fills X (D, n_phi, n_eq) and MINPIV (D, n_phi), the smallest
-    pivot of each elimination relative to the matrix's largest entry (0: singular).
-    """
-    n_eq = RHS.shape[2]
+def force_solve(pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA, mass,
+                inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, rperm, cperm, cpl_ptr,
+                cpl_row, cpl_col, LF, LPOW, X, MINPIV):
+    n_eq = X.shape[2]
     M = np.empty((n_eq, n_eq))
     b = np.empty(n_eq)
-    for d in range(RHS.shape[0]):
-        _pair_solve_design(d, pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, RHS, X,
-                           MINPIV, M, b)
+    Mb = np.empty((n_eq, n_eq))
+    bb = np.empty(n_eq)
+    x = np.empty(n_eq)
+    for d in range(X.shape[0]):
+        _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
+                      mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, rperm, cperm,
+                      cpl_ptr, cpl_row, cpl_col, LF, LPOW, X, MINPIV, M, b, Mb, bb, x)
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"}, parallel=True)
-def pair_solve_parallel(pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, RHS, X,
-                        MINPIV):
-    """:func:`pair_solve` with the designs shared among threads (large batches)."""
-    n_eq = RHS.shape[2]
-    for d in prange(RHS.shape[0]):
+def force_solve_parallel(pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
+                         mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, rperm,
+                         cperm, cpl_ptr, cpl_row, cpl_col, LF, LPOW, X, MINPIV):
+    n_eq = X.shape[2]
+    for d in prange(X.shape[0]):
         M = np.empty((n_eq, n_eq))
         b = np.empty(n_eq)
-        _pair_solve_design(d, pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, RHS, X,
-                           MINPIV, M, b)
+        Mb = np.empty((n_eq, n_eq))
+        bb = np.empty(n_eq)
+        x = np.empty(n_eq)
+        _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
+                      mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, rperm, cperm,
+                      cpl_ptr, cpl_row, cpl_col, LF, LPOW, X, MINPIV, M, b, Mb, bb, x)
+
+
+force_solve.__doc__ = _FORCE_DOC.format(which="One design after the other.")
+force_solve_parallel.__doc__ = _FORCE_DOC.format(which="Designs shared among the threads.")

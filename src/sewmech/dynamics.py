@@ -4,7 +4,10 @@ The method is the JB dynamics report's matrix-vector force analysis: for every m
 Newton-Euler equations (two force equations and the moment equation about its centre of mass)
 are written with the unknown pair forces, stacked into one square linear system per position,
 and solved. Here every position of every design is one such system, assembled and solved in
-one vectorised call (numpy's batched LU).
+one compiled call; the system is first put in block upper-triangular form from its sparsity
+(:func:`force_structure`), so that a position costs a few small eliminations (the Assur groups,
+in effect) instead of one of the whole system. :class:`DynamicsPlan` prepares all of this once
+for loops over designs; :func:`inverse_dynamics` is a one-off plan.
 
 Pairs (:class:`sewmech.machine.Pair`) come from the machine file: every pin shared by two links
 is a revolute pair, every slider unit a prismatic pair, every crank a driver; the cam contacts
@@ -28,7 +31,7 @@ from numpy.typing import ArrayLike
 
 from . import _kernels as K
 from .errors import SewmechError
-from .kinematics import kinematics
+from .kinematics import KinematicsPlan
 from .machine import Machine, Pair
 from .mass import MassProperties
 from .results import KinematicsResult
@@ -129,33 +132,6 @@ def in_windows(phi_deg: np.ndarray, windows: Sequence[tuple[float, float]]) -> n
         s, e = w0 % 360.0, w1 % 360.0
         tol = 1e-9
         out |= ((a >= s - tol) & (a <= e + tol)) if s <= e else ((a >= s - tol) | (a <= e + tol))
-    return out
-
-
-def load_forces(machine: Machine, kin: KinematicsResult,
-                loads: Sequence[LoadSpec]) -> list[tuple[int, int, np.ndarray]]:
-    """(link index, point index, force N of shape batch + (n_phi, 2)) of every load."""
-    out = []
-    mask_cache = {}
-    for load in loads:
-        li = machine.link_index(load.link)
-        pi = kin.point_names.index(load.point)
-        key = tuple(map(tuple, load.windows_deg))
-        if key not in mask_cache:
-            mask_cache[key] = in_windows(kin.phi_deg, load.windows_deg)
-        on = mask_cache[key]
-        if load.angle_deg is not None:
-            a = math.radians(load.angle_deg)
-            direction = np.broadcast_to(np.array([math.cos(a), math.sin(a)]),
-                                        kin.p.shape[:-2] + (2,))
-        else:
-            x = kin.p[..., pi, :]
-            direction = np.zeros_like(x)
-            for q in load.toward:
-                d = kin.p[..., kin.point_names.index(q), :] - x
-                direction = direction + d / np.linalg.norm(d, axis=-1, keepdims=True)
-            direction = direction / np.linalg.norm(direction, axis=-1, keepdims=True)
-        out.append((li, pi, load.force_N * direction * on[:, None]))
     return out
 
 
@@ -503,6 +479,251 @@ def force_system(machine: Machine) -> str:
             f" {'from [shaft]' if machine.spec.shaft is not None else 'not computed (no [shaft])'}")
 
 
+@dataclass(frozen=True)
+class ForceStructure:
+    """The sparsity of a machine's force equations, put in block upper-triangular form once.
+
+    Rows are the equations (3 per moving link: x, y, moment), columns the pairs' unknowns. A
+    perfect matching of rows to columns and the strongly connected components of the matched
+    graph (the Dulmage-Mendelsohn decomposition) give blocks that can be solved one after the
+    other, last first: for a chain of Assur groups these are the groups themselves (the
+    four-bar's 9 x 9 system is a 6 x 6 block for the dyad and a 3 x 3 block for the crank), so
+    each position costs a few small eliminations instead of one of the whole system.
+    """
+
+    table: np.ndarray  # the pairs as the kernel's integer table (_kernels.PAIR_COLS)
+    angles: np.ndarray  # fixed line angle of each pair, rad
+    cam_rows: np.ndarray  # loop-term rows of the cam pairs
+    pattern: np.ndarray  # (n_eq, n_eq) bool: the structural non-zeros
+    blk_ptr: np.ndarray  # block b has rows rperm[blk_ptr[b]:blk_ptr[b + 1]]
+    rperm: np.ndarray
+    cperm: np.ndarray  # the unknowns solved by each block, in the same slots
+    cpl_ptr: np.ndarray  # coupling entries of block b: cpl_ptr[b]:cpl_ptr[b + 1]
+    cpl_row: np.ndarray  # row within the block
+    cpl_col: np.ndarray  # unknown of a later block
+
+    @property
+    def block_sizes(self) -> tuple[int, ...]:
+        return tuple(int(x) for x in np.diff(self.blk_ptr))
+
+
+@lru_cache(maxsize=64)
+def force_structure(machine: Machine) -> ForceStructure:
+    """The block structure of the machine's force equations (:class:`ForceStructure`).
+
+    Raises
+    ------
+    SingularForceSystem
+        The pairs do not give as many unknowns as equations, or some links' equations cannot
+        be matched with unknowns of their own (the system is singular at every position).
+    """
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components, maximum_bipartite_matching
+
+    names = machine.link_names
+    n_links = len(names)
+    n_eq = 3 * (n_links - 1)
+    pairs = machine.pairs
+    n_unk = sum(_N_UNKNOWN[p.kind] for p in pairs)
+    if n_unk != n_eq:
+        kinds = {k: sum(1 for p in pairs if p.kind == k) for k in _N_UNKNOWN}
+        raise SingularForceSystem(
+            f"machine '{machine.name}': {n_links - 1} moving links give {n_eq} equilibrium"
+            f" equations but the pairs give {n_unk} unknowns ({kinds}); declare the cam and"
+            " slot contacts of loop units (units[].contacts) and pin shared points"
+            " (point units' pins)")
+    table, angles, cam_rows = _pair_table(machine)
+    pattern = np.zeros((n_eq, n_eq), dtype=bool)
+    for kind, la, lb, col in table[:, [0, 1, 2, 7]]:
+        if kind == K.PAIR_DRIVER:
+            pattern[3 * (lb - 1) + 2, col] = True
+            continue
+        nf = 2 if kind == K.PAIR_REVOLUTE else 1
+        for link in (la, lb):
+            if link:
+                pattern[3 * (link - 1):3 * link, col:col + nf] = True
+                if kind == K.PAIR_PRISMATIC:
+                    pattern[3 * (link - 1) + 2, col + 1] = True
+    match = maximum_bipartite_matching(csr_matrix(pattern), perm_type="column")
+    if (match < 0).any():
+        lame = sorted({names[1 + int(r) // 3] for r in np.flatnonzero(match < 0)})
+        raise SingularForceSystem(
+            f"machine '{machine.name}': the equations of link(s) {', '.join(lame)} cannot be"
+            " balanced by the pairs' unknowns (the force system is singular at every"
+            " position); check which links the pairs, pins and contacts join")
+    row_of_col = np.empty(n_eq, dtype=np.int64)
+    row_of_col[match] = np.arange(n_eq)
+    rows, cols = np.nonzero(pattern)
+    graph = csr_matrix((np.ones(rows.size), (rows, row_of_col[cols])), shape=(n_eq, n_eq))
+    n_comp, label = connected_components(graph, directed=True, connection="strong")
+    # components in topological order: a component's rows use unknowns of later ones only
+    succ = [set() for _ in range(n_comp)]
+    for r, c in zip(rows, row_of_col[cols]):
+        if label[r] != label[c]:
+            succ[label[r]].add(label[c])
+    indeg = np.zeros(n_comp, dtype=np.int64)
+    for s_ in succ:
+        for c in s_:
+            indeg[c] += 1
+    order, ready = [], [c for c in range(n_comp) if indeg[c] == 0]
+    while ready:
+        c = ready.pop()
+        order.append(c)
+        for t in succ[c]:
+            indeg[t] -= 1
+            if indeg[t] == 0:
+                ready.append(t)
+    rank = np.empty(n_comp, dtype=np.int64)
+    rank[order] = np.arange(n_comp)
+    rperm = np.argsort(rank[label], kind="stable").astype(np.int64)
+    cperm = match[rperm].astype(np.int64)
+    blk_ptr = np.concatenate([[0], np.cumsum(np.bincount(rank[label], minlength=n_comp))])
+    cpl_ptr, cpl_row, cpl_col = [0], [], []
+    block_of_col = np.empty(n_eq, dtype=np.int64)
+    block_of_col[cperm] = np.repeat(np.arange(n_comp), np.diff(blk_ptr))
+    for blk in range(n_comp):
+        for i, r in enumerate(rperm[blk_ptr[blk]:blk_ptr[blk + 1]]):
+            for c in np.flatnonzero(pattern[r]):
+                if block_of_col[c] != blk:
+                    assert block_of_col[c] > blk, "not block upper-triangular"
+                    cpl_row.append(i)
+                    cpl_col.append(int(c))
+        cpl_ptr.append(len(cpl_row))
+    out = ForceStructure(table, angles, cam_rows, pattern, blk_ptr.astype(np.int64), rperm,
+                         cperm, np.asarray(cpl_ptr, dtype=np.int64),
+                         np.asarray(cpl_row, dtype=np.int64), np.asarray(cpl_col, dtype=np.int64))
+    for a in (out.pattern, out.blk_ptr, out.rperm, out.cperm, out.cpl_ptr, out.cpl_row,
+              out.cpl_col):
+        a.setflags(write=False)
+    return out
+
+
+def _load_tables(machine: Machine, loads: Sequence[LoadSpec], phi_deg: np.ndarray):
+    """The loads as the force kernel's tables (see ``_kernels.force_solve``)."""
+    ints, floats, toward, on = [], [], [], []
+    masks = {}
+    for load in loads:
+        key = tuple(map(tuple, load.windows_deg))
+        if key not in masks:
+            masks[key] = in_windows(phi_deg, load.windows_deg).astype(float)
+        on.append(masks[key])
+        if load.angle_deg is not None:
+            a = math.radians(load.angle_deg)
+            floats.append((load.force_N, math.cos(a), math.sin(a)))
+            ints.append((machine.link_index(load.link), machine.point_index(load.point),
+                         len(toward), 0))
+        else:
+            floats.append((load.force_N, 0.0, 0.0))
+            ints.append((machine.link_index(load.link), machine.point_index(load.point),
+                         len(toward), len(load.toward)))
+            toward.extend(machine.point_index(q) for q in load.toward)
+    return (np.asarray(ints, dtype=np.int64).reshape(-1, 4),
+            np.asarray(floats, dtype=float).reshape(-1, 3),
+            np.asarray(toward, dtype=np.int64),
+            np.asarray(on, dtype=float).reshape(-1, phi_deg.shape[0]))
+
+
+class DynamicsPlan:
+    """An inverse-dynamics call prepared once and run for many designs: the fast path for loops
+    (balancing and optimisation call it thousands of times).
+
+    Prepared once: the kinematics (:class:`~sewmech.kinematics.KinematicsPlan`, which also
+    moves every link's centre of mass), the pair table and the block structure of the force
+    equations (:func:`force_structure`), the link masses and the loads with their windows. A
+    call is then two compiled calls (motion, then loads and forces) into reused arrays; the
+    :class:`DynamicsResult` it returns views those arrays and stays valid until the plan's next
+    call with the same batch shape. :func:`inverse_dynamics` is a one-off plan.
+
+    Parameters are those of :func:`inverse_dynamics` (which see); ``params`` and ``inputs`` are
+    given per call.
+    """
+
+    def __init__(
+        self,
+        machine: Machine,
+        phi: ArrayLike,
+        *,
+        rpm: float | None = None,
+        omega: ArrayLike | None = None,
+        epsilon: ArrayLike = 0.0,
+        gravity: bool = True,
+        loads: Sequence[LoadSpec] | None = None,
+        masses: Mapping[str, MassProperties] | None = None,
+    ):
+        self.machine = machine
+        self.structure = force_structure(machine)
+        self.gravity = bool(gravity)
+        self.masses = lm = link_masses(machine, masses)
+        self.mass_props = {**machine.masses, **(masses or {})}
+        self.loads = tuple(machine.spec.loads if loads is None else loads)
+        if loads is not None:
+            machine.check_loads(list(self.loads))
+        n_links = len(machine.link_names)
+        links = np.arange(n_links, dtype=np.int64)
+        self.kin_plan = KinematicsPlan(
+            machine, phi, rpm=rpm, omega=omega, epsilon=epsilon,
+            extra_points=(np.stack([links, lm.origins], axis=1),
+                          np.stack([lm.com_u, lm.com_v], axis=1)))
+        self._loads = _load_tables(machine, self.loads, np.degrees(self.kin_plan.phi))
+        self._live: tuple | None = None
+
+    def __call__(self, params: ArrayLike | None = None, *,
+                 inputs: Mapping[str, ArrayLike] | None = None) -> DynamicsResult:
+        """Forces for designs (see :func:`inverse_dynamics` for ``params`` and ``inputs``).
+
+        The returned result views the plan's arrays: the next call with the same batch shape
+        overwrites it.
+        """
+        kp = self.kin_plan
+        P = kp._designs(params, inputs)
+        kin = kp._run(P)
+        gp, gv, ga = kp.extra_motion
+        batch, n_phi = kin.batch_shape, kp.n_phi
+        n_d = int(np.prod(batch, dtype=np.int64))
+        st, lm, machine = self.structure, self.masses, self.machine
+        n_eq = st.pattern.shape[0]
+        if self._live is None or self._live[0] != batch:
+            self._live = (batch, np.empty((n_d, n_phi, self._loads[0].shape[0], 2)),
+                          np.empty((n_d, n_phi)), np.empty((n_d, n_phi, n_eq)),
+                          np.empty((n_d, n_phi)))
+        _, LF, LPOW, X, MINPIV = self._live
+        a = kp.kernel_arrays()
+        flat = P.reshape(-1, P.shape[-1])
+        if not flat.flags.c_contiguous:
+            flat = np.ascontiguousarray(flat)
+        solve = (K.force_solve_parallel if n_d >= 4 and n_d * n_phi >= 20000 else
+                 K.force_solve)
+        solve(st.table, st.angles, st.cam_rows, machine.terms, flat, a["P"], a["V"], a["EP"],
+              a["S"], a["TH"], a["GP"], a["GA"], lm.mass, lm.inertia,
+              GRAVITY if self.gravity else 0.0, *self._loads, st.blk_ptr, st.rperm, st.cperm,
+              st.cpl_ptr, st.cpl_row, st.cpl_col, LF, LPOW, X, MINPIV)
+        feasible = a["feasible"]
+        bad = feasible & ~(MINPIV > 1e-12)
+        if bad.any():
+            d, k = np.argwhere(bad)[0]
+            design = tuple(int(i) for i in np.unravel_index(d, batch)) if batch else ()
+            at = f"design {design}, " if design else ""
+            raise SingularForceSystem(
+                f"machine '{machine.name}' at {at}phi = {float(kin.phi_deg[k]):.6g} deg: the"
+                " equilibrium equations are singular (a mechanism at a dead centre with respect"
+                " to its driver, or a pair whose line passes through its link's pivot); step"
+                " around this angle")
+        if kp._dirty:  # some positions could not be assembled (on_failure="mask")
+            X[~feasible] = np.nan
+            LF[~feasible] = np.nan
+            LPOW[~feasible] = np.nan
+
+        def shape(x):
+            return x.reshape(batch + x.shape[1:])
+
+        return DynamicsResult(
+            machine=machine, kin=kin, pairs=machine.pairs, unknowns=shape(X),
+            gravity=self.gravity, load_names=tuple(ld.name for ld in self.loads),
+            load_force=shape(LF), load_power=shape(LPOW), mass=lm, com_p=gp, com_v=gv,
+            com_a=ga, params=np.broadcast_to(P, batch + P.shape[-1:]),
+            mass_props=self.mass_props, load_links=tuple(int(i) for i in self._loads[0][:, 0]))
+
+
 def inverse_dynamics(
     machine: Machine,
     phi: ArrayLike,
@@ -515,7 +736,6 @@ def inverse_dynamics(
     gravity: bool = True,
     loads: Sequence[LoadSpec] | None = None,
     masses: Mapping[str, MassProperties] | None = None,
-    kin: KinematicsResult | None = None,
 ) -> DynamicsResult:
     """Forces in every pair, the driving torque and the frame reactions over crank angles.
 
@@ -533,8 +753,6 @@ def inverse_dynamics(
         Process loads; default: the machine file's ``[[loads]]``. ``[]`` for none.
     masses : mapping link -> MassProperties, optional
         Replace or add link mass properties (link frame, mm, kg, kg mm^2).
-    kin : KinematicsResult, optional
-        A kinematics result of the same call (all points, links and variables) to reuse.
 
     Returns
     -------
@@ -545,79 +763,14 @@ def inverse_dynamics(
     SingularForceSystem
         The machine's pairs do not give as many unknowns as equations, or the equations are
         singular at some position (a dead centre of a mechanism with a driver).
+
+    See Also
+    --------
+    DynamicsPlan : the same call prepared once, for loops over many designs.
     """
-    names = machine.link_names
-    n_links = len(names)
-    n_eq = 3 * (n_links - 1)
-    pairs = machine.pairs
-    n_unk = sum(_N_UNKNOWN[p.kind] for p in pairs)
-    if n_unk != n_eq:
-        kinds = {k: sum(1 for p in pairs if p.kind == k) for k in _N_UNKNOWN}
-        raise SingularForceSystem(
-            f"machine '{machine.name}': {n_links - 1} moving links give {n_eq} equilibrium"
-            f" equations but the pairs give {n_unk} unknowns ({kinds}); declare the cam and"
-            " slot contacts of loop units (units[].contacts) and pin shared points"
-            " (point units' pins)")
-    if kin is None:
-        kin = kinematics(machine, phi, params=params, inputs=inputs, rpm=rpm, omega=omega,
-                         epsilon=epsilon)
-    elif (kin.point_names, kin.link_names, kin.variable_names) != (
-            machine.point_names, machine.link_names, machine.variable_names):
-        raise ValueError("kin must hold every point, link and variable of the machine (a"
-                         " kinematics() call without points=, links=, variables=)")
-    P = machine.defaults if params is None else np.asarray(params, dtype=float)
-    if inputs:
-        P = machine.parameters(inputs=inputs, base=P)
-    P = np.broadcast_to(P, kin.batch_shape + machine.defaults.shape)
-    lm = link_masses(machine, masses)
-    shape = kin.theta.shape  # batch + (n_phi, n_links)
-
-    # centres of mass
-    org = np.maximum(lm.origins, 0)
-    po, vo, ao = kin.p[..., org, :], kin.v[..., org, :], kin.a[..., org, :]
-    no_origin = lm.origins < 0
-    if no_origin.any():
-        po, vo, ao = (np.where(no_origin[:, None], 0.0, x) for x in (po, vo, ao))
-    th, om, ep = kin.theta, kin.omega, kin.epsilon
-    c, s = np.cos(th), np.sin(th)
-    rx = c * lm.com_u - s * lm.com_v
-    ry = s * lm.com_u + c * lm.com_v
-    gp = po + np.stack([rx, ry], axis=-1)
-    gv = vo + np.stack([-om * ry, om * rx], axis=-1)
-    ga = ao + np.stack([-ep * ry - om * om * rx, ep * rx - om * om * ry], axis=-1)
-
-    # loads
-    load_specs = list(machine.spec.loads if loads is None else loads)
-    if loads is not None:
-        machine.check_loads(load_specs)
-    lf = load_forces(machine, kin, load_specs)
-
-    # right-hand side: m a_G - F - m g ; I alpha - sum (X - G) x F, per moving link
-    m = np.broadcast_to(lm.mass, shape)
-    rhs = np.zeros(shape[:-1] + (n_links, 3))
-    rhs[..., 0] = 1e-3 * m * ga[..., 0]
-    rhs[..., 1] = 1e-3 * m * ga[..., 1] + (GRAVITY * m if gravity else 0.0)
-    rhs[..., 2] = 1e-3 * np.broadcast_to(lm.inertia, shape) * ep
-    load_power = np.zeros(shape[:-1])
-    for li, pi, F in lf:
-        d = kin.p[..., pi, :] - gp[..., li, :]
-        rhs[..., li, 0] -= F[..., 0]
-        rhs[..., li, 1] -= F[..., 1]
-        rhs[..., li, 2] -= d[..., 0] * F[..., 1] - d[..., 1] * F[..., 0]
-        load_power = load_power + np.sum(F * kin.v[..., pi, :], axis=-1)
-
-    # the matrix (one column per unknown, rows 3 (link - 1) + (x, y, moment)) is assembled
-    # and solved per position in the compiled kernel
-    table, angles, cam_rows = _pair_table(machine)
-    rhs_flat = rhs[..., 1:, :].reshape(shape[:-1] + (n_eq,))
-    x = _solve(machine, kin, P, gp, rhs_flat, table, angles, cam_rows)
-    return DynamicsResult(
-        machine=machine, kin=kin, pairs=pairs, unknowns=x, gravity=gravity,
-        load_names=tuple(ld.name for ld in load_specs),
-        load_force=(np.stack([F for _, _, F in lf], axis=-2) if lf
-                    else np.zeros(shape[:-1] + (0, 2))),
-        load_power=load_power, mass=lm, com_p=gp, com_v=gv, com_a=ga, params=P,
-        mass_props={**machine.masses, **(masses or {})}, load_links=tuple(li for li, _, _ in lf))
+    plan = DynamicsPlan(machine, phi, rpm=rpm, omega=omega, epsilon=epsilon, gravity=gravity,
+                        loads=loads, masses=masses)
+    return plan(params, inputs=inputs)
 
 
 _KIND_CODE = {"revolute": K.PAIR_REVOLUTE, "prismatic": K.PAIR_PRISMATIC, "cam": K.PAIR_CAM,
@@ -648,34 +801,6 @@ def _pair_table(machine: Machine) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     for a in out:
         a.setflags(write=False)
     return out
-
-
-def _solve(machine: Machine, kin: KinematicsResult, P: np.ndarray, gp: np.ndarray,
-           rhs: np.ndarray, table, angles, cam_rows) -> np.ndarray:
-    batch = kin.batch_shape
-    n_phi = kin.phi.shape[0]
-    n_eq = rhs.shape[-1]
-    n_d = int(np.prod(batch, dtype=np.int64))
-    X = np.empty((n_d, n_phi, n_eq))
-    minpiv = np.empty(X.shape[:2])
-    solve = K.pair_solve_parallel if n_d >= 4 and n_d * n_phi >= 20000 else K.pair_solve
-    solve(table, angles, cam_rows, machine.terms,
-          np.ascontiguousarray(P.reshape(n_d, P.shape[-1])), _flat(kin, kin.p),
-          _flat(kin, kin.theta), _flat(kin, kin.q), _flat(kin, gp), _flat(kin, rhs), X, minpiv)
-    feasible = np.broadcast_to(kin.feasible, batch + (n_phi,)).reshape(minpiv.shape)
-    bad = feasible & ~(minpiv > 1e-12)
-    if bad.any():
-        d, k = np.argwhere(bad)[0]
-        design = tuple(int(i) for i in np.unravel_index(d, batch)) if batch else ()
-        at = f"design {design}, " if design else ""
-        raise SingularForceSystem(
-            f"machine '{machine.name}' at {at}phi = {float(kin.phi_deg[k]):.6g} deg: the"
-            " equilibrium equations are singular (a mechanism at a dead centre with respect to"
-            " its driver, or a pair whose line passes through its link's pivot); step around"
-            " this angle")
-    if not feasible.all():
-        X[~feasible] = np.nan
-    return X.reshape(batch + (n_phi, n_eq))
 
 
 # ---- the shaft's speed over the cycle --------------------------------------------------------------

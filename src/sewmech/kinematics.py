@@ -90,7 +90,10 @@ class KinematicsPlan:
             p = plan(m.parameters({"coupler.length": x})).point("P").p   # (n_phi, 2) mm
 
     Parameters are those of :func:`kinematics` (which see); ``params`` and ``inputs`` are given
-    per call.
+    per call. ``extra_points`` = (rows of (link index, origin point index or -1 for the frame
+    origin), rows of (u, v) mm in the link frame) adds points that are not in the machine file,
+    e.g. the links' centres of mass: after each call ``extra_motion`` holds their position,
+    velocity and acceleration, batch + (n_phi, n_extra, 2) each (mm, mm/s, mm/s^2).
     """
 
     def __init__(
@@ -108,6 +111,7 @@ class KinematicsPlan:
         max_step_deg: float = 5.0,
         tol: float = 1e-10,
         max_iter: int = 25,
+        extra_points: tuple[np.ndarray, np.ndarray] | None = None,
     ):
         if on_failure not in ("raise", "mask"):
             raise ValueError(f"on_failure must be 'raise' or 'mask', got {on_failure!r}")
@@ -149,12 +153,26 @@ class KinematicsPlan:
                       machine.arcs, len(machine.point_names), len(machine.link_names),
                       len(machine.variable_names), tol, max_iter, need_th, pt_sel, lk_sel,
                       var_sel)
-        self._sizes = (len(pt_sel), len(lk_sel), len(var_sel), machine.groups.shape[0])
+        if extra_points is None:
+            extra_points = (np.empty((0, 2), dtype=np.int64), np.empty((0, 2)))
+        self._extra = (np.ascontiguousarray(extra_points[0], dtype=np.int64),
+                       np.ascontiguousarray(extra_points[1], dtype=float))
+        self._sizes = (len(pt_sel), len(lk_sel), len(var_sel), machine.groups.shape[0],
+                       self._extra[0].shape[0])
         self._live: tuple | None = None  # (batch, buffers, result) of the last batch shape
+        self.extra_motion: tuple[np.ndarray, ...] = ()
 
     @property
     def n_phi(self) -> int:
         return self.phi.shape[0]
+
+    def kernel_arrays(self) -> dict[str, np.ndarray]:
+        """The last call's arrays as the kernels use them, (n_design, n_phi, ...): P, V, A of
+        the selected points, TH, OM, EP of the links, S, SD, SDD of the variables, GP, GV, GA
+        of the extra points, and feasible."""
+        if self._live is None:
+            raise RuntimeError("the plan has not been run yet")
+        return self._live[1][3]
 
     def _designs(self, params, inputs) -> np.ndarray:
         machine = self.machine
@@ -180,7 +198,7 @@ class KinematicsPlan:
             return self._live[1], self._live[2]
         n_design = int(np.prod(batch, dtype=np.int64))
         n_phi = self.n_phi
-        n_pt, n_l, n_v, n_g = self._sizes
+        n_pt, n_l, n_v, n_g, n_ex = self._sizes
         P, V, A = (np.empty((n_design, n_phi, n_pt, 2)) for _ in range(3))
         TH, OM, EP = (np.empty((n_design, n_phi, n_l)) for _ in range(3))
         S, SD, SDD = (np.empty((n_design, n_phi, n_v)) for _ in range(3))
@@ -190,7 +208,9 @@ class KinematicsPlan:
         loop_worst = np.zeros((n_design, n_phi, n_g), dtype=np.int64)
         feasible = np.empty((n_design, n_phi), dtype=bool)
         failure_unit = np.empty((n_design, n_phi), dtype=np.int64)
-        out = (P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst)
+        extra = tuple(np.empty((n_design, n_phi, n_ex, 2)) for _ in range(3))
+        out = (P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst,
+               *self._extra, *extra)
         m = self.machine
 
         def shape(x, tail=()):
@@ -206,7 +226,10 @@ class KinematicsPlan:
             q=shape(S, (n_v,)), q_dot=shape(SD, (n_v,)), q_ddot=shape(SDD, (n_v,)),
             feasible=shape(feasible), failure_unit=shape(failure_unit),
             loop_residual=shape(loop_res, (n_g,)), branches=dict(m.branches))
-        buffers = (out, feasible, failure_unit)
+        named = dict(zip(("P", "V", "A", "TH", "OM", "EP", "S", "SD", "SDD"), out[:9]),
+                     GP=extra[0], GV=extra[1], GA=extra[2], feasible=feasible)
+        buffers = (out, feasible, failure_unit, named)
+        self.extra_motion = tuple(x.reshape(batch + (n_phi, n_ex, 2)) for x in extra)
         self._live = (batch, buffers, result)
         self._dirty = True  # feasible and failure_unit are not filled yet
         return buffers, result
@@ -218,12 +241,15 @@ class KinematicsPlan:
         The returned result views the plan's arrays: the next call with the same batch shape
         overwrites it.
         """
-        P0 = self._designs(params, inputs)
+        return self._run(self._designs(params, inputs))
+
+    def _run(self, P0: np.ndarray) -> KinematicsResult:
+        """Evaluate the designs ``P0`` (batch + (n_parameters,)), already checked."""
         batch = P0.shape[:-1]
         flat = P0.reshape(-1, P0.shape[-1])
         if not flat.flags.c_contiguous:
             flat = np.ascontiguousarray(flat)
-        (out, feasible, failure_unit), result = self._buffers(batch)
+        (out, feasible, failure_unit, _), result = self._buffers(batch)
         loop_res = out[11]
         if loop_res.size:
             loop_res.fill(np.nan)  # NaN where a loop unit was not solved
