@@ -1066,120 +1066,197 @@ def pair_geometry(pairs, pair_angle, cam_rows, terms, params, P, TH, Q, X, N):
                     i, pairs, pair_angle, cam_rows, terms, params, d, k, P, TH, Q)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
-def _assemble_pairs(d, k, pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, M):
-    """The matrix of the pair unknowns at design d, position k: row 3 (link - 1) + (x, y,
-    moment about the link's centre of mass GP[d, k, link]), one column per unknown (see
-    :func:`force_solve`)."""
-    M[:, :] = 0.0
-    for i in range(pairs.shape[0]):
-        kind = pairs[i, 0]
-        la = pairs[i, 1]
-        lb = pairs[i, 2]
-        col = pairs[i, 7]
-        if kind == PAIR_DRIVER:
-            M[3 * (lb - 1) + 2, col] = 1.0
-            continue
-        if kind == PAIR_REVOLUTE:  # the common case, without the general call (measured
-            xx = P[d, k, pairs[i, 3], 0]  # 45 ns a pin)
-            xy = P[d, k, pairs[i, 3], 1]
-            fx = 1.0
-            fy = 0.0
-        else:
-            xx, xy, fx, fy = _pair_geometry(i, pairs, pair_angle, cam_rows, terms, params, d, k,
-                                            P, TH, Q)
-        nf = 2 if kind == PAIR_REVOLUTE else 1
-        for j in range(nf):
-            if j == 1:  # a pin's second unknown: the force along y
-                fx = 0.0
-                fy = 1.0
-            for side in range(2):
-                link = lb if side == 0 else la
-                if link == 0:
-                    continue
-                sg = 1.0 if side == 0 else -1.0
-                r = 3 * (link - 1)
-                dx = xx - GP[d, k, link, 0]
-                dy = xy - GP[d, k, link, 1]
-                M[r, col + j] = sg * fx
-                M[r + 1, col + j] = sg * fy
-                M[r + 2, col + j] = sg * (dx * fy - dy * fx)
-        if kind == PAIR_PRISMATIC:
-            if lb:
-                M[3 * (lb - 1) + 2, col + 1] = 1.0
-            if la:
-                M[3 * (la - 1) + 2, col + 1] = -1.0
+#: positions solved together by the force kernel: every loop over positions is innermost and
+#: free of branches, so that the compiler vectorises it (four positions per AVX2 instruction)
+FORCE_CHUNK = 64
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA, mass,
-                  inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, rperm, cperm, cpl_ptr,
-                  cpl_row, cpl_col, LF, LPOW, X, MINPIV, M, b, Mb, bb, x):
+                  inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off, rperm, cperm,
+                  cpl_ptr, cpl_row, cpl_col, pslot, LF, LPOW, X, MINPIV, W, B, XV, t1, t2, t3,
+                  t4, worst):
+    """One design, positions in chunks of FORCE_CHUNK. W (n_slots, chunk) holds the blocks'
+    entries (row-major within a block) and then the coupling entries; B the right-hand sides
+    (n_eq, chunk); XV the unknowns (n_eq, chunk); t1..t4, worst scratch (chunk)."""
     n_phi = X.shape[1]
+    n_eq = X.shape[2]
     n_links = mass.shape[0]
     n_blocks = blk_ptr.shape[0] - 1
-    for k in range(n_phi):
+    n_blk_slots = blk_off[n_blocks]
+    for k0 in range(0, n_phi, FORCE_CHUNK):
+        nk = min(FORCE_CHUNK, n_phi - k0)
+        W[:, :] = 0.0
         # right-hand side per moving link: m a_G - m g - sum F ; I alpha - sum (X - G) x F
         for li in range(1, n_links):
             r = 3 * (li - 1)
-            b[r] = 1e-3 * mass[li] * GA[d, k, li, 0]
-            b[r + 1] = 1e-3 * mass[li] * GA[d, k, li, 1] + gravity * mass[li]
-            b[r + 2] = 1e-3 * inertia[li] * EP[d, k, li]
-        power = 0.0
+            m = 1e-3 * mass[li]
+            mg = gravity * mass[li]
+            ii = 1e-3 * inertia[li]
+            for kk in range(nk):
+                B[r, kk] = m * GA[d, k0 + kk, li, 0]
+                B[r + 1, kk] = m * GA[d, k0 + kk, li, 1] + mg
+                B[r + 2, kk] = ii * EP[d, k0 + kk, li]
+        for kk in range(nk):
+            LPOW[d, k0 + kk] = 0.0
         for j in range(ld_int.shape[0]):
             li = ld_int[j, 0]
             pi = ld_int[j, 1]
-            if ld_int[j, 3] == 0:  # a fixed direction
-                ux = ld_f[j, 1]
-                uy = ld_f[j, 2]
-            else:  # along the bisector of the unit vectors toward the given points
-                ux = 0.0
-                uy = 0.0
-                for t in range(ld_int[j, 2], ld_int[j, 2] + ld_int[j, 3]):
-                    ex = P[d, k, ld_tw[t], 0] - P[d, k, pi, 0]
-                    ey = P[d, k, ld_tw[t], 1] - P[d, k, pi, 1]
-                    n = math.sqrt(ex * ex + ey * ey)
-                    ux += ex / n
-                    uy += ey / n
-                n = math.sqrt(ux * ux + uy * uy)
-                ux /= n
-                uy /= n
-            f = ld_f[j, 0] * ld_on[j, k]
-            fx = f * ux
-            fy = f * uy
-            LF[d, k, j, 0] = fx
-            LF[d, k, j, 1] = fy
-            power += fx * V[d, k, pi, 0] + fy * V[d, k, pi, 1]
-            if li > 0:
-                r = 3 * (li - 1)
-                b[r] -= fx
-                b[r + 1] -= fy
-                b[r + 2] -= ((P[d, k, pi, 0] - GP[d, k, li, 0]) * fy
-                             - (P[d, k, pi, 1] - GP[d, k, li, 1]) * fx)
-        LPOW[d, k] = power
-        _assemble_pairs(d, k, pairs, pair_angle, cam_rows, terms, params, P, TH, Q, GP, M)
+            for kk in range(nk):
+                k = k0 + kk
+                if ld_int[j, 3] == 0:  # a fixed direction
+                    ux = ld_f[j, 1]
+                    uy = ld_f[j, 2]
+                else:  # along the bisector of the unit vectors toward the given points
+                    ux = 0.0
+                    uy = 0.0
+                    for t in range(ld_int[j, 2], ld_int[j, 2] + ld_int[j, 3]):
+                        ex = P[d, k, ld_tw[t], 0] - P[d, k, pi, 0]
+                        ey = P[d, k, ld_tw[t], 1] - P[d, k, pi, 1]
+                        n = math.sqrt(ex * ex + ey * ey)
+                        ux += ex / n
+                        uy += ey / n
+                    n = math.sqrt(ux * ux + uy * uy)
+                    ux /= n
+                    uy /= n
+                f = ld_f[j, 0] * ld_on[j, k]
+                fx = f * ux
+                fy = f * uy
+                LF[d, k, j, 0] = fx
+                LF[d, k, j, 1] = fy
+                LPOW[d, k] += fx * V[d, k, pi, 0] + fy * V[d, k, pi, 1]
+                if li > 0:
+                    r = 3 * (li - 1)
+                    B[r, kk] -= fx
+                    B[r + 1, kk] -= fy
+                    B[r + 2, kk] -= ((P[d, k, pi, 0] - GP[d, k, li, 0]) * fy
+                                     - (P[d, k, pi, 1] - GP[d, k, li, 1]) * fx)
+        # the matrix entries of every pair (pslot: where each of its entries goes in W)
+        for i in range(pairs.shape[0]):
+            kind = pairs[i, 0]
+            if kind == PAIR_DRIVER:
+                s = pslot[i, 0]
+                for kk in range(nk):
+                    W[s, kk] = 1.0
+                continue
+            nf = 2 if kind == PAIR_REVOLUTE else 1
+            for side in range(2):
+                link = pairs[i, 2] if side == 0 else pairs[i, 1]
+                if link == 0:
+                    continue
+                sg = 1.0 if side == 0 else -1.0
+                for j in range(nf):
+                    sx = pslot[i, 6 * j + 3 * side]
+                    sy = pslot[i, 6 * j + 3 * side + 1]
+                    sm = pslot[i, 6 * j + 3 * side + 2]
+                    if kind == PAIR_REVOLUTE:
+                        pt = pairs[i, 3]
+                        for kk in range(nk):
+                            k = k0 + kk
+                            dx = P[d, k, pt, 0] - GP[d, k, link, 0]
+                            dy = P[d, k, pt, 1] - GP[d, k, link, 1]
+                            if j == 0:  # the force along x
+                                W[sx, kk] = sg
+                                W[sm, kk] = -sg * dy
+                            else:  # along y
+                                W[sy, kk] = sg
+                                W[sm, kk] = sg * dx
+                    else:
+                        for kk in range(nk):
+                            k = k0 + kk
+                            xx, xy, fx, fy = _pair_geometry(i, pairs, pair_angle, cam_rows,
+                                                            terms, params, d, k, P, TH, Q)
+                            dx = xx - GP[d, k, link, 0]
+                            dy = xy - GP[d, k, link, 1]
+                            W[sx, kk] = sg * fx
+                            W[sy, kk] = sg * fy
+                            W[sm, kk] = sg * (dx * fy - dy * fx)
+                if kind == PAIR_PRISMATIC:  # the guide's couple
+                    s = pslot[i, 12 + side]
+                    for kk in range(nk):
+                        W[s, kk] = sg
         # block upper-triangular form: the last block first, each with the unknowns of the
-        # later blocks already known (coupling terms moved to the right-hand side)
-        worst = np.inf
+        # later blocks known (coupling terms to the right-hand side); every block by
+        # Householder QR, which is stable without pivoting and so runs the same
+        # instructions at every position
+        for kk in range(nk):
+            worst[kk] = np.inf
         for blk in range(n_blocks - 1, -1, -1):
             r0 = blk_ptr[blk]
             nb = blk_ptr[blk + 1] - r0
-            for i in range(nb):
-                ri = rperm[r0 + i]
-                bb[i] = b[ri]
-                for j in range(nb):
-                    Mb[i, j] = M[ri, cperm[r0 + j]]
-            for c in range(cpl_ptr[blk], cpl_ptr[blk + 1]):
-                i = cpl_row[c]
-                bb[i] -= M[rperm[r0 + i], cpl_col[c]] * x[cpl_col[c]]
-            rel = _gauss_solve(Mb, bb, nb)
-            if rel < worst:
-                worst = rel
+            off = blk_off[blk]
+            for c in range(cpl_ptr[blk], cpl_ptr[blk + 1]):  # known unknowns to the right
+                ri = rperm[r0 + cpl_row[c]]
+                col = cpl_col[c]
+                s = n_blk_slots + c
+                for kk in range(nk):
+                    B[ri, kk] -= W[s, kk] * XV[col, kk]
+            for kk in range(nk):  # scale: the block's largest entry
+                t3[kk] = 0.0
+            for e in range(nb * nb):
+                for kk in range(nk):
+                    t3[kk] = max(t3[kk], abs(W[off + e, kk]))
             for j in range(nb):
-                x[cperm[r0 + j]] = bb[j]
-        MINPIV[d, k] = worst
-        for e in range(x.shape[0]):
-            X[d, k, e] = x[e]
+                sj = off + j * nb + j
+                for kk in range(nk):
+                    t1[kk] = 0.0
+                for i in range(j, nb):
+                    s = off + i * nb + j
+                    for kk in range(nk):
+                        t1[kk] += W[s, kk] * W[s, kk]
+                for kk in range(nk):
+                    ajj = W[sj, kk]
+                    alpha = -math.copysign(math.sqrt(t1[kk]), ajj)
+                    v0 = ajj - alpha
+                    vn2 = t1[kk] - ajj * ajj + v0 * v0
+                    t2[kk] = 2.0 / vn2 if vn2 > 0.0 else 0.0
+                    W[sj, kk] = v0  # the reflector's vector replaces column j ...
+                    t1[kk] = alpha  # ... and R_jj waits in t1
+                    worst[kk] = min(worst[kk], abs(alpha) / t3[kk])
+                for c in range(j + 1, nb + 1):  # the later columns, then the right-hand side
+                    for kk in range(nk):
+                        t4[kk] = 0.0
+                    for i in range(j, nb):
+                        sv = off + i * nb + j
+                        if c < nb:
+                            sc = off + i * nb + c
+                            for kk in range(nk):
+                                t4[kk] += W[sv, kk] * W[sc, kk]
+                        else:
+                            ri = rperm[r0 + i]
+                            for kk in range(nk):
+                                t4[kk] += W[sv, kk] * B[ri, kk]
+                    for kk in range(nk):
+                        t4[kk] *= t2[kk]
+                    for i in range(j, nb):
+                        sv = off + i * nb + j
+                        if c < nb:
+                            sc = off + i * nb + c
+                            for kk in range(nk):
+                                W[sc, kk] -= t4[kk] * W[sv, kk]
+                        else:
+                            ri = rperm[r0 + i]
+                            for kk in range(nk):
+                                B[ri, kk] -= t4[kk] * W[sv, kk]
+                for kk in range(nk):
+                    W[sj, kk] = t1[kk]  # R_jj on the diagonal
+            for j in range(nb - 1, -1, -1):  # back substitution with R
+                rj = rperm[r0 + j]
+                for kk in range(nk):
+                    t4[kk] = B[rj, kk]
+                for c in range(j + 1, nb):
+                    s = off + j * nb + c
+                    cc = cperm[r0 + c]
+                    for kk in range(nk):
+                        t4[kk] -= W[s, kk] * XV[cc, kk]
+                cj = cperm[r0 + j]
+                sj = off + j * nb + j
+                for kk in range(nk):
+                    XV[cj, kk] = t4[kk] / W[sj, kk]
+        for kk in range(nk):
+            MINPIV[d, k0 + kk] = worst[kk]
+            for e in range(n_eq):
+                X[d, k0 + kk, e] = XV[e, kk]
 
 
 _FORCE_DOC = """Loads, right-hand sides and pair forces of every design and position.
@@ -1189,46 +1266,48 @@ _FORCE_DOC = """Loads, right-hand sides and pair forces of every design and posi
     the centres of mass. mass (kg), inertia (kg mm^2 about the centre of mass) per link;
     gravity (m/s^2, along -y). Loads: ld_int rows (link, point, first row in ld_tw, number of
     toward points: 0 for a fixed direction), ld_f rows (force N, cos, sin of the fixed
-    direction), ld_on (n_loads, n_phi) 1 inside the load's windows. The system is solved block
-    by block in the block upper-triangular order given by blk_ptr, rperm (equation rows),
-    cperm (unknown columns) and the coupling entries (cpl_row local to the block, cpl_col) of
-    each block (from the sparsity of the pairs, see :func:`sewmech.dynamics.force_structure`).
-    Fills LF (D, n_phi, n_loads, 2) N, LPOW (D, n_phi) N mm/s, X (D, n_phi, n_eq) and MINPIV
-    (D, n_phi), the smallest pivot of each block relative to that block's largest entry (0:
-    singular). {which}
+    direction), ld_on (n_loads, n_phi) 1 inside the load's windows. The equations (row 3 (link
+    - 1) + x, y, moment about the centre of mass; one column per unknown) are solved block by
+    block in the block upper-triangular order of blk_ptr, rperm (rows) and cperm (unknowns);
+    block b's entries sit row-major at blk_off[b] of the n_slots entry slots, its coupling
+    entries (cpl_row within the block, cpl_col) after all blocks, and pslot says in which slot
+    each matrix entry of each pair goes (see :func:`sewmech.dynamics.force_structure`). Fills
+    LF (D, n_phi, n_loads, 2) N, LPOW (D, n_phi) N mm/s, X (D, n_phi, n_eq) and MINPIV (D,
+    n_phi), the smallest |R_jj| of the blocks' QR factors relative to each block's largest
+    entry (0: singular). {which}
     """
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
+def _force_scratch(n_slots, n_eq):
+    c = FORCE_CHUNK
+    return (np.empty((n_slots, c)), np.empty((n_eq, c)), np.zeros((n_eq, c)), np.empty(c),
+            np.empty(c), np.empty(c), np.empty(c), np.empty(c))
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def force_solve(pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA, mass,
-                inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, rperm, cperm, cpl_ptr,
-                cpl_row, cpl_col, LF, LPOW, X, MINPIV):
-    n_eq = X.shape[2]
-    M = np.empty((n_eq, n_eq))
-    b = np.empty(n_eq)
-    Mb = np.empty((n_eq, n_eq))
-    bb = np.empty(n_eq)
-    x = np.empty(n_eq)
+                inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off, rperm, cperm,
+                cpl_ptr, cpl_row, cpl_col, pslot, n_slots, LF, LPOW, X, MINPIV):
+    W, B, XV, t1, t2, t3, t4, worst = _force_scratch(n_slots, X.shape[2])
     for d in range(X.shape[0]):
         _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
-                      mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, rperm, cperm,
-                      cpl_ptr, cpl_row, cpl_col, LF, LPOW, X, MINPIV, M, b, Mb, bb, x)
+                      mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off,
+                      rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot, LF, LPOW, X, MINPIV, W, B,
+                      XV, t1, t2, t3, t4, worst)
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"}, parallel=True)
 def force_solve_parallel(pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
-                         mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, rperm,
-                         cperm, cpl_ptr, cpl_row, cpl_col, LF, LPOW, X, MINPIV):
-    n_eq = X.shape[2]
+                         mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off,
+                         rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot, n_slots, LF, LPOW, X,
+                         MINPIV):
     for d in prange(X.shape[0]):
-        M = np.empty((n_eq, n_eq))
-        b = np.empty(n_eq)
-        Mb = np.empty((n_eq, n_eq))
-        bb = np.empty(n_eq)
-        x = np.empty(n_eq)
+        W, B, XV, t1, t2, t3, t4, worst = _force_scratch(n_slots, X.shape[2])
         _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
-                      mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, rperm, cperm,
-                      cpl_ptr, cpl_row, cpl_col, LF, LPOW, X, MINPIV, M, b, Mb, bb, x)
+                      mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off,
+                      rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot, LF, LPOW, X, MINPIV, W, B,
+                      XV, t1, t2, t3, t4, worst)
 
 
 force_solve.__doc__ = _FORCE_DOC.format(which="One design after the other.")

@@ -501,6 +501,9 @@ class ForceStructure:
     cpl_ptr: np.ndarray  # coupling entries of block b: cpl_ptr[b]:cpl_ptr[b + 1]
     cpl_row: np.ndarray  # row within the block
     cpl_col: np.ndarray  # unknown of a later block
+    blk_off: np.ndarray  # block b's entries (row-major) start at this slot
+    pslot: np.ndarray  # (n_pairs, 14): the slot of every matrix entry of every pair
+    n_slots: int  # the blocks' entries, then the coupling entries
 
     @property
     def block_sizes(self) -> tuple[int, ...]:
@@ -589,11 +592,37 @@ def force_structure(machine: Machine) -> ForceStructure:
                     cpl_row.append(i)
                     cpl_col.append(int(c))
         cpl_ptr.append(len(cpl_row))
+    # where each entry lives in the kernel's slot array: blocks row-major, then couplings
+    sizes = np.diff(blk_ptr)
+    blk_off = np.concatenate([[0], np.cumsum(sizes ** 2)]).astype(np.int64)
+    slot = np.full((n_eq, n_eq), -1, dtype=np.int64)
+    for blk in range(n_comp):
+        r0, nb = blk_ptr[blk], sizes[blk]
+        rr, cc = rperm[r0:r0 + nb], cperm[r0:r0 + nb]
+        slot[np.ix_(rr, cc)] = blk_off[blk] + np.arange(nb * nb).reshape(nb, nb)
+    for blk in range(n_comp):
+        for c in range(cpl_ptr[blk], cpl_ptr[blk + 1]):
+            slot[rperm[blk_ptr[blk] + cpl_row[c]], cpl_col[c]] = blk_off[-1] + c
+    pslot = np.full((len(table), 14), -1, dtype=np.int64)
+    for i, (kind, la, lb, col) in enumerate(table[:, [0, 1, 2, 7]]):
+        if kind == K.PAIR_DRIVER:
+            pslot[i, 0] = slot[3 * (lb - 1) + 2, col]
+            continue
+        for side, link in enumerate((lb, la)):
+            if not link:
+                continue
+            for j in range(2 if kind == K.PAIR_REVOLUTE else 1):
+                for comp in range(3):
+                    pslot[i, 6 * j + 3 * side + comp] = slot[3 * (link - 1) + comp, col + j]
+            if kind == K.PAIR_PRISMATIC:
+                pslot[i, 12 + side] = slot[3 * (link - 1) + 2, col + 1]
+    assert (slot[pattern] >= 0).all()
     out = ForceStructure(table, angles, cam_rows, pattern, blk_ptr.astype(np.int64), rperm,
                          cperm, np.asarray(cpl_ptr, dtype=np.int64),
-                         np.asarray(cpl_row, dtype=np.int64), np.asarray(cpl_col, dtype=np.int64))
+                         np.asarray(cpl_row, dtype=np.int64), np.asarray(cpl_col, dtype=np.int64),
+                         blk_off, pslot, int(blk_off[-1] + len(cpl_col)))
     for a in (out.pattern, out.blk_ptr, out.rperm, out.cperm, out.cpl_ptr, out.cpl_row,
-              out.cpl_col):
+              out.cpl_col, out.blk_off, out.pslot):
         a.setflags(write=False)
     return out
 
@@ -695,8 +724,9 @@ class DynamicsPlan:
                  K.force_solve)
         solve(st.table, st.angles, st.cam_rows, machine.terms, flat, a["P"], a["V"], a["EP"],
               a["S"], a["TH"], a["GP"], a["GA"], lm.mass, lm.inertia,
-              GRAVITY if self.gravity else 0.0, *self._loads, st.blk_ptr, st.rperm, st.cperm,
-              st.cpl_ptr, st.cpl_row, st.cpl_col, LF, LPOW, X, MINPIV)
+              GRAVITY if self.gravity else 0.0, *self._loads, st.blk_ptr, st.blk_off, st.rperm,
+              st.cperm, st.cpl_ptr, st.cpl_row, st.cpl_col, st.pslot, st.n_slots, LF, LPOW, X,
+              MINPIV)
         feasible = a["feasible"]
         bad = feasible & ~(MINPIV > 1e-12)
         if bad.any():
