@@ -694,6 +694,7 @@ class DynamicsPlan:
             extra_points=(np.stack([links, lm.origins], axis=1),
                           np.stack([lm.com_u, lm.com_v], axis=1)))
         self._loads = _load_tables(machine, self.loads, np.degrees(self.kin_plan.phi))
+        self._load_links = tuple(int(i) for i in self._loads[0][:, 0])
         self._live: tuple | None = None
 
     def __call__(self, params: ArrayLike | None = None, *,
@@ -708,7 +709,7 @@ class DynamicsPlan:
         kin = kp._run(P)
         gp, gv, ga = kp.extra_motion
         batch, n_phi = kin.batch_shape, kp.n_phi
-        n_d = int(np.prod(batch, dtype=np.int64))
+        n_d = math.prod(batch)
         st, lm, machine = self.structure, self.masses, self.machine
         n_eq = st.pattern.shape[0]
         if self._live is None or self._live[0] != batch:
@@ -728,8 +729,7 @@ class DynamicsPlan:
               st.cperm, st.cpl_ptr, st.cpl_row, st.cpl_col, st.pslot, st.n_slots, LF, LPOW, X,
               MINPIV)
         feasible = a["feasible"]
-        bad = feasible & ~(MINPIV > 1e-12)
-        if bad.any():
+        if not (MINPIV > 1e-12).all() and (bad := feasible & ~(MINPIV > 1e-12)).any():
             d, k = np.argwhere(bad)[0]
             design = tuple(int(i) for i in np.unravel_index(d, batch)) if batch else ()
             at = f"design {design}, " if design else ""
@@ -750,8 +750,7 @@ class DynamicsPlan:
             machine=machine, kin=kin, pairs=machine.pairs, unknowns=shape(X),
             gravity=self.gravity, load_names=tuple(ld.name for ld in self.loads),
             load_force=shape(LF), load_power=shape(LPOW), mass=lm, com_p=gp, com_v=gv,
-            com_a=ga, params=np.broadcast_to(P, batch + P.shape[-1:]),
-            mass_props=self.mass_props, load_links=tuple(int(i) for i in self._loads[0][:, 0]))
+            com_a=ga, params=P, mass_props=self.mass_props, load_links=self._load_links)
 
 
 def inverse_dynamics(
