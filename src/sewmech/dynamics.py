@@ -705,8 +705,8 @@ class DynamicsPlan:
         overwrites it.
         """
         kp = self.kin_plan
-        P = kp._designs(params, inputs)
-        kin = kp._run(P)
+        P = kp.designs(params, inputs)
+        kin = kp.run(P)
         gp, gv, ga = kp.extra_motion
         batch, n_phi = kin.batch_shape, kp.n_phi
         n_d = math.prod(batch)
@@ -738,7 +738,7 @@ class DynamicsPlan:
                 " equilibrium equations are singular (a mechanism at a dead centre with respect"
                 " to its driver, or a pair whose line passes through its link's pivot); step"
                 " around this angle")
-        if kp._dirty:  # some positions could not be assembled (on_failure="mask")
+        if kp.any_failed:  # some positions could not be assembled (on_failure="mask")
             X[~feasible] = np.nan
             LF[~feasible] = np.nan
             LPOW[~feasible] = np.nan

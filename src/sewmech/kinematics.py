@@ -166,6 +166,11 @@ class KinematicsPlan:
     def n_phi(self) -> int:
         return self.phi.shape[0]
 
+    @property
+    def any_failed(self) -> bool:
+        """Whether the last call had positions that could not be assembled."""
+        return self._dirty
+
     def kernel_arrays(self) -> dict[str, np.ndarray]:
         """The last call's arrays as the kernels use them, (n_design, n_phi, ...): P, V, A of
         the selected points, TH, OM, EP of the links, S, SD, SDD of the variables, GP, GV, GA
@@ -174,7 +179,8 @@ class KinematicsPlan:
             raise RuntimeError("the plan has not been run yet")
         return self._live[1][3]
 
-    def _designs(self, params, inputs) -> np.ndarray:
+    def designs(self, params, inputs=None) -> np.ndarray:
+        """The parameter vectors a call evaluates, batch + (n_parameters,), checked."""
         machine = self.machine
         if params is None and not inputs:
             return machine.defaults
@@ -241,10 +247,10 @@ class KinematicsPlan:
         The returned result views the plan's arrays: the next call with the same batch shape
         overwrites it.
         """
-        return self._run(self._designs(params, inputs))
+        return self.run(self.designs(params, inputs))
 
-    def _run(self, P0: np.ndarray) -> KinematicsResult:
-        """Evaluate the designs ``P0`` (batch + (n_parameters,)), already checked."""
+    def run(self, P0: np.ndarray) -> KinematicsResult:
+        """Evaluate the designs ``P0`` (batch + (n_parameters,)) from :meth:`designs`."""
         batch = P0.shape[:-1]
         flat = P0.reshape(-1, P0.shape[-1])
         if not flat.flags.c_contiguous:
