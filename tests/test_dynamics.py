@@ -626,3 +626,51 @@ def test_force_structure_blocks_and_plan_reuse():
     again = plan(designs[::-1].copy())
     assert np.shares_memory(first.unknowns, again.unknowns)
     np.testing.assert_array_equal(again.unknowns[0], ref.unknowns)
+
+
+def test_written_block_solvers():
+    """The force kernel's written block solvers (sewmech._blocks) are what the generator writes;
+    each solves random blocks as numpy's LU does, reports a singular block, and the whole
+    JB1-3 solve agrees with the kernel's generic loop."""
+    from sewmech import _blockgen, _blocks
+    from sewmech.dynamics import DynamicsPlan
+
+    assert open(_blocks.__file__).read() == _blockgen.source(), (
+        "sewmech/_blocks.py is stale: run python -m sewmech._blockgen")
+    rng = np.random.default_rng(7)
+    ch, nk = _blocks.CHUNK, 37  # not a multiple of the vector width
+    for n in range(1, _blocks.MAX_BLOCK + 1):
+        off, start = 3, 2  # the block's place in the flat scratch arrays
+        A = rng.normal(size=(nk, n, n)) * 10.0 ** rng.uniform(-3, 3, size=(nk, 1, 1))
+        A[0] = np.eye(n)[rng.permutation(n)]  # a permutation: zero pivots without pivoting
+        A[1, -1] = A[1, 0] * (n > 1)  # singular: two equal rows (n = 1: zero)
+        x = rng.normal(size=(nk, n))
+        b = np.einsum("kij,kj->ki", A, x)
+        W = np.zeros((off + n * n + 2) * ch)
+        W.reshape(-1, ch)[off:off + n * n, :nk] = A.reshape(nk, n * n).T
+        B = np.zeros((start + n + 1) * ch)
+        B.reshape(-1, ch)[start:start + n, :nk] = b.T
+        X = np.full_like(B, 7.0)
+        worst = np.full(ch, np.inf)
+        assert _blocks.block_qr(n, W, off, B, X, start, nk, worst)
+        got = X.reshape(-1, ch)[start:start + n, :nk].T
+        ok = np.ones(nk, dtype=bool)
+        ok[1] = False
+        ref = np.linalg.solve(A[ok], b[ok][..., None])[..., 0]
+        np.testing.assert_allclose(got[ok], ref, rtol=1e-9, atol=1e-9 * np.abs(x).max())
+        assert (X.reshape(-1, ch)[[start - 1, start + n]] == 7.0).all()  # nothing else written
+        assert worst[1] < 1e-14 and (worst[nk:] == np.inf).all()
+        # the pivot check sees how well posed a block is: sigma_min <= |R_jj| <= column norm
+        w, cond = worst[:nk][ok], np.linalg.cond(A[ok])
+        assert (w >= (1 - 1e-9) / cond).all() and (w <= math.sqrt(n) * (1 + 1e-12)).all()
+    assert not _blocks.block_qr(_blocks.MAX_BLOCK + 1, W, 0, B, X, 0, nk, worst)
+    jb = load_machine("jb1-3")
+    phi = np.radians(np.arange(0.0, 360.0, 5.0))
+    designs = jb.parameters({"needle_bar.length": [43.0, 45.0]}, inputs={"regulator": 0.4})
+    plan = DynamicsPlan(jb, phi, rpm=1000)
+    written = plan(designs).unknowns.copy()
+    plan._max_written = 0
+    generic = plan(designs).unknowns
+    scale = np.abs(written).max(axis=-1, keepdims=True)
+    assert np.abs(written - generic).max() / scale.max() < 1e-12
+    assert not np.array_equal(written, generic)  # the two paths did run

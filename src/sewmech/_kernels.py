@@ -25,6 +25,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from ._blocks import CHUNK, block_qr
+
 # ---- opcodes (column 0 of the unit table) -----------------------------------------------------
 OP_FIXED = 0  # point, x_param, y_param
 OP_CRANK = 1  # link, phase_param, ratio_param, setting_param (-1: driven by the shaft)
@@ -1067,36 +1069,50 @@ def pair_geometry(pairs, pair_angle, cam_rows, terms, params, P, TH, Q, X, N):
 
 
 #: positions solved together by the force kernel: every loop over positions is innermost and
-#: free of branches, so that the compiler vectorises it (four positions per AVX2 instruction)
-FORCE_CHUNK = 64
+#: free of branches, so that the compiler vectorises it (four positions per AVX2 instruction).
+#: The pitch of the block solvers' flat scratch (:mod:`sewmech._blocks`).
+FORCE_CHUNK = CHUNK
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA, mass,
                   inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off, rperm, cperm,
                   cpl_ptr, cpl_row, cpl_col, pslot, LF, LPOW, X, MINPIV, W, B, XV, t1, t2, t3,
-                  t4, worst):
-    """One design, positions in chunks of FORCE_CHUNK. W (n_slots, chunk) holds the blocks'
-    entries (row-major within a block) and then the coupling entries; B the right-hand sides
-    (n_eq, chunk); XV the unknowns (n_eq, chunk); t1..t4, worst scratch (chunk)."""
+                  t4, worst, rpos, cpos, max_written):
+    """One design, positions in chunks of FORCE_CHUNK. W (n_slots * chunk, flat: slot s of
+    position kk at s * chunk + kk) holds the blocks' entries (row-major within a block) and
+    then the coupling entries; B the right-hand sides and XV the unknowns (n_eq * chunk, flat),
+    both in block order (row rperm[p] and unknown cperm[p] at p); t1..t4, worst scratch (chunk);
+    rpos, cpos (n_eq) scratch for the inverse permutations."""
     n_phi = X.shape[1]
     n_eq = X.shape[2]
     n_links = mass.shape[0]
     n_blocks = blk_ptr.shape[0] - 1
     n_blk_slots = blk_off[n_blocks]
+    for p in range(n_eq):
+        rpos[rperm[p]] = p
+        cpos[cperm[p]] = p
+    Wf = W
+    Bf = B
+    XVf = XV
+    W = Wf.reshape((Wf.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
+    B = Bf.reshape((Bf.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
+    XV = XVf.reshape((XVf.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
     for k0 in range(0, n_phi, FORCE_CHUNK):
         nk = min(FORCE_CHUNK, n_phi - k0)
         W[:, :] = 0.0
         # right-hand side per moving link: m a_G - m g - sum F ; I alpha - sum (X - G) x F
         for li in range(1, n_links):
-            r = 3 * (li - 1)
+            rx = rpos[3 * (li - 1)]
+            ry = rpos[3 * (li - 1) + 1]
+            rm = rpos[3 * (li - 1) + 2]
             m = 1e-3 * mass[li]
             mg = gravity * mass[li]
             ii = 1e-3 * inertia[li]
             for kk in range(nk):
-                B[r, kk] = m * GA[d, k0 + kk, li, 0]
-                B[r + 1, kk] = m * GA[d, k0 + kk, li, 1] + mg
-                B[r + 2, kk] = ii * EP[d, k0 + kk, li]
+                B[rx, kk] = m * GA[d, k0 + kk, li, 0]
+                B[ry, kk] = m * GA[d, k0 + kk, li, 1] + mg
+                B[rm, kk] = ii * EP[d, k0 + kk, li]
         for kk in range(nk):
             LPOW[d, k0 + kk] = 0.0
         for j in range(ld_int.shape[0]):
@@ -1127,9 +1143,9 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
                 LPOW[d, k] += fx * V[d, k, pi, 0] + fy * V[d, k, pi, 1]
                 if li > 0:
                     r = 3 * (li - 1)
-                    B[r, kk] -= fx
-                    B[r + 1, kk] -= fy
-                    B[r + 2, kk] -= ((P[d, k, pi, 0] - GP[d, k, li, 0]) * fy
+                    B[rpos[r], kk] -= fx
+                    B[rpos[r + 1], kk] -= fy
+                    B[rpos[r + 2], kk] -= ((P[d, k, pi, 0] - GP[d, k, li, 0]) * fy
                                      - (P[d, k, pi, 1] - GP[d, k, li, 1]) * fx)
         # the matrix entries of every pair (pslot: where each of its entries goes in W)
         for i in range(pairs.shape[0]):
@@ -1186,11 +1202,13 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
             nb = blk_ptr[blk + 1] - r0
             off = blk_off[blk]
             for c in range(cpl_ptr[blk], cpl_ptr[blk + 1]):  # known unknowns to the right
-                ri = rperm[r0 + cpl_row[c]]
-                col = cpl_col[c]
+                ri = r0 + cpl_row[c]
+                col = cpos[cpl_col[c]]
                 s = n_blk_slots + c
                 for kk in range(nk):
                     B[ri, kk] -= W[s, kk] * XV[col, kk]
+            if nb <= max_written and block_qr(nb, Wf, off, Bf, XVf, r0, nk, worst):
+                continue
             for kk in range(nk):  # scale: the block's largest entry
                 t3[kk] = 0.0
             for e in range(nb * nb):
@@ -1212,7 +1230,7 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
                     t2[kk] = 2.0 / vn2 if vn2 > 0.0 else 0.0
                     W[sj, kk] = v0  # the reflector's vector replaces column j ...
                     t1[kk] = alpha  # ... and R_jj waits in t1
-                    worst[kk] = min(worst[kk], abs(alpha) / t3[kk])
+                    worst[kk] = min(worst[kk], abs(alpha) / t3[kk] if t3[kk] > 0.0 else 0.0)
                 for c in range(j + 1, nb + 1):  # the later columns, then the right-hand side
                     for kk in range(nk):
                         t4[kk] = 0.0
@@ -1223,7 +1241,7 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
                             for kk in range(nk):
                                 t4[kk] += W[sv, kk] * W[sc, kk]
                         else:
-                            ri = rperm[r0 + i]
+                            ri = r0 + i
                             for kk in range(nk):
                                 t4[kk] += W[sv, kk] * B[ri, kk]
                     for kk in range(nk):
@@ -1235,28 +1253,28 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
                             for kk in range(nk):
                                 W[sc, kk] -= t4[kk] * W[sv, kk]
                         else:
-                            ri = rperm[r0 + i]
+                            ri = r0 + i
                             for kk in range(nk):
                                 B[ri, kk] -= t4[kk] * W[sv, kk]
                 for kk in range(nk):
                     W[sj, kk] = t1[kk]  # R_jj on the diagonal
             for j in range(nb - 1, -1, -1):  # back substitution with R
-                rj = rperm[r0 + j]
+                rj = r0 + j
                 for kk in range(nk):
                     t4[kk] = B[rj, kk]
                 for c in range(j + 1, nb):
                     s = off + j * nb + c
-                    cc = cperm[r0 + c]
+                    cc = r0 + c
                     for kk in range(nk):
                         t4[kk] -= W[s, kk] * XV[cc, kk]
-                cj = cperm[r0 + j]
+                cj = r0 + j
                 sj = off + j * nb + j
                 for kk in range(nk):
                     XV[cj, kk] = t4[kk] / W[sj, kk]
         for kk in range(nk):
             MINPIV[d, k0 + kk] = worst[kk]
             for e in range(n_eq):
-                X[d, k0 + kk, e] = XV[e, kk]
+                X[d, k0 + kk, cperm[e]] = XV[e, kk]
 
 
 _FORCE_DOC = """Loads, right-hand sides and pair forces of every design and position.
@@ -1274,40 +1292,44 @@ _FORCE_DOC = """Loads, right-hand sides and pair forces of every design and posi
     each matrix entry of each pair goes (see :func:`sewmech.dynamics.force_structure`). Fills
     LF (D, n_phi, n_loads, 2) N, LPOW (D, n_phi) N mm/s, X (D, n_phi, n_eq) and MINPIV (D,
     n_phi), the smallest |R_jj| of the blocks' QR factors relative to each block's largest
-    entry (0: singular). {which}
+    entry (0: singular). Blocks of up to max_written unknowns (at most
+    :data:`sewmech._blocks.MAX_BLOCK`) go to the written solvers of :mod:`sewmech._blocks`,
+    larger ones to a generic loop; 0 sends every block to the generic loop (a test compares
+    the two). {which}
     """
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _force_scratch(n_slots, n_eq):
     c = FORCE_CHUNK
-    return (np.empty((n_slots, c)), np.empty((n_eq, c)), np.zeros((n_eq, c)), np.empty(c),
-            np.empty(c), np.empty(c), np.empty(c), np.empty(c))
+    return (np.zeros(n_slots * c), np.zeros(n_eq * c), np.zeros(n_eq * c), np.empty(c),
+            np.empty(c), np.empty(c), np.empty(c), np.empty(c), np.empty(n_eq, dtype=np.int64),
+            np.empty(n_eq, dtype=np.int64))
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
 def force_solve(pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA, mass,
                 inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off, rperm, cperm,
-                cpl_ptr, cpl_row, cpl_col, pslot, n_slots, LF, LPOW, X, MINPIV):
-    W, B, XV, t1, t2, t3, t4, worst = _force_scratch(n_slots, X.shape[2])
+                cpl_ptr, cpl_row, cpl_col, pslot, n_slots, LF, LPOW, X, MINPIV, max_written):
+    W, B, XV, t1, t2, t3, t4, worst, rpos, cpos = _force_scratch(n_slots, X.shape[2])
     for d in range(X.shape[0]):
         _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
                       mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off,
                       rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot, LF, LPOW, X, MINPIV, W, B,
-                      XV, t1, t2, t3, t4, worst)
+                      XV, t1, t2, t3, t4, worst, rpos, cpos, max_written)
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"}, parallel=True)
 def force_solve_parallel(pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
                          mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off,
                          rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot, n_slots, LF, LPOW, X,
-                         MINPIV):
+                         MINPIV, max_written):
     for d in prange(X.shape[0]):
-        W, B, XV, t1, t2, t3, t4, worst = _force_scratch(n_slots, X.shape[2])
+        W, B, XV, t1, t2, t3, t4, worst, rpos, cpos = _force_scratch(n_slots, X.shape[2])
         _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
                       mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off,
                       rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot, LF, LPOW, X, MINPIV, W, B,
-                      XV, t1, t2, t3, t4, worst)
+                      XV, t1, t2, t3, t4, worst, rpos, cpos, max_written)
 
 
 force_solve.__doc__ = _FORCE_DOC.format(which="One design after the other.")

@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _kernels as K
+from ._blocks import MAX_BLOCK
 from .errors import SewmechError
 from .kinematics import KinematicsPlan
 from .machine import Machine, Pair
@@ -696,6 +697,9 @@ class DynamicsPlan:
         self._loads = _load_tables(machine, self.loads, np.degrees(self.kin_plan.phi))
         self._load_links = tuple(int(i) for i in self._loads[0][:, 0])
         self._live: tuple | None = None
+        #: blocks of up to this many unknowns go to the written solvers of ``_blocks``, larger
+        #: ones to the force kernel's generic loop (0: all of them; the tests compare the two)
+        self._max_written = MAX_BLOCK
 
     def __call__(self, params: ArrayLike | None = None, *,
                  inputs: Mapping[str, ArrayLike] | None = None) -> DynamicsResult:
@@ -727,7 +731,7 @@ class DynamicsPlan:
               a["S"], a["TH"], a["GP"], a["GA"], lm.mass, lm.inertia,
               GRAVITY if self.gravity else 0.0, *self._loads, st.blk_ptr, st.blk_off, st.rperm,
               st.cperm, st.cpl_ptr, st.cpl_row, st.cpl_col, st.pslot, st.n_slots, LF, LPOW, X,
-              MINPIV)
+              MINPIV, self._max_written)
         feasible = a["feasible"]
         if not (MINPIV > 1e-12).all() and (bad := feasible & ~(MINPIV > 1e-12)).any():
             d, k = np.argwhere(bad)[0]
