@@ -623,9 +623,14 @@ def test_force_structure_blocks_and_plan_reuse():
         np.testing.assert_array_equal(got.load_force, ref.load_force)
         np.testing.assert_array_equal(got.com_a, ref.com_a)
     first = plan(designs)
+    torque = first.input_torque.copy()
     again = plan(designs[::-1].copy())
-    assert np.shares_memory(first.unknowns, again.unknowns)
+    assert again is first and np.shares_memory(first.unknowns, again.unknowns)
     np.testing.assert_array_equal(again.unknowns[0], ref.unknowns)
+    # the derived quantities cached from the first call are dropped, the designs copied
+    np.testing.assert_array_equal(again.input_torque[::-1], torque)
+    np.testing.assert_array_equal(again.params, designs[::-1])
+    np.testing.assert_array_equal(again.input_torque[0], ref.input_torque)
 
 
 def test_written_block_solvers():
@@ -674,3 +679,21 @@ def test_written_block_solvers():
     scale = np.abs(written).max(axis=-1, keepdims=True)
     assert np.abs(written - generic).max() / scale.max() < 1e-12
     assert not np.array_equal(written, generic)  # the two paths did run
+
+
+def test_singular_position_message():
+    """A position whose force equations have a zero pivot is named by its crank angle (and
+    design); positions that did not assemble (masked) are not reported."""
+    from sewmech.dynamics import DynamicsPlan
+
+    fb = load_machine("fourbar-benchmark")
+    phi = np.radians(np.arange(0.0, 360.0, 10.0))
+    plan = DynamicsPlan(fb, phi, masses={k: planar(*v) for k, v in TEST_LINKS.items()})
+    res = plan(fb.parameters({"P.u": [10.0, 11.0]}))
+    feasible = np.ones((2, phi.size), dtype=bool)
+    minpiv = np.full((2, phi.size), 0.5)
+    minpiv[1, 7] = 0.0
+    with pytest.raises(SingularForceSystem, match=r"design \(1,\), phi = 70 deg"):
+        plan._raise_singular(res.kin, feasible, minpiv)
+    feasible[1, 7] = False
+    plan._raise_singular(res.kin, feasible, minpiv)  # masked: nothing to report

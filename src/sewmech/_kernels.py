@@ -1104,6 +1104,9 @@ def pair_geometry(pairs, pair_angle, cam_rows, terms, params, P, TH, Q, X, N):
                     i, pairs, pair_angle, cam_rows, terms, params, d, k, P, TH, Q)
 
 
+#: a block whose smallest |R_jj| relative to its largest entry is this small is singular
+PIVOT_MIN = 1e-12
+
 #: positions solved together by the force kernel: every loop over positions is innermost and
 #: free of branches, so that the compiler vectorises it (four positions per AVX2 instruction).
 #: The pitch of the block solvers' flat scratch (:mod:`sewmech._blocks`).
@@ -1119,12 +1122,14 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
     position kk at s * chunk + kk) holds the blocks' entries (row-major within a block) and
     then the coupling entries; B the right-hand sides and XV the unknowns (n_eq * chunk, flat),
     both in block order (row rperm[p] and unknown cperm[p] at p); t1..t4, worst scratch (chunk);
-    rpos, cpos (n_eq) scratch for the inverse permutations."""
+    rpos, cpos (n_eq) scratch for the inverse permutations. Returns the number of positions
+    whose smallest relative pivot is not above PIVOT_MIN."""
     n_phi = X.shape[1]
     n_eq = X.shape[2]
     n_links = mass.shape[0]
     n_blocks = blk_ptr.shape[0] - 1
     n_blk_slots = blk_off[n_blocks]
+    n_low = 0
     for p in range(n_eq):
         rpos[rperm[p]] = p
         cpos[cperm[p]] = p
@@ -1309,8 +1314,11 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
                     XV[cj, kk] = t4[kk] / W[sj, kk]
         for kk in range(nk):
             MINPIV[d, k0 + kk] = worst[kk]
+            if not worst[kk] > PIVOT_MIN:  # NaN (a position that did not assemble) included
+                n_low += 1
             for e in range(n_eq):
                 X[d, k0 + kk, cperm[e]] = XV[e, kk]
+    return n_low
 
 
 _FORCE_DOC = """Loads, right-hand sides and pair forces of every design and position.
@@ -1331,7 +1339,7 @@ _FORCE_DOC = """Loads, right-hand sides and pair forces of every design and posi
     entry (0: singular). Blocks of up to max_written unknowns (at most
     :data:`sewmech._blocks.MAX_BLOCK`) go to the written solvers of :mod:`sewmech._blocks`,
     larger ones to a generic loop; 0 sends every block to the generic loop (a test compares
-    the two). {which}
+    the two). Returns the number of positions whose MINPIV is not above PIVOT_MIN. {which}
     """
 
 
@@ -1348,11 +1356,13 @@ def force_solve(pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP,
                 inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off, rperm, cperm,
                 cpl_ptr, cpl_row, cpl_col, pslot, n_slots, LF, LPOW, X, MINPIV, max_written):
     W, B, XV, t1, t2, t3, t4, worst, rpos, cpos = _force_scratch(n_slots, X.shape[2])
+    n_low = 0
     for d in range(X.shape[0]):
-        _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
+        n_low += _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
                       mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off,
                       rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot, LF, LPOW, X, MINPIV, W, B,
                       XV, t1, t2, t3, t4, worst, rpos, cpos, max_written)
+    return n_low
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"}, parallel=True)
@@ -1360,12 +1370,14 @@ def force_solve_parallel(pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q
                          mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off,
                          rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot, n_slots, LF, LPOW, X,
                          MINPIV, max_written):
+    n_low = 0
     for d in prange(X.shape[0]):
         W, B, XV, t1, t2, t3, t4, worst, rpos, cpos = _force_scratch(n_slots, X.shape[2])
-        _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
+        n_low += _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
                       mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off,
                       rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot, LF, LPOW, X, MINPIV, W, B,
                       XV, t1, t2, t3, t4, worst, rpos, cpos, max_written)
+    return n_low
 
 
 force_solve.__doc__ = _FORCE_DOC.format(which="One design after the other.")

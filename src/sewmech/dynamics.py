@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from functools import cached_property, lru_cache
 
 import numpy as np
@@ -653,6 +653,11 @@ def _load_tables(machine: Machine, loads: Sequence[LoadSpec], phi_deg: np.ndarra
             np.asarray(on, dtype=float).reshape(-1, phi_deg.shape[0]))
 
 
+#: a DynamicsResult's own fields; anything else in its __dict__ is a cached derived quantity
+_RESULT_FIELDS = frozenset(f.name for f in fields(DynamicsResult))
+_N_RESULT_FIELDS = len(_RESULT_FIELDS)
+
+
 class DynamicsPlan:
     """An inverse-dynamics call prepared once and run for many designs: the fast path for loops
     (balancing and optimisation call it thousands of times).
@@ -660,9 +665,11 @@ class DynamicsPlan:
     Prepared once: the kinematics (:class:`~sewmech.kinematics.KinematicsPlan`, which also
     moves every link's centre of mass), the pair table and the block structure of the force
     equations (:func:`force_structure`), the link masses and the loads with their windows. A
-    call is then two compiled calls (motion, then loads and forces) into reused arrays; the
-    :class:`DynamicsResult` it returns views those arrays and stays valid until the plan's next
-    call with the same batch shape. :func:`inverse_dynamics` is a one-off plan.
+    call is then two compiled calls (motion, then loads and forces) into reused arrays. Calls
+    with the same batch shape return the same :class:`DynamicsResult` object, which views those
+    arrays: each call overwrites it (its copy of the designs included) and drops the derived
+    quantities (energies, reactions, ...) it had cached. :func:`inverse_dynamics` is a one-off
+    plan.
 
     Parameters are those of :func:`inverse_dynamics` (which see); ``params`` and ``inputs`` are
     given per call.
@@ -706,55 +713,77 @@ class DynamicsPlan:
         """Forces for designs (see :func:`inverse_dynamics` for ``params`` and ``inputs``).
 
         The returned result views the plan's arrays: the next call with the same batch shape
-        overwrites it.
+        overwrites it (copy the arrays you want to keep).
         """
         kp = self.kin_plan
         P = kp.designs(params, inputs)
         kin = kp.run(P)
-        gp, gv, ga = kp.extra_motion
-        batch, n_phi = kin.batch_shape, kp.n_phi
-        n_d = math.prod(batch)
-        st, lm, machine = self.structure, self.masses, self.machine
-        n_eq = st.pattern.shape[0]
-        if self._live is None or self._live[0] != batch:
-            self._live = (batch, np.empty((n_d, n_phi, self._loads[0].shape[0], 2)),
-                          np.empty((n_d, n_phi)), np.empty((n_d, n_phi, n_eq)),
-                          np.empty((n_d, n_phi)))
-        _, LF, LPOW, X, MINPIV = self._live
         a = kp.kernel_arrays()
+        live = self._live
+        if live is None or live[0] is not a:  # a new batch shape: new arrays and result
+            live = self._live = self._prepare(kin, a)
+        _, solve, head, tail, res = live
         flat = P.reshape(-1, P.shape[-1])
         if not flat.flags.c_contiguous:
             flat = np.ascontiguousarray(flat)
+        if solve(*head, flat, *tail, self._max_written):  # some pivots are (nearly) zero
+            self._raise_singular(kin, a["feasible"], tail[-1])
+        if kp.any_failed:  # some positions could not be assembled (on_failure="mask")
+            feasible = a["feasible"]
+            for x in tail[-4:]:  # LF, LPOW, X, MINPIV
+                x[~feasible] = np.nan
+        np.copyto(res.params, P)
+        cached = res.__dict__
+        if len(cached) > _N_RESULT_FIELDS:  # the last call's derived quantities are stale
+            for key in [k for k in cached if k not in _RESULT_FIELDS]:
+                del cached[key]
+        return res
+
+    def _prepare(self, kin: KinematicsResult, a: dict[str, np.ndarray]) -> tuple:
+        """Output arrays, the force kernel's arguments and the result that views the outputs,
+        for the kinematics plan's arrays ``a`` (one batch shape)."""
+        kp, st, lm, machine = self.kin_plan, self.structure, self.masses, self.machine
+        batch, n_phi = kin.batch_shape, kp.n_phi
+        n_d = math.prod(batch)
+        n_eq = st.pattern.shape[0]
+        LF = np.empty((n_d, n_phi, self._loads[0].shape[0], 2))
+        LPOW, MINPIV = np.empty((n_d, n_phi)), np.empty((n_d, n_phi))
+        X = np.empty((n_d, n_phi, n_eq))
         solve = (K.force_solve_parallel if n_d >= 4 and n_d * n_phi >= 20000 else
                  K.force_solve)
-        solve(st.table, st.angles, st.cam_rows, machine.terms, flat, a["P"], a["V"], a["EP"],
-              a["S"], a["TH"], a["GP"], a["GA"], lm.mass, lm.inertia,
-              GRAVITY if self.gravity else 0.0, *self._loads, st.blk_ptr, st.blk_off, st.rperm,
-              st.cperm, st.cpl_ptr, st.cpl_row, st.cpl_col, st.pslot, st.n_slots, LF, LPOW, X,
-              MINPIV, self._max_written)
-        feasible = a["feasible"]
-        if not (MINPIV > 1e-12).all() and (bad := feasible & ~(MINPIV > 1e-12)).any():
-            d, k = np.argwhere(bad)[0]
-            design = tuple(int(i) for i in np.unravel_index(d, batch)) if batch else ()
-            at = f"design {design}, " if design else ""
-            raise SingularForceSystem(
-                f"machine '{machine.name}' at {at}phi = {float(kin.phi_deg[k]):.6g} deg: the"
-                " equilibrium equations are singular (a mechanism at a dead centre with respect"
-                " to its driver, or a pair whose line passes through its link's pivot); step"
-                " around this angle")
-        if kp.any_failed:  # some positions could not be assembled (on_failure="mask")
-            X[~feasible] = np.nan
-            LF[~feasible] = np.nan
-            LPOW[~feasible] = np.nan
+        head = (st.table, st.angles, st.cam_rows, machine.terms)
+        tail = (a["P"], a["V"], a["EP"], a["S"], a["TH"], a["GP"], a["GA"], lm.mass, lm.inertia,
+                GRAVITY if self.gravity else 0.0, *self._loads, st.blk_ptr, st.blk_off,
+                st.rperm, st.cperm, st.cpl_ptr, st.cpl_row, st.cpl_col, st.pslot, st.n_slots,
+                LF, LPOW, X, MINPIV)
 
         def shape(x):
             return x.reshape(batch + x.shape[1:])
 
-        return DynamicsResult(
+        gp, gv, ga = kp.extra_motion
+        res = DynamicsResult(
             machine=machine, kin=kin, pairs=machine.pairs, unknowns=shape(X),
             gravity=self.gravity, load_names=tuple(ld.name for ld in self.loads),
             load_force=shape(LF), load_power=shape(LPOW), mass=lm, com_p=gp, com_v=gv,
-            com_a=ga, params=P, mass_props=self.mass_props, load_links=self._load_links)
+            com_a=ga, params=np.empty(batch + (machine.defaults.size,)),
+            mass_props=self.mass_props, load_links=self._load_links)
+        return a, solve, head, tail, res
+
+    def _raise_singular(self, kin: KinematicsResult, feasible: np.ndarray,
+                        minpiv: np.ndarray) -> None:
+        """Raise SingularForceSystem at the first assembled position with a zero pivot."""
+        bad = feasible & ~(minpiv > K.PIVOT_MIN)
+        if not bad.any():  # only positions that did not assemble (masked)
+            return
+        d, k = np.argwhere(bad)[0]
+        batch = kin.batch_shape
+        design = tuple(int(i) for i in np.unravel_index(d, batch)) if batch else ()
+        at = f"design {design}, " if design else ""
+        raise SingularForceSystem(
+            f"machine '{self.machine.name}' at {at}phi = {float(kin.phi_deg[k]):.6g} deg: the"
+            " equilibrium equations are singular (a mechanism at a dead centre with respect"
+            " to its driver, or a pair whose line passes through its link's pivot); step"
+            " around this angle")
 
 
 def inverse_dynamics(
