@@ -25,7 +25,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ._blocks import CHUNK, block_qr
+from ._blocks import CHUNK, MAX_BLOCK, block_qr
 
 # ---- opcodes (column 0 of the unit table) -----------------------------------------------------
 OP_FIXED = 0  # point, x_param, y_param
@@ -1130,6 +1130,7 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
     n_blocks = blk_ptr.shape[0] - 1
     n_blk_slots = blk_off[n_blocks]
     n_low = 0
+    n_written = min(max_written, MAX_BLOCK)
     for p in range(n_eq):
         rpos[rperm[p]] = p
         cpos[cperm[p]] = p
@@ -1141,7 +1142,11 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
     XV = XVf.reshape((XVf.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
     for k0 in range(0, n_phi, FORCE_CHUNK):
         nk = min(FORCE_CHUNK, n_phi - k0)
-        W[:, :] = 0.0
+        # W starts zeroed and every chunk writes the same entries, which the written solvers
+        # only read: only the blocks of the generic loop, which works in place, are re-zeroed
+        for blk in range(n_blocks):
+            if blk_ptr[blk + 1] - blk_ptr[blk] > n_written:
+                W[blk_off[blk]:blk_off[blk + 1], :] = 0.0
         # right-hand side per moving link: m a_G - m g - sum F ; I alpha - sum (X - G) x F
         for li in range(1, n_links):
             rx = rpos[3 * (li - 1)]
@@ -1196,38 +1201,36 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
                 for kk in range(nk):
                     W[s, kk] = 1.0
                 continue
-            nf = 2 if kind == PAIR_REVOLUTE else 1
             for side in range(2):
                 link = pairs[i, 2] if side == 0 else pairs[i, 1]
                 if link == 0:
                     continue
                 sg = 1.0 if side == 0 else -1.0
-                for j in range(nf):
-                    sx = pslot[i, 6 * j + 3 * side]
-                    sy = pslot[i, 6 * j + 3 * side + 1]
-                    sm = pslot[i, 6 * j + 3 * side + 2]
-                    if kind == PAIR_REVOLUTE:
-                        pt = pairs[i, 3]
-                        for kk in range(nk):
-                            k = k0 + kk
-                            dx = P[d, k, pt, 0] - GP[d, k, link, 0]
-                            dy = P[d, k, pt, 1] - GP[d, k, link, 1]
-                            if j == 0:  # the force along x
-                                W[sx, kk] = sg
-                                W[sm, kk] = -sg * dy
-                            else:  # along y
-                                W[sy, kk] = sg
-                                W[sm, kk] = sg * dx
-                    else:
-                        for kk in range(nk):
-                            k = k0 + kk
-                            xx, xy, fx, fy = _pair_geometry(i, pairs, pair_angle, cam_rows,
-                                                            terms, params, d, k, P, TH, Q)
-                            dx = xx - GP[d, k, link, 0]
-                            dy = xy - GP[d, k, link, 1]
-                            W[sx, kk] = sg * fx
-                            W[sy, kk] = sg * fy
-                            W[sm, kk] = sg * (dx * fy - dy * fx)
+                if kind == PAIR_REVOLUTE:  # the forces along x and y at the pin
+                    pt = pairs[i, 3]
+                    sx = pslot[i, 3 * side]
+                    smx = pslot[i, 3 * side + 2]
+                    sy = pslot[i, 6 + 3 * side + 1]
+                    smy = pslot[i, 6 + 3 * side + 2]
+                    for kk in range(nk):
+                        k = k0 + kk
+                        W[sx, kk] = sg
+                        W[smx, kk] = -sg * (P[d, k, pt, 1] - GP[d, k, link, 1])
+                        W[sy, kk] = sg
+                        W[smy, kk] = sg * (P[d, k, pt, 0] - GP[d, k, link, 0])
+                else:  # one force along the contact normal
+                    sx = pslot[i, 3 * side]
+                    sy = pslot[i, 3 * side + 1]
+                    sm = pslot[i, 3 * side + 2]
+                    for kk in range(nk):
+                        k = k0 + kk
+                        xx, xy, fx, fy = _pair_geometry(i, pairs, pair_angle, cam_rows, terms,
+                                                        params, d, k, P, TH, Q)
+                        dx = xx - GP[d, k, link, 0]
+                        dy = xy - GP[d, k, link, 1]
+                        W[sx, kk] = sg * fx
+                        W[sy, kk] = sg * fy
+                        W[sm, kk] = sg * (dx * fy - dy * fx)
                 if kind == PAIR_PRISMATIC:  # the guide's couple
                     s = pslot[i, 12 + side]
                     for kk in range(nk):
@@ -1248,7 +1251,7 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
                 s = n_blk_slots + c
                 for kk in range(nk):
                     B[ri, kk] -= W[s, kk] * XV[col, kk]
-            if nb <= max_written and block_qr(nb, Wf, off, Bf, XVf, r0, nk, worst):
+            if nb <= n_written and block_qr(nb, Wf, off, Bf, XVf, r0, nk, worst):
                 continue
             for kk in range(nk):  # scale: the block's largest entry
                 t3[kk] = 0.0
