@@ -168,32 +168,28 @@ def rigid_point(px, py, vx, vy, ax, ay, c, s, om, ep, u, v):
     )
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def rrr_dyad(p1x, p1y, v1x, v1y, a1x, a1y, p2x, p2y, v2x, v2y, a2x, a2y, l1, l2, branch, out):
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+def rrr_dyad(p1x, p1y, v1x, v1y, a1x, a1y, p2x, p2y, v2x, v2y, a2x, a2y, l1, l2, branch):
     """Two links l1 (from point 1) and l2 (from point 2) meeting at a new joint C.
 
-    out[0:6] = C position, velocity, acceleration; out[6:10] = omega1, eps1, omega2, eps2 of the
-    vectors 1->C and 2->C, out[10:14] = those vectors (x1, y1, x2, y2), from which the caller
-    takes the link orientation without trigonometry. Returns a failure code.
-    ``branch`` +1 puts C to the left of the directed line 1 -> 2.
+    Returns (code, cx, cy, vx, vy, ax, ay, omega1, eps1, omega2, eps2, x1, y1, x2, y2): the
+    failure code (a float, FAIL_NONE when assembled), C's position, velocity and acceleration,
+    the angular velocities and accelerations of the vectors 1->C and 2->C, and those vectors,
+    from which the caller takes the link orientation without trigonometry. ``branch`` +1 puts
+    C to the left of the directed line 1 -> 2.
+
+    Written without branches (the failure checks are selects and the values of a failed call
+    are garbage), so that a loop of calls over independent angles vectorises.
     """
-    # one division and two roots along the dependency chain: the unit is latency-bound
     dx = p2x - p1x
     dy = p2y - p1y
     dd2 = dx * dx + dy * dy
-    if dd2 == 0.0:
-        return FAIL_ASSEMBLY
     inv = 1.0 / math.sqrt(dd2)
     ex = dx * inv
     ey = dy * inv
     a = (l1 * l1 - l2 * l2 + dd2) * (0.5 * inv)
     h2 = l1 * l1 - a * a
-    if h2 < 0.0:
-        if h2 > -_TOGGLE_REL * l1 * l1:
-            h2 = 0.0
-        else:
-            return FAIL_ASSEMBLY
-    bh = branch * math.sqrt(h2)
+    bh = branch * math.sqrt(max(h2, 0.0))  # a small negative h2 is a toggle position
     r1x = a * ex - bh * ey
     r1y = a * ey + bh * ex
     cx = p1x + r1x
@@ -202,8 +198,6 @@ def rrr_dyad(p1x, p1y, v1x, v1y, a1x, a1y, p2x, p2y, v2x, v2y, a2x, a2y, l1, l2,
     r2y = r1y - dy
     # omega1 x r1 - omega2 x r2 = v2 - v1, and the same matrix for the accelerations
     det = r1y * r2x - r2y * r1x
-    if abs(det) <= 1e-13 * l1 * l2:
-        return FAIL_SINGULAR
     idet = 1.0 / det
     b1 = v2x - v1x
     b2 = v2y - v1y
@@ -213,21 +207,11 @@ def rrr_dyad(p1x, p1y, v1x, v1y, a1x, a1y, p2x, p2y, v2x, v2y, a2x, a2y, l1, l2,
     b2 = a2y - a1y - w2 * w2 * r2y + w1 * w1 * r1y
     e1 = -(r2x * b1 + r2y * b2) * idet
     e2 = -(r1x * b1 + r1y * b2) * idet
-    out[0] = cx
-    out[1] = cy
-    out[2] = v1x - w1 * r1y
-    out[3] = v1y + w1 * r1x
-    out[4] = a1x - e1 * r1y - w1 * w1 * r1x
-    out[5] = a1y + e1 * r1x - w1 * w1 * r1y
-    out[6] = w1
-    out[7] = e1
-    out[8] = w2
-    out[9] = e2
-    out[10] = r1x
-    out[11] = r1y
-    out[12] = r2x
-    out[13] = r2y
-    return FAIL_NONE
+    code = float(FAIL_SINGULAR) if abs(det) <= 1e-13 * l1 * l2 else float(FAIL_NONE)
+    code = (float(FAIL_ASSEMBLY) if (dd2 == 0.0) | (h2 < -_TOGGLE_REL * l1 * l1)
+            else code)
+    return (code, cx, cy, v1x - w1 * r1y, v1y + w1 * r1x, a1x - e1 * r1y - w1 * w1 * r1x,
+            a1y + e1 * r1x - w1 * w1 * r1y, w1, e1, w2, e2, r1x, r1y, r2x, r2y)
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
@@ -603,6 +587,7 @@ def _solve_group(g, grp, unk, terms, cams_i, arcs_i, params, d, p, v, a, th, om,
 #: so the CPU overlaps the independent angles of a closed-form unit instead of waiting on one
 #: angle's chain of roots and divisions (see BENCHMARKS.md); the block's state stays in cache.
 BLOCK = 32
+_U = np.uint64  # unsigned lane indices: numba then emits no negative-index wrap-around
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
@@ -634,6 +619,7 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
         if grp[g, 0] > max_n:
             max_n = grp[g, 0]
     out = np.empty(16)
+    G = np.empty(27 * BLOCK)  # the RRR units' lanes: 12 inputs, 15 outputs (pitch BLOCK)
     res = np.empty(6)
     info = np.zeros(3)
     F = np.empty(max_n)
@@ -757,29 +743,48 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
                     il2 = 1.0 / l2
                     th1 = need_th[L1]
                     th2 = need_th[L2]
+                    # gather the inputs into lanes, solve every step of the block in one
+                    # loop that vectorises, scatter the results of the steps that assembled
+                    for kb in range(nb):
+                        for c in range(2):
+                            G[c * BLOCK + kb] = p[kb, i1, c]
+                            G[(2 + c) * BLOCK + kb] = v[kb, i1, c]
+                            G[(4 + c) * BLOCK + kb] = a[kb, i1, c]
+                            G[(6 + c) * BLOCK + kb] = p[kb, i2, c]
+                            G[(8 + c) * BLOCK + kb] = v[kb, i2, c]
+                            G[(10 + c) * BLOCK + kb] = a[kb, i2, c]
+                    for kb in range(_U(nb)):
+                        (G[_U(12 * BLOCK) + kb], G[_U(13 * BLOCK) + kb], G[_U(14 * BLOCK) + kb],
+                         G[_U(15 * BLOCK) + kb], G[_U(16 * BLOCK) + kb], G[_U(17 * BLOCK) + kb],
+                         G[_U(18 * BLOCK) + kb], G[_U(19 * BLOCK) + kb], G[_U(20 * BLOCK) + kb],
+                         G[_U(21 * BLOCK) + kb], G[_U(22 * BLOCK) + kb], G[_U(23 * BLOCK) + kb],
+                         G[_U(24 * BLOCK) + kb], G[_U(25 * BLOCK) + kb],
+                         G[_U(26 * BLOCK) + kb]) = rrr_dyad(
+                            G[kb], G[_U(BLOCK) + kb], G[_U(2 * BLOCK) + kb],
+                            G[_U(3 * BLOCK) + kb], G[_U(4 * BLOCK) + kb], G[_U(5 * BLOCK) + kb],
+                            G[_U(6 * BLOCK) + kb], G[_U(7 * BLOCK) + kb], G[_U(8 * BLOCK) + kb],
+                            G[_U(9 * BLOCK) + kb], G[_U(10 * BLOCK) + kb],
+                            G[_U(11 * BLOCK) + kb], l1, l2, br)
                     for kb in range(nb):
                         if fu[kb] >= 0:
                             continue
-                        code = rrr_dyad(p[kb, i1, 0], p[kb, i1, 1], v[kb, i1, 0], v[kb, i1, 1],
-                                        a[kb, i1, 0], a[kb, i1, 1], p[kb, i2, 0], p[kb, i2, 1],
-                                        v[kb, i2, 0], v[kb, i2, 1], a[kb, i2, 0], a[kb, i2, 1],
-                                        l1, l2, br, out)
+                        code = G[12 * BLOCK + kb]
                         if code != FAIL_NONE:
                             fu[kb] = u
-                            fc[kb] = code
+                            fc[kb] = int(code)
                             continue
                         for c in range(2):
-                            p[kb, i, c] = out[c]
-                            v[kb, i, c] = out[2 + c]
-                            a[kb, i, c] = out[4 + c]
-                        om[kb, L1] = out[6]
-                        ep[kb, L1] = out[7]
-                        om[kb, L2] = out[8]
-                        ep[kb, L2] = out[9]
-                        lc[kb, L1] = out[10] * il1
-                        ls[kb, L1] = out[11] * il1
-                        lc[kb, L2] = out[12] * il2
-                        ls[kb, L2] = out[13] * il2
+                            p[kb, i, c] = G[(13 + c) * BLOCK + kb]
+                            v[kb, i, c] = G[(15 + c) * BLOCK + kb]
+                            a[kb, i, c] = G[(17 + c) * BLOCK + kb]
+                        om[kb, L1] = G[19 * BLOCK + kb]
+                        ep[kb, L1] = G[20 * BLOCK + kb]
+                        om[kb, L2] = G[21 * BLOCK + kb]
+                        ep[kb, L2] = G[22 * BLOCK + kb]
+                        lc[kb, L1] = G[23 * BLOCK + kb] * il1
+                        ls[kb, L1] = G[24 * BLOCK + kb] * il1
+                        lc[kb, L2] = G[25 * BLOCK + kb] * il2
+                        ls[kb, L2] = G[26 * BLOCK + kb] * il2
                     # the angles in loops of their own, which vectorise (a failed step's
                     # angle is never read)
                     if th1:
