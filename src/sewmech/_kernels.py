@@ -1145,6 +1145,18 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
     W = Wf.reshape((Wf.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
     B = Bf.reshape((Bf.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
     XV = XVf.reshape((XVf.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
+    # flat views with unsigned offsets for the loops over positions (no wrap-around checks)
+    Pf = P.reshape(P.size)
+    Xf = X.reshape(X.size)
+    GPf = GP.reshape(GP.size)
+    GAf = GA.reshape(GA.size)
+    EPf = EP.reshape(EP.size)
+    n_pt = P.shape[2]
+    n_g = GP.shape[2]
+    sp = _U(2 * n_pt)  # P's step from one position to the next
+    sg_ = _U(2 * n_g)  # GP's and GA's
+    sl = _U(EP.shape[2])  # EP's
+    CH = _U(FORCE_CHUNK)
     for k0 in range(0, n_phi, FORCE_CHUNK):
         nk = min(FORCE_CHUNK, n_phi - k0)
         # W starts zeroed and every chunk writes the same entries, which the written solvers
@@ -1160,10 +1172,13 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
             m = 1e-3 * mass[li]
             mg = gravity * mass[li]
             ii = 1e-3 * inertia[li]
-            for kk in range(nk):
-                B[rx, kk] = m * GA[d, k0 + kk, li, 0]
-                B[ry, kk] = m * GA[d, k0 + kk, li, 1] + mg
-                B[rm, kk] = ii * EP[d, k0 + kk, li]
+            ga = _U(((d * n_phi + k0) * n_g + li) * 2)
+            el = _U((d * n_phi + k0) * EP.shape[2] + li)
+            bx, by, bm = _U(rx) * CH, _U(ry) * CH, _U(rm) * CH
+            for kk in range(_U(nk)):
+                Bf[bx + kk] = m * GAf[ga + kk * sg_]
+                Bf[by + kk] = m * GAf[ga + kk * sg_ + _U(1)] + mg
+                Bf[bm + kk] = ii * EPf[el + kk * sl]
         for kk in range(nk):
             LPOW[d, k0 + kk] = 0.0
         for j in range(ld_int.shape[0]):
@@ -1212,17 +1227,19 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
                     continue
                 sg = 1.0 if side == 0 else -1.0
                 if kind == PAIR_REVOLUTE:  # the forces along x and y at the pin
-                    pt = pairs[i, 3]
-                    sx = pslot[i, 3 * side]
-                    smx = pslot[i, 3 * side + 2]
-                    sy = pslot[i, 6 + 3 * side + 1]
-                    smy = pslot[i, 6 + 3 * side + 2]
-                    for kk in range(nk):
-                        k = k0 + kk
-                        W[sx, kk] = sg
-                        W[smx, kk] = -sg * (P[d, k, pt, 1] - GP[d, k, link, 1])
-                        W[sy, kk] = sg
-                        W[smy, kk] = sg * (P[d, k, pt, 0] - GP[d, k, link, 0])
+                    bp = _U(((d * n_phi + k0) * n_pt + pairs[i, 3]) * 2)
+                    bg = _U(((d * n_phi + k0) * n_g + link) * 2)
+                    sx = _U(pslot[i, 3 * side]) * CH
+                    smx = _U(pslot[i, 3 * side + 2]) * CH
+                    sy = _U(pslot[i, 6 + 3 * side + 1]) * CH
+                    smy = _U(pslot[i, 6 + 3 * side + 2]) * CH
+                    for kk in range(_U(nk)):
+                        ip = bp + kk * sp
+                        ig = bg + kk * sg_
+                        Wf[sx + kk] = sg
+                        Wf[smx + kk] = -sg * (Pf[ip + _U(1)] - GPf[ig + _U(1)])
+                        Wf[sy + kk] = sg
+                        Wf[smy + kk] = sg * (Pf[ip] - GPf[ig])
                 else:  # one force along the contact normal
                     sx = pslot[i, 3 * side]
                     sy = pslot[i, 3 * side + 1]
@@ -1251,11 +1268,11 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
             nb = blk_ptr[blk + 1] - r0
             off = blk_off[blk]
             for c in range(cpl_ptr[blk], cpl_ptr[blk + 1]):  # known unknowns to the right
-                ri = r0 + cpl_row[c]
-                col = cpos[cpl_col[c]]
-                s = n_blk_slots + c
-                for kk in range(nk):
-                    B[ri, kk] -= W[s, kk] * XV[col, kk]
+                ri = _U(r0 + cpl_row[c]) * CH
+                col = _U(cpos[cpl_col[c]]) * CH
+                s = _U(n_blk_slots + c) * CH
+                for kk in range(_U(nk)):
+                    Bf[ri + kk] -= Wf[s + kk] * XVf[col + kk]
             if nb <= n_written and block_qr(nb, Wf, off, Bf, XVf, r0, nk, worst):
                 continue
             for kk in range(nk):  # scale: the block's largest entry
@@ -1324,8 +1341,12 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
             MINPIV[d, k0 + kk] = worst[kk]
             if not worst[kk] > PIVOT_MIN:  # NaN (a position that did not assemble) included
                 n_low += 1
-            for e in range(n_eq):
-                X[d, k0 + kk, cperm[e]] = XV[e, kk]
+        bx = _U((d * n_phi + k0) * n_eq)
+        for e in range(n_eq):
+            xo = bx + _U(cperm[e])
+            xi = _U(e) * CH
+            for kk in range(_U(nk)):
+                Xf[xo + kk * _U(n_eq)] = XVf[xi + kk]
     return n_low
 
 
