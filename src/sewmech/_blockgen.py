@@ -98,8 +98,9 @@ def source(max_block: int = MAX_BLOCK) -> str:
     lines = ["", "", f"MAX_BLOCK = {max_block}", "", "",
              '@njit(cache=True, error_model="numpy", fastmath={"contract"})',
              "def block_qr(n, W, off, B, X, start, nk, worst):",
-             '    """Solve an n x n block with its written solver (see the module doc); False'
-             ' when n > MAX_BLOCK."""']
+             '    """Solve an n x n block with its written solver (see the module doc).',
+             "",
+             '    False when n > MAX_BLOCK: the caller solves the block itself."""']
     for n in range(1, max_block + 1):
         lines.append(f"    {'if' if n == 1 else 'elif'} n == {n}:")
         lines.append(f"        block_qr_{n}(W, off, B, X, start, nk, worst)")

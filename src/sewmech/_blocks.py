@@ -742,7 +742,9 @@ MAX_BLOCK = 6
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
 def block_qr(n, W, off, B, X, start, nk, worst):
-    """Solve an n x n block with its written solver (see the module doc); False when n > MAX_BLOCK."""
+    """Solve an n x n block with its written solver (see the module doc).
+
+    False when n > MAX_BLOCK: the caller solves the block itself."""
     if n == 1:
         block_qr_1(W, off, B, X, start, nk, worst)
     elif n == 2:

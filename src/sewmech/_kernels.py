@@ -1387,10 +1387,11 @@ def force_solve(pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP,
     W, B, XV, t1, t2, t3, t4, worst, rpos, cpos = _force_scratch(n_slots, X.shape[2])
     n_low = 0
     for d in range(X.shape[0]):
-        n_low += _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
-                      mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off,
-                      rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot, LF, LPOW, X, MINPIV, W, B,
-                      XV, t1, t2, t3, t4, worst, rpos, cpos, max_written)
+        n_low += _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH,
+                               GP, GA, mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on,
+                               blk_ptr, blk_off, rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot,
+                               LF, LPOW, X, MINPIV, W, B, XV, t1, t2, t3, t4, worst, rpos, cpos,
+                               max_written)
     return n_low
 
 
@@ -1402,10 +1403,11 @@ def force_solve_parallel(pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q
     n_low = 0
     for d in prange(X.shape[0]):
         W, B, XV, t1, t2, t3, t4, worst, rpos, cpos = _force_scratch(n_slots, X.shape[2])
-        n_low += _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
-                      mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off,
-                      rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot, LF, LPOW, X, MINPIV, W, B,
-                      XV, t1, t2, t3, t4, worst, rpos, cpos, max_written)
+        n_low += _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH,
+                               GP, GA, mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on,
+                               blk_ptr, blk_off, rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot,
+                               LF, LPOW, X, MINPIV, W, B, XV, t1, t2, t3, t4, worst, rpos, cpos,
+                               max_written)
     return n_low
 
 
