@@ -32,7 +32,7 @@ from numpy.typing import ArrayLike
 from . import _kernels as K
 from ._blocks import MAX_BLOCK
 from .errors import SewmechError
-from .kinematics import KinematicsPlan
+from .kinematics import KinematicsPlan, kernel_input, kernel_params
 from .machine import Machine, Pair
 from .mass import MassProperties
 from .results import KinematicsResult
@@ -440,10 +440,10 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
 
 
 def _flat(kin: KinematicsResult, a: np.ndarray) -> np.ndarray:
-    """batch + (n_phi, ...) -> (n_designs, n_phi, ...), contiguous, for the kernels."""
+    """batch + (n_phi, ...) -> (n_designs, n_phi, ...), contiguous and read-only, for the
+    kernels."""
     n_d = int(np.prod(kin.batch_shape, dtype=np.int64))
-    return np.ascontiguousarray(a.reshape((n_d, kin.phi.shape[0])
-                                          + a.shape[len(kin.batch_shape) + 1:]))
+    return kernel_input(a.reshape((n_d, kin.phi.shape[0]) + a.shape[len(kin.batch_shape) + 1:]))
 
 
 def pair_geometry(machine: Machine, kin: KinematicsResult,
@@ -458,8 +458,8 @@ def pair_geometry(machine: Machine, kin: KinematicsResult,
     n_d = int(np.prod(batch, dtype=np.int64))
     X = np.zeros((n_d, n_phi, len(machine.pairs), 2))
     N = np.zeros_like(X)
-    K.pair_geometry(table, angles, cam_rows, machine.terms,
-                    np.ascontiguousarray(P.reshape(n_d, P.shape[-1])), _flat(kin, kin.p),
+    K.pair_geometry(*(kernel_input(x) for x in (table, angles, cam_rows, machine.terms)),
+                    kernel_params(P), _flat(kin, kin.p),
                     _flat(kin, kin.theta), _flat(kin, kin.q), X, N)
     shape = batch + (n_phi, len(machine.pairs), 2)
     return X.reshape(shape), N.reshape(shape)
@@ -723,10 +723,7 @@ class DynamicsPlan:
         if live is None or live[0] is not a:  # a new batch shape: new arrays and result
             live = self._live = self._prepare(kin, a)
         _, solve, head, tail, res = live
-        flat = P.reshape(-1, P.shape[-1])
-        if not flat.flags.c_contiguous:
-            flat = np.ascontiguousarray(flat)
-        if solve(*head, flat, *tail, self._max_written):  # some pivots are (nearly) zero
+        if solve(*head, kernel_params(P), *tail, self._max_written):  # some pivots are (nearly) zero
             self._raise_singular(kin, a["feasible"], tail[-1])
         if kp.any_failed:  # some positions could not be assembled (on_failure="mask")
             feasible = a["feasible"]
@@ -751,11 +748,14 @@ class DynamicsPlan:
         X = np.empty((n_d, n_phi, n_eq))
         solve = (K.force_solve_parallel if n_d >= 4 and n_d * n_phi >= 20000 else
                  K.force_solve)
-        head = (st.table, st.angles, st.cam_rows, machine.terms)
-        tail = (a["P"], a["V"], a["EP"], a["S"], a["TH"], a["GP"], a["GA"], lm.mass, lm.inertia,
-                GRAVITY if self.gravity else 0.0, *self._loads, st.blk_ptr, st.blk_off,
-                st.rperm, st.cperm, st.cpl_ptr, st.cpl_row, st.cpl_col, st.pslot, st.n_slots,
-                LF, LPOW, X, MINPIV)
+        # inputs read-only (one array type per argument: numba compiles the kernel once)
+        head = tuple(kernel_input(x) for x in (st.table, st.angles, st.cam_rows, machine.terms))
+        tail = (a["P"], a["V"], a["EP"], a["S"], a["TH"], a["GP"], a["GA"],
+                *(kernel_input(x) for x in (lm.mass, lm.inertia)),
+                GRAVITY if self.gravity else 0.0, *(kernel_input(x) for x in self._loads),
+                *(kernel_input(x) for x in (st.blk_ptr, st.blk_off, st.rperm, st.cperm,
+                                            st.cpl_ptr, st.cpl_row, st.cpl_col, st.pslot)),
+                st.n_slots, LF, LPOW, X, MINPIV)
 
         def shape(x):
             return x.reshape(batch + x.shape[1:])

@@ -60,3 +60,20 @@ class AssemblyError(SewmechError):
 
 class ConvergenceError(AssemblyError):
     """The loop solver did not converge (names the loop unit, the angle and the residual)."""
+
+
+def name_index(names: tuple[str, ...], name: str, what: str, owner: str = "") -> int:
+    """Position of ``name`` in ``names``; a KeyError that suggests close names otherwise.
+
+    ``what`` names the kind ("point", "link", ...), ``owner`` what was searched (e.g.
+    "machine 'jb1-3'"), both for the message.
+    """
+    try:
+        return names.index(name)
+    except ValueError:
+        import difflib
+
+        close = difflib.get_close_matches(name, names, n=3)
+        hint = f"; did you mean {', '.join(close)}?" if close else ""
+        where = f"{owner} has no" if owner else "no"
+        raise KeyError(f"{where} {what} '{name}'{hint}") from None

@@ -74,6 +74,23 @@ def _march(phi: np.ndarray, start: float, max_step: float):
     return march, store, where
 
 
+def kernel_input(a: np.ndarray) -> np.ndarray:
+    """An input array as the kernels take it: C-contiguous and read-only, whether or not the
+    caller's array is writable (the machine's tables are not), so that numba compiles each
+    kernel for one array type instead of one per combination (20 s each for the interpreter)."""
+    a = np.ascontiguousarray(a)
+    if a.flags.writeable:
+        a = a.view()
+        a.flags.writeable = False
+    return a
+
+
+def kernel_params(P: np.ndarray) -> np.ndarray:
+    """Designs ``P`` (batch + (n_parameters,)) as the kernels take them: (n_design,
+    n_parameters), C-contiguous and read-only (see :func:`kernel_input`)."""
+    return kernel_input(P.reshape(-1, P.shape[-1]))
+
+
 class KinematicsPlan:
     """A kinematics call prepared once and run for many designs: the fast path for loops.
 
@@ -147,16 +164,18 @@ class KinematicsPlan:
         self._rows = rows
         self._var_units = tuple(machine.variable_units[i] for i in var_sel)
         # the kernel's arguments before the design and after it (see _kernels.evaluate_program)
-        self._head = (program,)
-        self._tail = (march, np.cos(march), np.sin(march), store, march_omega, march_eps,
+        self._head = (kernel_input(program),)
+        self._tail = tuple(
+            kernel_input(x) if isinstance(x, np.ndarray) else x
+            for x in (march, np.cos(march), np.sin(march), store, march_omega, march_eps,
                       machine.groups, machine.unknowns, machine.terms, machine.cams,
                       machine.arcs, len(machine.point_names), len(machine.link_names),
-                      len(machine.variable_names), tol, max_iter, need_th, pt_sel, lk_sel,
-                      var_sel)
+                      len(machine.variable_names), float(tol), int(max_iter), need_th, pt_sel,
+                      lk_sel, var_sel))
         if extra_points is None:
             extra_points = (np.empty((0, 2), dtype=np.int64), np.empty((0, 2)))
-        self._extra = (np.ascontiguousarray(extra_points[0], dtype=np.int64),
-                       np.ascontiguousarray(extra_points[1], dtype=float))
+        self._extra = (kernel_input(np.asarray(extra_points[0], dtype=np.int64)),
+                       kernel_input(np.asarray(extra_points[1], dtype=float)))
         self._sizes = (len(pt_sel), len(lk_sel), len(var_sel), machine.groups.shape[0],
                        self._extra[0].shape[0])
         self._live: tuple | None = None  # (batch, buffers, result) of the last batch shape
@@ -252,9 +271,7 @@ class KinematicsPlan:
     def run(self, P0: np.ndarray) -> KinematicsResult:
         """Evaluate the designs ``P0`` (batch + (n_parameters,)) from :meth:`designs`."""
         batch = P0.shape[:-1]
-        flat = P0.reshape(-1, P0.shape[-1])
-        if not flat.flags.c_contiguous:
-            flat = np.ascontiguousarray(flat)
+        flat = kernel_params(P0)
         (out, feasible, failure_unit, _), result = self._buffers(batch)
         loop_res = out[11]
         if loop_res.size:

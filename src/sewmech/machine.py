@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike
 
 from . import _kernels as K
 from .cams import CONSTANT_WIDTH_KEYS, constant_width_arcs
-from .errors import MachineFileError
+from .errors import MachineFileError, name_index
 from .mass import from_spec as mass_from_spec
 from .spec import (
     FRAME,
@@ -171,12 +171,7 @@ class Machine:
                             else c.reference_phi_deg)
 
     def _index(self, names: tuple[str, ...], name: str, what: str) -> int:
-        try:
-            return names.index(name)
-        except ValueError:
-            close = difflib.get_close_matches(name, names, n=3)
-            hint = f"; did you mean {', '.join(close)}?" if close else ""
-            raise KeyError(f"machine '{self.name}' has no {what} '{name}'{hint}") from None
+        return name_index(names, name, what, f"machine '{self.name}'")
 
     def point_index(self, name: str) -> int:
         return self._index(self.point_names, name, "point")

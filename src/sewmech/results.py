@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .errors import name_index
+
 # channel prefix -> (array attribute, unit, derivative prefix wrt phi at omega = 1 rad/s)
 CHANNEL_KINDS = {
     "p": ("p", "mm", "v"),
@@ -127,15 +129,15 @@ class KinematicsResult:
 
     # ---- named access -------------------------------------------------------------------------
     def point(self, name: str) -> PointMotion:
-        i = _find(self.point_names, name, "point")
+        i = name_index(self.point_names, name, "point")
         return PointMotion(self.p[..., i, :], self.v[..., i, :], self.a[..., i, :])
 
     def link(self, name: str) -> LinkMotion:
-        i = _find(self.link_names, name, "link")
+        i = name_index(self.link_names, name, "link")
         return LinkMotion(self.theta[..., i], self.omega[..., i], self.epsilon[..., i])
 
     def variable(self, name: str) -> VariableMotion:
-        i = _find(self.variable_names, name, "joint variable")
+        i = name_index(self.variable_names, name, "joint variable")
         return VariableMotion(self.q[..., i], self.q_dot[..., i], self.q_ddot[..., i],
                               self.variable_units[i])
 
@@ -162,12 +164,12 @@ class KinematicsResult:
             pt, _, comp = rest.rpartition("_")
             if comp not in ("x", "y"):
                 raise KeyError(f"channel '{name}': a point channel ends in _x or _y")
-            i = _find(self.point_names, pt, "point")
+            i = name_index(self.point_names, pt, "point")
             return getattr(self, attr)[..., i, "xy".index(comp)], unit
         if kind in ("theta", "omega", "epsilon"):
-            i = _find(self.link_names, rest, "link")
+            i = name_index(self.link_names, rest, "link")
             return getattr(self, attr)[..., i], unit
-        i = _find(self.variable_names, rest, "joint variable")
+        i = name_index(self.variable_names, rest, "joint variable")
         base = self.variable_units[i]
         unit = {"q": base, "qd": f"{base}/s", "qdd": f"{base}/s^2"}[kind]
         return getattr(self, attr)[..., i], unit
@@ -201,12 +203,3 @@ def unit_suffix(unit: str) -> str:
     return unit.replace("/", "_").replace("^", "")
 
 
-def _find(names: tuple[str, ...], name: str, what: str) -> int:
-    try:
-        return names.index(name)
-    except ValueError:
-        import difflib
-
-        close = difflib.get_close_matches(name, names, n=3)
-        hint = f"; did you mean {', '.join(close)}?" if close else ""
-        raise KeyError(f"no {what} '{name}'{hint}") from None
