@@ -1008,11 +1008,11 @@ def evaluate_program(units, params, march_phi, mc, ms, march_store, march_omega,
                      need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD,
                      fail_unit, fail_code, loop_res, loop_worst, ex_tab, ex_uv, GP, GV, GA):
     # np.int64(0), not 0: a literal would make numba compile _eval_designs a second time
-    return _eval_designs(np.int64(0), params.shape[0], units, params, march_phi, mc, ms, march_store,
-                         march_omega, march_eps, grp, unk, terms, cams_i, arcs_i, n_points,
-                         n_links, n_vars, tol, max_iter, need_th, pt_sel, lk_sel, var_sel, P, V,
-                         A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst,
-                         ex_tab, ex_uv, GP, GV, GA)
+    return _eval_designs(np.int64(0), params.shape[0], units, params, march_phi, mc, ms,
+                         march_store, march_omega, march_eps, grp, unk, terms, cams_i, arcs_i,
+                         n_points, n_links, n_vars, tol, max_iter, need_th, pt_sel, lk_sel,
+                         var_sel, P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code,
+                         loop_res, loop_worst, ex_tab, ex_uv, GP, GV, GA)
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
@@ -1213,7 +1213,7 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
                     B[rpos[r], kk] -= fx
                     B[rpos[r + 1], kk] -= fy
                     B[rpos[r + 2], kk] -= ((P[d, k, pi, 0] - GP[d, k, li, 0]) * fy
-                                     - (P[d, k, pi, 1] - GP[d, k, li, 1]) * fx)
+                                           - (P[d, k, pi, 1] - GP[d, k, li, 1]) * fx)
         # the matrix entries of every pair (pslot: where each of its entries goes in W)
         for i in range(pairs.shape[0]):
             kind = pairs[i, 0]
@@ -1405,11 +1405,11 @@ def force_solve_parallel(pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q
     for d in prange(X.shape[0]):
         W, B, XV, t1, t2, t3, t4, worst, rpos, cpos = _force_scratch(n_slots, X.shape[2])
         # np.int64: prange's index is unsigned, which would compile _force_design twice
-        n_low += _force_design(np.int64(d), pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH,
-                               GP, GA, mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on,
-                               blk_ptr, blk_off, rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot,
-                               LF, LPOW, X, MINPIV, W, B, XV, t1, t2, t3, t4, worst, rpos, cpos,
-                               max_written)
+        n_low += _force_design(np.int64(d), pairs, pair_angle, cam_rows, terms, params, P, V,
+                               EP, Q, TH, GP, GA, mass, inertia, gravity, ld_int, ld_f, ld_tw,
+                               ld_on, blk_ptr, blk_off, rperm, cperm, cpl_ptr, cpl_row, cpl_col,
+                               pslot, LF, LPOW, X, MINPIV, W, B, XV, t1, t2, t3, t4, worst, rpos,
+                               cpos, max_written)
     return n_low
 
 

@@ -723,7 +723,7 @@ class DynamicsPlan:
         if live is None or live[0] is not a:  # a new batch shape: new arrays and result
             live = self._live = self._prepare(kin, a)
         _, solve, head, tail, res = live
-        if solve(*head, kernel_params(P), *tail, self._max_written):  # some pivots are (nearly) zero
+        if solve(*head, kernel_params(P), *tail, self._max_written):  # some pivots ~ zero
             self._raise_singular(kin, a["feasible"], tail[-1])
         if kp.any_failed:  # some positions could not be assembled (on_failure="mask")
             feasible = a["feasible"]

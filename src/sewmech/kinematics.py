@@ -165,13 +165,11 @@ class KinematicsPlan:
         self._var_units = tuple(machine.variable_units[i] for i in var_sel)
         # the kernel's arguments before the design and after it (see _kernels.evaluate_program)
         self._head = (kernel_input(program),)
-        self._tail = tuple(
-            kernel_input(x) if isinstance(x, np.ndarray) else x
-            for x in (march, np.cos(march), np.sin(march), store, march_omega, march_eps,
-                      machine.groups, machine.unknowns, machine.terms, machine.cams,
-                      machine.arcs, len(machine.point_names), len(machine.link_names),
-                      len(machine.variable_names), float(tol), int(max_iter), need_th, pt_sel,
-                      lk_sel, var_sel))
+        tail = (march, np.cos(march), np.sin(march), store, march_omega, march_eps,
+                machine.groups, machine.unknowns, machine.terms, machine.cams, machine.arcs,
+                len(machine.point_names), len(machine.link_names), len(machine.variable_names),
+                float(tol), int(max_iter), need_th, pt_sel, lk_sel, var_sel)
+        self._tail = tuple(kernel_input(x) if isinstance(x, np.ndarray) else x for x in tail)
         if extra_points is None:
             extra_points = (np.empty((0, 2), dtype=np.int64), np.empty((0, 2)))
         self._extra = (kernel_input(np.asarray(extra_points[0], dtype=np.int64)),
