@@ -245,6 +245,10 @@ def test_scale_marks(jb):
     assert np.all(np.diff(regs) > 0)
     for m in marks[::4]:  # the marks' settings reproduce their stitch on a dense grid
         assert _reference(jb, m.regulator_deg)["stitch"] == pytest.approx(m.stitch_mm, abs=1e-4)
+    # from a curve the caller already has (the report's): the same marks
+    same = F.scale_marks(jb, 0.5, curve=F.stitch_curve(jb, 121))
+    assert [m.stitch_mm for m in same] == [m.stitch_mm for m in marks]
+    np.testing.assert_allclose([m.regulator_deg for m in same], regs, atol=1e-4)
 
 
 @pytest.mark.parametrize("target", [0.0, 15.0])

@@ -228,13 +228,16 @@ class ScaleMark:
     regulator_deg: float
 
 
-def scale_marks(machine: Machine, step_mm: float = 0.5, *, params=None) -> list[ScaleMark]:
+def scale_marks(machine: Machine, step_mm: float = 0.5, *, params=None,
+                curve: FeedCycles | None = None) -> list[ScaleMark]:
     """Regulator settings for every ``step_mm`` of stitch length, forward and reverse.
 
     The marks are solved on the stitch-length curve (secant iterations from its interpolation)
     to 1e-6 mm of stitch length; the curve must be monotonic over the regulator's travel.
+    ``curve``: a :func:`stitch_curve` of the same machine and ``params`` already computed (any
+    number of settings over the whole travel); default: one of 61 settings.
     """
-    c = stitch_curve(machine, 61, params=params)
+    c = stitch_curve(machine, 61, params=params) if curve is None else curve
     st, rg = c.stitch_mm, c.regulator_deg
     d = np.diff(st)
     if not (np.all(d > 0) or np.all(d < 0)):

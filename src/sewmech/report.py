@@ -320,7 +320,8 @@ def _feed_section(figs: _Figures, machine: Machine, step) -> dict:
     import matplotlib.pyplot as plt
 
     lo, hi = FD.regulator_range_deg(machine)
-    marks = FD.scale_marks(machine, 0.5)
+    curve = FD.stitch_curve(machine, 121)  # the figure's curve, and the marks' start
+    marks = FD.scale_marks(machine, 0.5, curve=curve)
     by_len = {m.stitch_mm: m.regulator_deg for m in marks}
     longest = min(max(by_len), -min(by_len))
     half = 0.5 * round(longest)  # a mark near the middle (marks are every 0.5 mm)
@@ -357,7 +358,6 @@ def _feed_section(figs: _Figures, machine: Machine, step) -> dict:
              " above the plate line.", pd.DataFrame(data))
     step("feed trajectories")
 
-    curve = FD.stitch_curve(machine, 121)
     fig, (ax, bx) = plt.subplots(2, 1, figsize=(8, 6.4), sharex=True, constrained_layout=True)
     ax.plot(curve.regulator_deg, curve.stitch_mm, lw=1.6)
     ax.plot([m.regulator_deg for m in marks], [m.stitch_mm for m in marks], "o", ms=4,
