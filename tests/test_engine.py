@@ -453,3 +453,24 @@ def test_branch_free_atan2_matches_libm():
             got, ref = atan2(y, x), math.atan2(y, x)
             assert abs(got - ref) <= 2 * np.spacing(abs(ref)) and (
                 math.copysign(1.0, got) == math.copysign(1.0, ref)), (y, x, got, ref)
+
+
+def test_one_compiled_kernel_for_read_only_and_writable_inputs():
+    """The machine's tables and defaults are read-only, a caller's designs are not: the kernels
+    get read-only views either way, so numba compiles each kernel once (a second compile of
+    the interpreter costs about 20 s)."""
+    from sewmech import _kernels as K
+    from sewmech.dynamics import inverse_dynamics
+
+    m = sewmech.load_machine("fourbar-benchmark")
+    phi = np.radians([0.0, 90.0])
+    sewmech.kinematics(m, phi)
+    inverse_dynamics(m, phi)
+    n_kin, n_force = len(K.evaluate_program.signatures), len(K.force_solve.signatures)
+    mine = m.parameters({"P.u": [10.0, 11.0]})
+    assert mine.flags.writeable and not m.defaults.flags.writeable
+    sewmech.kinematics(m, phi, params=mine, omega=np.full(2, 50.0))
+    sewmech.KinematicsPlan(m, phi, points=["C"])(mine[0].copy())
+    inverse_dynamics(m, phi, params=mine, masses={})
+    assert len(K.evaluate_program.signatures) == n_kin
+    assert len(K.force_solve.signatures) == n_force
