@@ -50,9 +50,9 @@ def test_point_used_before_it_is_solved():
 
 def test_non_positive_length():
     e = bad(base(cd=-35.0))
-    assert e.key == "lengths" and "positive length" in str(e)
+    assert e.key == "lengths[1]" and "positive length" in str(e)
     e = bad(base(bc=0.0))
-    assert e.key == "lengths" and "positive length" in str(e)
+    assert e.key == "lengths[0]" and "positive length" in str(e)
 
 
 def test_branch_not_plus_minus_one():

@@ -173,13 +173,19 @@ inertia_zz = 6.1
     ('[masses.crank]\nmaterial = "unobtainium"\nsolids = [ { type = "sphere", radius = 1.0 } ]\n',
      "unknown material"),
     ('[masses.crank]\ndensity = 7850.0\nsolids = [ { type = "sphere", radius = 1.0 },'
-     ' { type = "sphere", radius = 2.0, hole = true } ]\n', "holes remove more"),
+     ' { type = "sphere", radius = 2.0, hole = true } ]\n',
+     r"solids: solids\[1\] \(a sphere hole\): 8\d % of it lies outside the material"),
 ])
 def test_mass_table_errors(table, match):
     from sewmech.errors import MachineFileError
 
     with pytest.raises(MachineFileError, match=match):
         sewmech.machine_from_toml(FOURBAR + "\n" + table, "fb.toml")
+
+
+def test_compose_refuses_holes_heavier_than_the_solids():
+    with pytest.raises(ValueError, match="holes remove more"):
+        M.compose([M.sphere(1.0, 7850.0), M.sphere(2.0, 7850.0, hole=True)])
 
 
 def test_a_solid_can_have_its_own_material():

@@ -44,6 +44,7 @@ FAIL_ASSEMBLY = 1  # the closure equations have no real solution at this angle
 FAIL_SINGULAR = 2  # assembled, but at a singular position: velocity is not defined
 FAIL_NEWTON = 3  # the loop solver did not converge
 FAIL_LOST = 4  # continuation lost because an earlier angle failed
+FAIL_PARAM = 5  # a parameter of the design is outside its domain (fail_unit: its index)
 
 # ---- loop-term table columns ---------------------------------------------------------------------
 TERM_POINT = 0  # + position of a known point
@@ -207,9 +208,10 @@ def rrr_dyad(p1x, p1y, v1x, v1y, a1x, a1y, p2x, p2y, v2x, v2y, a2x, a2y, l1, l2,
     b2 = a2y - a1y - w2 * w2 * r2y + w1 * w1 * r1y
     e1 = -(r2x * b1 + r2y * b2) * idet
     e2 = -(r1x * b1 + r1y * b2) * idet
-    code = float(FAIL_SINGULAR) if abs(det) <= 1e-13 * l1 * l2 else float(FAIL_NONE)
-    code = (float(FAIL_ASSEMBLY) if (dd2 == 0.0) | (h2 < -_TOGGLE_REL * l1 * l1)
-            else code)
+    # the checks are written so that a NaN anywhere fails them
+    code = float(FAIL_NONE) if abs(det) > 1e-13 * l1 * l2 else float(FAIL_SINGULAR)
+    code = (code if (dd2 > 0.0) & (h2 >= -_TOGGLE_REL * l1 * l1)
+            else float(FAIL_ASSEMBLY))
     return (code, cx, cy, v1x - w1 * r1y, v1y + w1 * r1x, a1x - e1 * r1y - w1 * w1 * r1x,
             a1y + e1 * r1x - w1 * w1 * r1y, w1, e1, w2, e2, r1x, r1y, r2x, r2y)
 
@@ -236,7 +238,7 @@ def rrp_dyad(
     wy = qy - by
     wu = wx * ux + wy * uy
     disc = wu * wu - (wx * wx + wy * wy) + l * l
-    if disc < 0.0:
+    if not disc >= 0.0:  # (a NaN fails too)
         if disc > -_TOGGLE_REL * l * l:
             disc = 0.0
         else:
@@ -250,7 +252,7 @@ def rrp_dyad(
     rhoy = cy - gy
     # s_dot u - omega1 x r1 = vB - vG - omega_g x rho
     sd, w1, det = _solve2(ux, r1y, uy, -r1x, bvx - gvx + wg * rhoy, bvy - gvy - wg * rhox)
-    if abs(det) <= 1e-13 * l:
+    if not abs(det) > 1e-13 * l:
         return FAIL_SINGULAR
     rhs_x = bax - w1 * w1 * r1x - gax + eg * rhoy + wg * wg * rhox + 2.0 * wg * sd * uy
     rhs_y = bay - w1 * w1 * r1y - gay - eg * rhox + wg * wg * rhoy - 2.0 * wg * sd * ux
@@ -286,7 +288,7 @@ def rpr_guide(bx, by, bvx, bvy, bax, bay, ax_, ay_, avx, avy, aax, aay, e, branc
     dy = by - ay_
     d2 = dx * dx + dy * dy
     s2 = d2 - e * e
-    if s2 < 0.0:
+    if not s2 >= 0.0:  # (a NaN fails too)
         if s2 > -_TOGGLE_REL * max(d2, 1e-300):
             s2 = 0.0
         else:
@@ -297,7 +299,7 @@ def rpr_guide(bx, by, bvx, bvy, bax, bay, ax_, ay_, avx, avy, aax, aay, e, branc
     uy = math.sin(th)
     # omega x d + s_dot u = vB - vA
     w, sd, det = _solve2(-dy, ux, dx, uy, bvx - avx, bvy - avy)
-    if abs(det) <= 1e-13 * math.sqrt(max(d2, 1e-300)):
+    if not abs(det) > 1e-13 * math.sqrt(max(d2, 1e-300)):
         return FAIL_SINGULAR
     rx = bax - aax + w * w * dx + 2.0 * w * sd * uy
     ry = bay - aay + w * w * dy - 2.0 * w * sd * ux
@@ -591,11 +593,11 @@ _U = np.uint64  # unsigned lane indices: numba then emits no negative-index wrap
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
-def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_omega, march_eps, grp,
-                 unk,
-                 terms, cams_i, arcs_i, n_points, n_links, n_vars, tol, max_iter, need_th,
-                 pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code,
-                 loop_res, loop_worst, ex_tab, ex_uv, GP, GV, GA):
+def _eval_designs(d0, d1, units, params, p_lo, p_hi, march_phi, mc, ms, march_store,
+                  march_omega, march_eps, grp, unk, terms, cams_i, arcs_i, n_points, n_links,
+                  n_vars, tol, max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP,
+                  S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst, ex_tab, ex_uv, GP, GV,
+                  GA):
     """Walk the program along the march for designs d0 <= d < d1 (see :func:`evaluate_program`).
 
     The march is taken in blocks of :data:`BLOCK` steps; within a block every unit is evaluated
@@ -655,7 +657,34 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
             moving[n_moving] = u
             n_moving += 1
     n_failed = 0
+    n_par = params.shape[1]
     for d in range(d0, d1):
+        bad = -1  # the first parameter outside [p_lo, p_hi] (a NaN is outside too)
+        for j in range(n_par):
+            if not (params[d, j] >= p_lo[j]) & (params[d, j] <= p_hi[j]):
+                bad = j
+                break
+        if bad >= 0:
+            for k in range(n_march):
+                row = march_store[k]
+                if row < 0:
+                    continue
+                fail_unit[d, row] = bad
+                fail_code[d, row] = FAIL_PARAM
+                n_failed += 1
+                P[d, row] = np.nan
+                V[d, row] = np.nan
+                A[d, row] = np.nan
+                TH[d, row] = np.nan
+                OM[d, row] = np.nan
+                EP[d, row] = np.nan
+                S[d, row] = np.nan
+                SD[d, row] = np.nan
+                SDD[d, row] = np.nan
+                GP[d, row] = np.nan
+                GV[d, row] = np.nan
+                GA[d, row] = np.nan
+            continue
         n_hist[:] = 0
         lost[:] = False
         for u in range(n_units):
@@ -991,6 +1020,8 @@ def _eval_designs(d0, d1, units, params, march_phi, mc, ms, march_store, march_o
 
 _DOC = """Evaluate the program for every design (axis 0 of params) along the march of shaft angles.
 
+    A design with a parameter outside [p_lo, p_hi] (a NaN is outside too) is not evaluated:
+    its every row fails with FAIL_PARAM and fail_unit holds the parameter's index.
     mc, ms are cos and sin of the march angles (computed once by the caller, see
     :class:`sewmech.kinematics.KinematicsPlan`). march_store[k] is the output row for march step
     k, or -1 for an intermediate continuation step. need_th[link] says whether that link's angle is returned or read by a later unit.
@@ -1003,33 +1034,33 @@ _DOC = """Evaluate the program for every design (axis 0 of params) along the mar
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
-def evaluate_program(units, params, march_phi, mc, ms, march_store, march_omega, march_eps,
-                     grp, unk, terms, cams_i, arcs_i, n_points, n_links, n_vars, tol, max_iter,
-                     need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD,
+def evaluate_program(units, params, p_lo, p_hi, march_phi, mc, ms, march_store, march_omega,
+                     march_eps, grp, unk, terms, cams_i, arcs_i, n_points, n_links, n_vars, tol,
+                     max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD,
                      fail_unit, fail_code, loop_res, loop_worst, ex_tab, ex_uv, GP, GV, GA):
     # np.int64(0), not 0: a literal would make numba compile _eval_designs a second time
-    return _eval_designs(np.int64(0), params.shape[0], units, params, march_phi, mc, ms,
-                         march_store, march_omega, march_eps, grp, unk, terms, cams_i, arcs_i,
-                         n_points, n_links, n_vars, tol, max_iter, need_th, pt_sel, lk_sel,
-                         var_sel, P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code,
+    return _eval_designs(np.int64(0), params.shape[0], units, params, p_lo, p_hi, march_phi,
+                         mc, ms, march_store, march_omega, march_eps, grp, unk, terms, cams_i,
+                         arcs_i, n_points, n_links, n_vars, tol, max_iter, need_th, pt_sel,
+                         lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code,
                          loop_res, loop_worst, ex_tab, ex_uv, GP, GV, GA)
 
 
 @njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def evaluate_program_parallel(units, params, march_phi, mc, ms, march_store, march_omega,
-                              march_eps, grp, unk, terms, cams_i, arcs_i, n_points, n_links,
-                              n_vars, tol, max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A,
-                              TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst,
-                              ex_tab, ex_uv, GP, GV, GA, n_chunks):
+def evaluate_program_parallel(units, params, p_lo, p_hi, march_phi, mc, ms, march_store,
+                              march_omega, march_eps, grp, unk, terms, cams_i, arcs_i, n_points,
+                              n_links, n_vars, tol, max_iter, need_th, pt_sel, lk_sel, var_sel,
+                              P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res,
+                              loop_worst, ex_tab, ex_uv, GP, GV, GA, n_chunks):
     n = params.shape[0]
     n_failed = 0
     for c in prange(n_chunks):
         n_failed += _eval_designs(c * n // n_chunks, (c + 1) * n // n_chunks, units, params,
-                                  march_phi, mc, ms, march_store, march_omega, march_eps, grp,
-                                  unk, terms, cams_i, arcs_i, n_points, n_links, n_vars, tol,
-                                  max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM,
-                                  EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst,
-                                  ex_tab, ex_uv, GP, GV, GA)
+                                  p_lo, p_hi, march_phi, mc, ms, march_store, march_omega,
+                                  march_eps, grp, unk, terms, cams_i, arcs_i, n_points, n_links,
+                                  n_vars, tol, max_iter, need_th, pt_sel, lk_sel, var_sel, P, V,
+                                  A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res,
+                                  loop_worst, ex_tab, ex_uv, GP, GV, GA)
     return n_failed
 
 

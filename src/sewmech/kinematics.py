@@ -16,15 +16,14 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _kernels as K
-from .errors import AssemblyError, ConvergenceError
-from .machine import Machine
+from .errors import AssemblyError, ConvergenceError, ParameterError
+from .machine import Machine, domain_message, parameter_location
 from .results import KinematicsResult
 
 _REASONS = {
     K.FAIL_ASSEMBLY: ("cannot be assembled: its closure equations have no real solution (a link"
                       " is too short or too long for the distance it must bridge)",
-                      "Check this unit's lengths and the positions of the points it joins; for"
-                      " sweeps over many designs pass on_failure='mask'"),
+                      "Check this unit's lengths and the positions of the points it joins"),
     K.FAIL_SINGULAR: ("singular position (a dead centre or toggle): the velocity of this unit is"
                       " not defined here",
                       "Evaluate at angles off the toggle or change the dimensions"),
@@ -165,11 +164,13 @@ class KinematicsPlan:
         self._var_units = tuple(machine.variable_units[i] for i in var_sel)
         # the kernel's arguments before the design and after it (see _kernels.evaluate_program)
         self._head = (kernel_input(program),)
-        tail = (march, np.cos(march), np.sin(march), store, march_omega, march_eps,
+        tail = (machine.parameter_lo, machine.parameter_hi, march, np.cos(march),
+                np.sin(march), store, march_omega, march_eps,
                 machine.groups, machine.unknowns, machine.terms, machine.cams, machine.arcs,
                 len(machine.point_names), len(machine.link_names), len(machine.variable_names),
                 float(tol), int(max_iter), need_th, pt_sel, lk_sel, var_sel)
         self._tail = tuple(kernel_input(x) if isinstance(x, np.ndarray) else x for x in tail)
+        self._n_march = march.shape[0]
         if extra_points is None:
             extra_points = (np.empty((0, 2), dtype=np.int64), np.empty((0, 2)))
         self._extra = (kernel_input(np.asarray(extra_points[0], dtype=np.int64)),
@@ -276,7 +277,7 @@ class KinematicsPlan:
             loop_res.fill(np.nan)  # NaN where a loop unit was not solved
         n_design = flat.shape[0]
         args = self._head + (flat,) + self._tail + out
-        if n_design >= 4 and n_design * self._tail[0].shape[0] >= _PARALLEL_MIN_WORK:
+        if n_design >= 4 and n_design * self._n_march >= _PARALLEL_MIN_WORK:
             # the threaded kernel pays some tens of microseconds to start; worth it for big
             # batches. A few contiguous chunks per thread balance the load (4 per thread best)
             n_failed = K.evaluate_program_parallel(*args,
@@ -290,15 +291,21 @@ class KinematicsPlan:
                 self._dirty = False
             return result
         self._dirty = True
-        fail_unit = out[9]
+        fail_unit, fail_code = out[9], out[10]
         np.less(fail_unit, 0, out=feasible)
-        # fail_unit holds rows of the evaluated program: back to the machine's
         machine = self.machine
-        fail_unit = np.where(fail_unit >= 0, self._rows[np.maximum(fail_unit, 0)], fail_unit)
+        # fail_unit holds rows of the evaluated program (a parameter's index for FAIL_PARAM):
+        # back to the machine's rows, then to units
+        bad_param = fail_code == K.FAIL_PARAM
+        row = np.where((fail_unit >= 0) & ~bad_param,
+                       self._rows[np.clip(fail_unit, 0, max(len(self._rows) - 1, 0))], -1)
         if self.on_failure == "raise":
-            _raise_first(machine, self.phi, self._store, batch, fail_unit, out[10], loop_res,
-                         out[12])
-        failure_unit[...] = machine.unit_of_row[fail_unit]  # units; fixed points have none: -1
+            _raise_first(machine, self.phi, self._store, batch, row, fail_unit, fail_code,
+                         loop_res, out[12], flat)
+        failure_unit[...] = machine.unit_of_row[row]  # fixed points belong to no unit: -1
+        if bad_param.any():
+            owner = np.asarray(machine.parameter_owner + (-1,), dtype=np.int64)
+            failure_unit[bad_param] = owner[fail_unit[bad_param]]
         return result
 
 
@@ -365,26 +372,83 @@ def kinematics(
     return plan(params, inputs=inputs)
 
 
-def _raise_first(machine, phi, store, batch, fail_unit, fail_code, loop_res, loop_worst):
-    # the first failure in march order is the root cause (later ones may be "lost")
+def _raise_first(machine, phi, store, batch, row, fail_unit, fail_code, loop_res, loop_worst,
+                 params):
+    """Raise the error of the first failure in march order (later ones may be "lost")."""
     order = store[store >= 0]
-    for d in range(fail_unit.shape[0]):
-        for i in order:
-            if fail_unit[d, i] >= 0:
-                row = int(fail_unit[d, i])
-                code = int(fail_code[d, i])
-                ui = machine.kernel_unit_of_row[row]
-                unit = machine.unit_names[ui] if ui >= 0 else "?"
-                design = tuple(int(x) for x in np.unravel_index(d, batch)) if batch else ()
-                reason, hint = _REASONS[code]
-                phi_deg = math.degrees(phi[i])
-                if code in (K.FAIL_NEWTON, K.FAIL_SINGULAR) and machine.unit_types[ui] == "loop":
-                    g = int(machine.program[row, 1])
-                    spec = machine.spec.units[ui]
-                    loop = spec.loops[int(loop_worst[d, i, g])].name
-                    res = loop_res[d, i, g]
-                    reason = (f"{reason} in loop '{loop}' (residual {res:.3g} mm)"
-                              if code == K.FAIL_NEWTON else
-                              f"{reason} (loop Jacobian singular near loop '{loop}')")
-                    raise ConvergenceError(unit, phi_deg, design, reason, hint)
-                raise AssemblyError(unit, phi_deg, design, reason, hint)
+    phi_deg = np.degrees(phi)
+    for d in range(fail_code.shape[0]):
+        failed = order[fail_code[d, order] != K.FAIL_NONE]
+        if not failed.size:
+            continue
+        i = int(failed[0])
+        code = int(fail_code[d, i])
+        design = tuple(int(x) for x in np.unravel_index(d, batch)) if batch else ()
+        if code == K.FAIL_PARAM:
+            j = int(fail_unit[d, i])
+            raise _parameter_error(machine, j, design, float(params[d, j]))
+        r = int(row[d, i])
+        ui = machine.kernel_unit_of_row[r]
+        unit = machine.unit_names[ui] if ui >= 0 else "?"
+        reason, hint = _REASONS[code]
+        # the evaluated angles (in increasing order) at which this unit fails for this design
+        same = np.zeros(phi.shape[0], dtype=bool)
+        same[order] = (row[d, order] == r) & (fail_code[d, order] != K.FAIL_NONE)
+        ranges = angle_ranges(phi_deg, same)
+        if code in (K.FAIL_ASSEMBLY, K.FAIL_SINGULAR):
+            hint = _branch_hint(machine, ui, hint)
+        if code in (K.FAIL_NEWTON, K.FAIL_SINGULAR) and machine.unit_types[ui] == "loop":
+            g = int(machine.program[r, 1])
+            spec = machine.spec.units[ui]
+            loop = spec.loops[int(loop_worst[d, i, g])].name
+            res = loop_res[d, i, g]
+            reason = (f"{reason} in loop '{loop}' (residual {res:.3g} mm)"
+                      if code == K.FAIL_NEWTON else
+                      f"{reason} (loop Jacobian singular near loop '{loop}')")
+            raise ConvergenceError(unit, float(phi_deg[i]), design, reason, hint,
+                                   file=machine.file, ranges_deg=ranges)
+        raise AssemblyError(unit, float(phi_deg[i]), design, reason, hint, file=machine.file,
+                            ranges_deg=ranges)
+
+
+def angle_ranges(phi_deg: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]]:
+    """Ranges (first, last angle, deg) of the masked angles, consecutive in increasing order."""
+    order = np.argsort(phi_deg, kind="stable")
+    m = mask[order]
+    out = []
+    k = 0
+    while k < m.size:
+        if not m[k]:
+            k += 1
+            continue
+        j = k
+        while j + 1 < m.size and m[j + 1]:
+            j += 1
+        out.append((round(float(phi_deg[order[k]]), 6), round(float(phi_deg[order[j]]), 6)))
+        k = j + 1
+    return out
+
+
+def _parameter_error(machine: Machine, j: int, design: tuple, value: float) -> ParameterError:
+    """A parameter outside its domain, located in the machine file where it comes from."""
+    name = machine.parameter_names[j]
+    msg = domain_message(name, value, machine.parameter_units[j],
+                         float(machine.parameter_lo[j]), float(machine.parameter_hi[j]))
+    src = machine.parameter_sources[j] if machine.parameter_sources else None
+    hint = "Give a value inside the domain"
+    if src is not None:
+        table, key = parameter_location(machine.spec, src)
+        hint += f" (the file's value is at {machine.file}: [{table}] {key})"
+    return ParameterError(name, design, value, msg, hint)
+
+
+def _branch_hint(machine: Machine, ui: int, hint: str) -> str:
+    """Name the closed-form units upstream of unit ``ui`` whose assembly branch decides where
+    its inputs are: one of them on its other branch may assemble."""
+    up = [machine.unit_names[k] for k in machine.upstream_units(ui)
+          if machine.unit_names[k] in machine.branches]
+    if not up:
+        return hint
+    listed = ", ".join(f"'{n}' (branch {machine.branches[n]:+d})" for n in up)
+    return (f"{hint}. Its inputs depend on the branch of {listed}: the other branch of one of"
+            " them may assemble")

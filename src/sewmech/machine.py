@@ -104,6 +104,18 @@ class Machine:
         The kinematic pairs of the force analysis (see :class:`Pair`), in unknown order.
     mass_origins : dict[str, str]
         The point at the origin of each ``[masses]`` link's frame.
+    parameter_lo, parameter_hi : ndarray, shape (n_parameters,)
+        The domain of each parameter, internal units: lengths of links, rods, loop terms and
+        cam arcs at least :data:`MIN_LENGTH`, setting inputs within their declared range,
+        every other parameter within +-:data:`PARAM_LIMIT`. A design outside it is not
+        evaluated: it fails (``on_failure``) naming the parameter.
+    parameter_owner : tuple[int, ...]
+        Index into ``unit_names`` of the unit that defines each parameter (-1: frame points,
+        setting inputs, cams not used by a loop unit).
+    parameter_sources : tuple
+        Where each parameter's value sits in the machine file (a path of keys), or None when
+        it cannot be set on its own (the arcs of a ``constant_width`` cam: set its design
+        values); :meth:`with_parameters` and :meth:`parameter_location` read it.
     """
 
     spec: MachineSpec
@@ -129,6 +141,10 @@ class Machine:
     cam_designs: dict[str, dict[str, float]] = field(default_factory=dict, repr=False)
     pairs: tuple[Pair, ...] = field(default=(), repr=False)
     mass_origins: dict[str, str] = field(default_factory=dict, repr=False)
+    parameter_sources: tuple = field(default=(), repr=False)
+    parameter_owner: tuple[int, ...] = field(default=(), repr=False)
+    parameter_lo: np.ndarray = field(default=None, repr=False)
+    parameter_hi: np.ndarray = field(default=None, repr=False)
 
     # ---- names -----------------------------------------------------------------------------
     @property
@@ -241,6 +257,22 @@ class Machine:
         rows.setflags(write=False)
         return rows
 
+    def upstream_units(self, unit: int) -> list[int]:
+        """Indices of the units whose outputs unit ``unit`` reads, directly or through other
+        units, in solve order."""
+        rows = [k for k, u in enumerate(self.kernel_unit_of_row) if u == unit]
+        if not rows:
+            return []
+        need = set().union(*(self._row_io[k][0] for k in rows))
+        found = set()
+        for k in range(min(rows) - 1, -1, -1):
+            reads, writes = self._row_io[k]
+            if writes & need:
+                need |= reads
+                if self.kernel_unit_of_row[k] >= 0:
+                    found.add(self.kernel_unit_of_row[k])
+        return sorted(found - {unit})
+
     def selection(self, points=None, links=None, variables=None):
         """Names and indices of the returned points, links and joint variables (None: all).
 
@@ -342,6 +374,55 @@ class Machine:
         return out
 
 
+#: the largest magnitude of any parameter, internal units (mm, rad, 1): 1 km, and far from
+#: overflow in the squares and products of the kernels
+PARAM_LIMIT = 1e6
+#: the shortest length of a link, rod, loop term or cam arc, mm (one nanometre)
+MIN_LENGTH = 1e-6
+
+
+def _input_bounds(inp) -> tuple[float, float]:
+    """Domain (rad) of a setting input: its declared range, else +-PARAM_LIMIT."""
+    lo = math.radians(inp.min_deg) if inp.min_deg is not None else -PARAM_LIMIT
+    hi = math.radians(inp.max_deg) if inp.max_deg is not None else PARAM_LIMIT
+    return lo, hi
+
+
+def domain_message(name: str, value: float, unit: str, lo: float, hi: float, *,
+                   file_units: bool = False) -> str:
+    """Why ``value`` is outside [lo, hi], in the units the user sees (degrees in files)."""
+    deg = unit == "rad" and (file_units or name.startswith("input."))
+    show = (lambda x: f"{math.degrees(x):.6g} deg") if deg else (
+        lambda x: f"{x:.6g} {unit}" if unit != "1" else f"{x:.6g}")
+    if not math.isfinite(value):
+        return f"is {value}: every number must be finite (no nan or inf)"
+    if name.startswith("input.") and (lo > -PARAM_LIMIT or hi < PARAM_LIMIT):
+        return (f"is {show(value)}: outside the range {show(lo)} .. {show(hi)} declared in"
+                f" [inputs.{name[6:]}]; give a setting inside it or widen min_deg/max_deg")
+    if lo == MIN_LENGTH:
+        return (f"is {show(value)}: a length must be positive (at least {MIN_LENGTH:g} mm) and"
+                f" at most {PARAM_LIMIT:g} mm")
+    return f"is {show(value)}: its magnitude must be at most {show(PARAM_LIMIT)}"
+
+
+def parameter_location(spec: MachineSpec, path: tuple) -> tuple[str, str]:
+    """(table, key) of a parameter's value in the machine file, as errors name them."""
+    head = path[0]
+    if head == "units":
+        ui = path[1]
+        table = f'units[{ui}] "{spec.units[ui].name}"'
+        rest = path[2:]
+    elif head in ("points", "inputs", "cams"):
+        table = f"{head}.{path[1]}"
+        rest = path[2:]
+    else:
+        table, rest = "", path
+    key = ""
+    for part in rest:
+        key += f"[{part}]" if isinstance(part, int) else (f".{part}" if key else str(part))
+    return table, key
+
+
 def check_loads(machine_name: str, links, points, point_links, loads, file: str) -> None:
     """Raise :class:`MachineFileError` (file, load, key) if a load names a link or point the
     machine lacks, or a point that is not on its link."""
@@ -377,6 +458,11 @@ class _Compiler:
         self.pnames: list[str] = []
         self.punits: list[str] = []
         self.pvalues: list[float] = []
+        self.psrc: list[tuple | None] = []  # path of each parameter's value in the file
+        self.powner: list[int] = []  # unit index that defines it (-1: frame points, inputs)
+        self.plo: list[float] = []  # domain of each parameter, internal units
+        self.phi: list[float] = []
+        self.cur_unit = -1
         self.rows: list[list[int]] = []
         self.row_unit: list[int] = []
         self.branches: dict[str, int] = {}
@@ -396,10 +482,20 @@ class _Compiler:
     def err(self, table: str, key: str, msg: str) -> MachineFileError:
         return MachineFileError(self.file, table, key, msg)
 
-    def param(self, name: str, value: float, unit: str) -> int:
+    def param(self, name: str, value: float, unit: str, src: tuple | None = None, *,
+              positive: bool = False, bounds: tuple[float, float] | None = None) -> int:
+        """A new parameter: its value in internal units, the path of its value in the machine
+        file (None: not settable on its own, e.g. the arcs of a constant-width cam) and its
+        domain (a positive length, declared bounds, or any number within PARAM_LIMIT)."""
         self.pnames.append(name)
         self.punits.append(unit)
         self.pvalues.append(float(value))
+        self.psrc.append(src)
+        self.powner.append(self.cur_unit)
+        lo, hi = bounds if bounds is not None else (MIN_LENGTH if positive else -PARAM_LIMIT,
+                                                    PARAM_LIMIT)
+        self.plo.append(lo)
+        self.phi.append(hi)
         return len(self.pnames) - 1
 
     def _scan(self):
@@ -482,14 +578,19 @@ class _Compiler:
         spec = self.spec
         for name, p in spec.points.items():
             i = self.new_point(f"points.{name}", "", name, (FRAME,))
-            self.add_row(-1, [K.OP_FIXED, i, self.param(f"{name}.x", p.x, "mm"),
-                              self.param(f"{name}.y", p.y, "mm")])
+            self.add_row(-1, [K.OP_FIXED, i,
+                              self.param(f"{name}.x", p.x, "mm", ("points", name, "x")),
+                              self.param(f"{name}.y", p.y, "mm", ("points", name, "y"))])
         self.inputs = {}
         for name, inp in spec.inputs.items():
-            self.inputs[name] = self.param(f"input.{name}", math.radians(inp.default_deg), "rad")
+            self.inputs[name] = self.param(f"input.{name}", math.radians(inp.default_deg), "rad",
+                                           ("inputs", name, "default_deg"),
+                                           bounds=_input_bounds(inp))
         for ui, u in enumerate(spec.units):
             table = f'units[{ui}] "{u.name}"'
+            self.cur_unit = ui
             getattr(self, f"unit_{u.type}")(ui, table, u)
+        self.cur_unit = -1
         for name, cam in spec.cams.items():
             if name not in self.cam_index:
                 self.compile_cam(f"cams.{name}", name, cam)  # unused cams are still checked
@@ -528,7 +629,9 @@ class _Compiler:
             try:
                 mass_from_spec(mspec)
             except ValueError as exc:
-                raise self.err(f"masses.{lname}", "solids", str(exc)) from None
+                key = "solids" if mspec.solids is not None else (
+                    "inertia" if mspec.inertia is not None else "inertia_zz")
+                raise self.err(f"masses.{lname}", key, str(exc)) from None
         if spec.thread is not None:
             for k, g in enumerate(spec.thread.guides):
                 self.known_point("thread", f"guides[{k}].point", g.point)
@@ -551,8 +654,16 @@ class _Compiler:
             a.setflags(write=False)
             return a
 
+        for i, (value, lo, hi) in enumerate(zip(self.pvalues, self.plo, self.phi)):
+            if not lo <= value <= hi and self.psrc[i] is not None:
+                table, key = parameter_location(spec, self.psrc[i])
+                raise self.err(table, key, domain_message(self.pnames[i], value, self.punits[i],
+                                                          lo, hi, file_units=True))
         defaults = np.asarray(self.pvalues, dtype=float)
         defaults.setflags(write=False)
+        lo, hi = (np.asarray(x, dtype=float) for x in (self.plo, self.phi))
+        for a in (lo, hi):
+            a.setflags(write=False)
         return Machine(
             spec=spec,
             file=self.file,
@@ -577,6 +688,10 @@ class _Compiler:
             cam_designs={k: dict(v) for k, v in self.cam_designs.items()},
             pairs=tuple(self.pairs),
             mass_origins=dict(self.mass_origins),
+            parameter_sources=tuple(self.psrc),
+            parameter_owner=tuple(self.powner),
+            parameter_lo=lo,
+            parameter_hi=hi,
         )
 
     def dynamics_checks(self):
@@ -668,16 +783,19 @@ class _Compiler:
                            f" from [inputs] ({', '.join(self.inputs) or 'none defined'})")
         lname = self.links[link]
         self.on_link(u.pivot, lname)
-        ratio = self.param(f"{u.name}.ratio", u.ratio, "1")
+        ratio = self.param(f"{u.name}.ratio", u.ratio, "1", ("units", ui, "ratio"))
         self.add_row(ui, [K.OP_CRANK, link, self.param(f"{u.name}.phase",
-                                                       math.radians(u.phase_deg), "rad"),
+                                                       math.radians(u.phase_deg), "rad",
+                                                       ("units", ui, "phase_deg")),
                           ratio, setting])
         self.pairs.append(Pair(f"{u.name}.torque", "driver", (FRAME, lname), u.name,
                                input=u.input, ratio_param=ratio))
         for pname, (uu, vv) in u.points.items():
             i = self.new_point(table, f"points.{pname}", pname, (lname,))
-            self.add_row(ui, [K.OP_POINT, i, link, pivot, self.param(f"{pname}.u", uu, "mm"),
-                              self.param(f"{pname}.v", vv, "mm")])
+            src = ("units", ui, "points", pname)
+            self.add_row(ui, [K.OP_POINT, i, link, pivot,
+                              self.param(f"{pname}.u", uu, "mm", src + (0,)),
+                              self.param(f"{pname}.v", vv, "mm", src + (1,))])
 
     def unit_point(self, ui, table, u: PointUnit):
         link = self.known_link(table, "link", u.link)
@@ -687,8 +805,10 @@ class _Compiler:
                            f" '{u.link}' (it is on: {', '.join(self.point_links[u.origin])})")
         for pname, (uu, vv) in u.points.items():
             i = self.new_point(table, f"points.{pname}", pname, (u.link,))
-            self.add_row(ui, [K.OP_POINT, i, link, origin, self.param(f"{pname}.u", uu, "mm"),
-                              self.param(f"{pname}.v", vv, "mm")])
+            src = ("units", ui, "points", pname)
+            self.add_row(ui, [K.OP_POINT, i, link, origin,
+                              self.param(f"{pname}.u", uu, "mm", src + (0,)),
+                              self.param(f"{pname}.v", vv, "mm", src + (1,))])
         for pname, others in u.pins.items():
             if pname not in u.points:
                 raise self.err(table, f"pins.{pname}", f"'{pname}' is not one of this unit's"
@@ -707,8 +827,10 @@ class _Compiler:
         self.on_link(u.joints[1], u.links[1])
         self.branches[u.name] = u.branch
         self.add_row(ui, [K.OP_RRR, p1, p2, c, l1, l2,
-                          self.param(f"{u.name}.length1", u.lengths[0], "mm"),
-                          self.param(f"{u.name}.length2", u.lengths[1], "mm"), u.branch])
+                          self.param(f"{u.name}.length1", u.lengths[0], "mm",
+                                     ("units", ui, "lengths", 0), positive=True),
+                          self.param(f"{u.name}.length2", u.lengths[1], "mm",
+                                     ("units", ui, "lengths", 1), positive=True), u.branch])
 
     def unit_rrp(self, ui, table, u: RRPUnit):
         pin = self.known_point(table, "pin", u.pin)
@@ -726,10 +848,12 @@ class _Compiler:
         self.pairs.append(Pair(f"{u.name}.guide", "prismatic", (u.guide_link, u.slider), u.name,
                                point=u.new, line_link=u.slider))
         self.add_row(ui, [K.OP_RRP, pin, gp, gl, c, rod, slider,
-                          self.param(f"{u.name}.length", u.length, "mm"),
+                          self.param(f"{u.name}.length", u.length, "mm", ("units", ui, "length"),
+                                     positive=True),
                           self.param(f"{u.name}.guide_angle", math.radians(u.guide_angle_deg),
-                                     "rad"),
-                          self.param(f"{u.name}.offset", u.offset, "mm"), u.branch, var])
+                                     "rad", ("units", ui, "guide_angle_deg")),
+                          self.param(f"{u.name}.offset", u.offset, "mm", ("units", ui, "offset")),
+                          u.branch, var])
 
     def unit_rpr(self, ui, table, u: RPRUnit):
         pin = self.known_point(table, "pin", u.pin)
@@ -747,7 +871,8 @@ class _Compiler:
         var = self.new_var(table, "variable", u.variable or u.name, "mm")
         self.branches[u.name] = u.branch
         self.add_row(ui, [K.OP_RPR, pin, pivot, link, block,
-                          self.param(f"{u.name}.offset", u.offset, "mm"), u.branch, var])
+                          self.param(f"{u.name}.offset", u.offset, "mm", ("units", ui, "offset")),
+                          u.branch, var])
 
     def compile_cam(self, table, name, cam) -> int:
         link = self.known_link(table, "link", cam.link)
@@ -788,11 +913,15 @@ class _Compiler:
         a0 = len(self.arcs)
         for k, (cx, cy, radius, frm, to) in enumerate(arcs):
             pre = f"{name}.arc{k}"
-            self.arcs.append([self.param(f"{pre}.cx", cx, "mm"),
-                              self.param(f"{pre}.cy", cy, "mm"),
-                              self.param(f"{pre}.radius", radius, "mm"),
-                              self.param(f"{pre}.normal_from", math.radians(frm), "rad"),
-                              self.param(f"{pre}.normal_to", math.radians(to), "rad")])
+            src = None if cam.constant_width is not None else ("cams", name, "arcs", k)
+            self.arcs.append([self.param(f"{pre}.cx", cx, "mm", src and src + ("center", 0)),
+                              self.param(f"{pre}.cy", cy, "mm", src and src + ("center", 1)),
+                              self.param(f"{pre}.radius", radius, "mm", src and src + ("radius",),
+                                         positive=True),
+                              self.param(f"{pre}.normal_from", math.radians(frm), "rad",
+                                         src and src + ("normal_from_deg",)),
+                              self.param(f"{pre}.normal_to", math.radians(to), "rad",
+                                         src and src + ("normal_to_deg",))])
         self.cams.append([link, pivot, a0, len(arcs)])
         self.cam_index[name] = len(self.cams) - 1
         return self.cam_index[name]
@@ -809,16 +938,19 @@ class _Compiler:
             li = self.new_link(table, f"unknown_links_deg.{name}", name)
             cols[("link", name)] = len(cols)
             self.unk.append([0, li, 1, self.param(f"{u.name}.init.{name}", math.radians(init),
-                                                  "rad")])
+                                                  "rad", ("units", ui, "unknown_links_deg",
+                                                          name))])
         for name, init in u.unknown_lengths_mm.items():
             vi = self.new_var(table, f"unknown_lengths_mm.{name}", name, "mm")
             cols[("len", name)] = len(cols)
-            self.unk.append([1, vi, 0, self.param(f"{u.name}.init.{name}", init, "mm")])
+            self.unk.append([1, vi, 0, self.param(f"{u.name}.init.{name}", init, "mm",
+                                                  ("units", ui, "unknown_lengths_mm", name))])
         for name, init in u.unknown_angles_deg.items():
             vi = self.new_var(table, f"unknown_angles_deg.{name}", name, "rad")
             cols[("ang", name)] = len(cols)
             self.unk.append([1, vi, 1, self.param(f"{u.name}.init.{name}", math.radians(init),
-                                                  "rad")])
+                                                  "rad", ("units", ui, "unknown_angles_deg",
+                                                          name))])
         for lname, pts in u.joints.items():
             if ("link", lname) not in cols:
                 raise self.err(table, f"joints.{lname}", f"'{lname}' is not an unknown link of"
@@ -832,6 +964,7 @@ class _Compiler:
             for ti, term in enumerate(loop.terms):
                 key = f"loops[{li}].terms[{ti}]"
                 pre = f"{u.name}.{loop.name}.{ti}"
+                tsrc = ("units", ui, "loops", li, "terms", ti)
                 row = [0] * K.TERM_COLS
                 row[1] = li
                 row[2] = term.sign
@@ -860,13 +993,15 @@ class _Compiler:
                         row[3] = K.SRC_VAR
                     else:
                         row[3] = K.SRC_PARAM
-                        row[4] = self.param(f"{pre}.length", term.length, "mm")
+                        row[4] = self.param(f"{pre}.length", term.length, "mm",
+                                            tsrc + ("length",), positive=True)
                     if kind == "link":
                         self._angle_source(table, key + ".link", row, cols, term.link, "link")
                     else:
                         self._angle_source(table, key + ".angle", row, cols, term.angle, "angle")
                     if term.angle_deg != 0.0:
-                        row[7] = self.param(f"{pre}.angle", math.radians(term.angle_deg), "rad")
+                        row[7] = self.param(f"{pre}.angle", math.radians(term.angle_deg), "rad",
+                                            tsrc + ("angle_deg",))
                 else:
                     row[0] = K.TERM_CAM
                     if term.cam not in self.spec.cams:
@@ -886,9 +1021,11 @@ class _Compiler:
                         self._angle_source(table, key + ".normal_angle", row, cols,
                                            term.normal_angle, "angle")
                     if term.normal_deg != 0.0:
-                        row[7] = self.param(f"{pre}.normal", math.radians(term.normal_deg), "rad")
+                        row[7] = self.param(f"{pre}.normal", math.radians(term.normal_deg),
+                                            "rad", tsrc + ("normal_deg",))
                     if term.offset != 0.0:
-                        row[9] = self.param(f"{pre}.offset", term.offset, "mm")
+                        row[9] = self.param(f"{pre}.offset", term.offset, "mm",
+                                            tsrc + ("offset",))
                 used.update(c for c in (row[10], row[11]) if c >= 0)
                 self.terms.append(row)
         names = list(cols)

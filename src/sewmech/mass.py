@@ -185,6 +185,108 @@ def point_mass(mass: float, at: Sequence[float]) -> MassProperties:
     return MassProperties(float(mass), np.asarray(at, dtype=float), np.zeros((3, 3)))
 
 
+def check_inertia(inertia: np.ndarray, what: str = "inertia") -> None:
+    """Raise ValueError unless a 3 x 3 inertia tensor (kg mm^2) is physical: symmetric,
+    positive semi-definite, its principal moments meeting the triangle inequalities
+    (I1 <= I2 + I3 and its permutations: no body has more inertia about one axis than about the
+    two others together)."""
+    inertia = np.asarray(inertia, dtype=float)
+    if not np.isfinite(inertia).all():
+        raise ValueError(f"{what} has entries that are not finite numbers")
+    scale = max(float(np.abs(inertia).max()), 1e-300)
+    if not np.allclose(inertia, inertia.T, rtol=0.0, atol=1e-9 * scale):
+        raise ValueError(f"{what} must be a symmetric 3 x 3 tensor (I[i][j] = I[j][i])")
+    w = np.linalg.eigvalsh(inertia)
+    tol = 1e-9 * scale
+    if w[0] < -tol:
+        raise ValueError(f"{what} is not positive semi-definite: a principal moment is"
+                         f" {w[0]:.6g} kg mm^2 (the kinetic energy would be negative); check"
+                         " the signs of the products of inertia and the moments")
+    if w[2] > w[0] + w[1] + tol:
+        raise ValueError(f"{what}: the principal moments {w[0]:.6g}, {w[1]:.6g}, {w[2]:.6g}"
+                         " kg mm^2 break the triangle inequality (the largest must not exceed"
+                         " the sum of the other two): no real body has them")
+
+
+def _volume_points(s, n: int = 9) -> np.ndarray:
+    """Points (mm, part frame) spread through the volume of a solid spec: an n x n x n grid
+    over its bounding box in its own frame, kept where they lie inside it."""
+    if s.type == "point":
+        return np.asarray([s.at], dtype=float)
+    g = (np.arange(n) + 0.5) / n
+    u, v, w = (x.ravel() for x in np.meshgrid(g, g, g, indexing="ij"))
+    if s.type == "sphere":
+        local = (np.stack([u, v, w], axis=1) * 2 - 1) * s.radius
+        pts = np.asarray(s.center, dtype=float) + local
+    elif s.type == "box":
+        a = math.radians(s.angle_deg)
+        R = np.array([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0],
+                      [0.0, 0.0, 1.0]])
+        local = (np.stack([u, v, w], axis=1) - 0.5) * np.asarray(s.size)
+        pts = np.asarray(s.center, dtype=float) + local @ R.T
+    else:
+        r = {"cylinder": lambda: s.radius, "hollow_cylinder": lambda: s.r_out}.get(
+            s.type, lambda: max(s.r1, s.r2))()
+        h = s.length if s.type in ("cylinder", "hollow_cylinder") else s.height
+        local = np.stack([(2 * u - 1) * r, (2 * v - 1) * r, w * h], axis=1)
+        pts = np.asarray(s.base, dtype=float) + local @ _rotation_z_to(s.axis).T
+    return pts[_inside(s, pts, 0.0)]
+
+
+def _inside(s, pts: np.ndarray, tol: float) -> np.ndarray:
+    """Which points (mm, part frame) lie in the material of a solid spec (within ``tol``)."""
+    if s.type == "point":
+        return np.zeros(len(pts), dtype=bool)
+    if s.type == "sphere":
+        return np.linalg.norm(pts - np.asarray(s.center), axis=1) <= s.radius + tol
+    if s.type == "box":
+        a = math.radians(s.angle_deg)
+        R = np.array([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0],
+                      [0.0, 0.0, 1.0]])
+        local = (pts - np.asarray(s.center)) @ R
+        return (np.abs(local) <= np.asarray(s.size) / 2 + tol).all(axis=1)
+    local = (pts - np.asarray(s.base, dtype=float)) @ _rotation_z_to(s.axis)
+    t = local[:, 2]
+    rho = np.hypot(local[:, 0], local[:, 1])
+    if s.type == "cylinder":
+        h, r_out, r_in = s.length, np.full(len(pts), s.radius), 0.0
+    elif s.type == "hollow_cylinder":
+        h, r_out, r_in = s.length, np.full(len(pts), s.r_out), s.r_in
+    else:
+        h = s.height
+        r_out = s.r1 + (s.r2 - s.r1) * np.clip(t / h, 0.0, 1.0)
+        r_in = 0.0
+    return (t >= -tol) & (t <= h + tol) & (rho <= r_out + tol) & (rho >= r_in - tol)
+
+
+#: the largest share of a hole's volume that may lie outside the solids it is cut from: elementary
+#: solids approximate real parts (a box cut in a ring overshoots its curved faces a little)
+HOLE_OUTSIDE_SHARE = 0.05
+
+
+def check_holes(solids) -> None:
+    """Raise ValueError (naming ``solids[k]``) if more than :data:`HOLE_OUTSIDE_SHARE` of a
+    hole's volume lies outside the material of the solids that are not holes (sampled on a grid
+    through the hole): subtracting it would remove material that is not there."""
+    full = [s for s in solids if not s.hole]
+    for k, s in enumerate(solids):
+        if not s.hole:
+            continue
+        pts = _volume_points(s)
+        inside = np.zeros(len(pts), dtype=bool)
+        tol = 1e-9 * (1.0 + float(np.abs(pts).max())) if len(pts) else 0.0
+        for f in full:
+            inside |= _inside(f, pts, tol)
+        share = 1.0 - float(inside.mean()) if len(pts) else 0.0
+        if share > HOLE_OUTSIDE_SHARE:
+            p = pts[~inside][0]
+            raise ValueError(f"solids[{k}] (a {s.type} hole): {100 * share:.0f} % of it lies"
+                             f" outside the material (e.g. the point ({p[0]:.4g}, {p[1]:.4g},"
+                             f" {p[2]:.4g}) mm is in none of the solids); a hole must lie inside"
+                             " the solids it is cut from: move it, make it smaller, or add the"
+                             " solid it is cut from")
+
+
 def from_spec(spec) -> MassProperties:
     """Mass properties of one ``[masses.LINK]`` table (:class:`sewmech.spec.MassSpec`).
 
@@ -196,13 +298,13 @@ def from_spec(spec) -> MassProperties:
         com[: len(spec.com)] = spec.com
         if spec.inertia is not None:
             inertia = np.asarray(spec.inertia, dtype=float)
-            if not np.allclose(inertia, inertia.T):
-                raise ValueError("inertia must be a symmetric 3 x 3 tensor")
+            check_inertia(inertia)
         else:
             inertia = np.full((3, 3), np.nan)
             inertia[2, 2] = spec.inertia_zz
             inertia[0, 1] = inertia[1, 0] = np.nan
         return MassProperties(float(spec.mass), com, inertia)
+    check_holes(spec.solids)
     link_rho = spec.density if spec.density is not None else MATERIALS[spec.material]
     parts = []
     for s in spec.solids:
@@ -226,4 +328,6 @@ def from_spec(spec) -> MassProperties:
         else:
             p = point_mass(s.mass, s.at)
             parts.append(MassProperties(-p.mass, p.com, -p.inertia) if s.hole else p)
-    return compose(parts)
+    body = compose(parts)
+    check_inertia(body.inertia, "the composed inertia")
+    return body

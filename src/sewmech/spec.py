@@ -21,6 +21,7 @@ from typing import Annotated, Literal, Union
 
 from pydantic import (
     BaseModel,
+    BeforeValidator,
     ConfigDict,
     Field,
     NonNegativeFloat,
@@ -41,8 +42,64 @@ Branch = Literal[1, -1]
 Vec2 = tuple[float, float]
 
 
+#: the largest magnitude of any number in a machine file (mm, deg, kg, N, rpm ...): far beyond
+#: any machine, and far from overflow in the squares and products of the kernels
+NUMBER_LIMIT = 1e9
+
+
+def _too_large(value, path: str):
+    """The first number in ``value`` (a number or nested tuples/lists/dicts of them) beyond
+    NUMBER_LIMIT, as (path, value); None if there is none."""
+    if isinstance(value, float | int) and not isinstance(value, bool):
+        return (path, value) if abs(value) > NUMBER_LIMIT else None
+    if isinstance(value, tuple | list):
+        items = enumerate(value)
+    elif isinstance(value, dict):
+        items = value.items()
+    else:
+        return None
+    for k, v in items:
+        hit = _too_large(v, f"{path}[{k}]" if isinstance(k, int) else f"{path}.{k}")
+        if hit is not None:
+            return hit
+    return None
+
+
 class _Spec(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # every number of a file must be finite: nan and inf are refused where they are read
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    @model_validator(mode="after")
+    def _bounded(self):
+        for name in type(self).model_fields:
+            hit = _too_large(getattr(self, name), name)
+            if hit is not None:
+                raise ValueError(f"{hit[0]} = {hit[1]:g} is beyond +-{NUMBER_LIMIT:g}: numbers"
+                                 " in machine files are mm, deg, kg, N, rpm; check the value")
+        return self
+
+
+def _local_point(value):
+    """A point in a link frame: ``[u, v]`` (mm) or ``{ length = mm, angle_deg = deg }`` (polar,
+    from the link's u axis, counter-clockwise), read as (u, v)."""
+    if isinstance(value, dict):
+        if set(value) != {"length", "angle_deg"}:
+            raise ValueError("a local point is [u, v] (mm in the link frame) or"
+                             " { length = mm, angle_deg = deg }; got the keys"
+                             f" {sorted(value)}")
+        r, a = value["length"], value["angle_deg"]
+        for key, x in (("length", r), ("angle_deg", a)):
+            if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+                raise ValueError(f"{key} of a polar local point must be a finite number,"
+                                 f" got {x!r}")
+        return (r * math.cos(math.radians(a)), r * math.sin(math.radians(a)))
+    if not isinstance(value, (list, tuple)) or len(value) != 2:
+        raise ValueError("a local point is [u, v] (mm in the link frame) or"
+                         f" {{ length = mm, angle_deg = deg }}; got {value!r}")
+    return value
+
+
+LocalPoint = Annotated[Vec2, BeforeValidator(_local_point)]
 
 
 class MachineInfo(_Spec):
@@ -51,7 +108,8 @@ class MachineInfo(_Spec):
     name: Name
     title: str = ""
     description: str = ""
-    format: Literal[1] = 1
+    format: Literal[1] = 1  # the version of the file format
+    length_unit: Literal["mm"] = "mm"  # every length of the file is in mm
     variants: list[str] = Field(default_factory=list)  # machines the report compares with
 
 
@@ -68,12 +126,31 @@ class Convention(_Spec):
     reference_phi_deg: float
     description: str = ""
     assembly_phi_deg: float | None = None
+    # what makes the reference event checkable (``sewmech check`` proves it): a point at an
+    # extreme of its travel, or a link at an angle
+    reference_point: Name | None = None
+    reference_extreme: Literal["top", "bottom", "left", "right"] | None = None
+    reference_link: Name | None = None
+    reference_angle_deg: float | None = None
+
+    @model_validator(mode="after")
+    def _checkable(self):
+        if (self.reference_point is None) != (self.reference_extreme is None):
+            raise ValueError("reference_point and reference_extreme go together: the point and"
+                             " where it is at the reference event (top, bottom, left, right)")
+        if (self.reference_link is None) != (self.reference_angle_deg is None):
+            raise ValueError("reference_link and reference_angle_deg go together: the link and"
+                             " its angle (deg, from +x) at the reference event")
+        if self.reference_point is not None and self.reference_link is not None:
+            raise ValueError("give reference_point/reference_extreme or"
+                             " reference_link/reference_angle_deg, not both")
+        return self
 
 
 class Speed(_Spec):
     """``[speed]``: working speed of the upper shaft."""
 
-    rpm: PositiveFloat = 1000.0
+    rpm: Annotated[float, Field(gt=0.0, le=1e5)] = 1000.0
     note: str = ""
 
 
@@ -122,6 +199,10 @@ class InputSpec(_Spec):
     def _range(self):
         if self.min_deg is not None and self.max_deg is not None and self.min_deg > self.max_deg:
             raise ValueError(f"min_deg {self.min_deg} is larger than max_deg {self.max_deg}")
+        if self.min_deg is not None and self.default_deg < self.min_deg or (
+                self.max_deg is not None and self.default_deg > self.max_deg):
+            raise ValueError(f"default_deg {self.default_deg} is outside min_deg .. max_deg"
+                             f" ({self.min_deg} .. {self.max_deg})")
         return self
 
 
@@ -135,7 +216,7 @@ class CrankUnit(_Spec):
     phase_deg: float = 0.0
     ratio: float = 1.0
     input: Name = SHAFT
-    points: dict[Name, Vec2] = Field(default_factory=dict)
+    points: dict[Name, LocalPoint] = Field(default_factory=dict)
     note: str = ""
 
 
@@ -146,7 +227,7 @@ class PointUnit(_Spec):
     name: Name
     link: Name
     origin: Name
-    points: dict[Name, Vec2] = Field(min_length=1)
+    points: dict[Name, LocalPoint] = Field(min_length=1)
     # new points of this unit where other (already moved) links are pinned: revolute joints
     # for the force analysis, e.g. a fork hung on a rock-shaft arm inside a loop unit
     pins: dict[Name, Name | list[Name]] = Field(default_factory=dict)
@@ -535,6 +616,12 @@ class LoadSpec(_Spec):
         if (self.angle_deg is None) == (self.toward is None):
             raise ValueError("a load needs exactly one of angle_deg (a fixed direction) and"
                              " toward (points its line of action is pulled towards)")
+        for a, b in self.windows_deg:
+            if not (0.0 <= a <= 360.0 and 0.0 <= b <= 360.0) or a == b:
+                raise ValueError(f"windows_deg: [{a:g}, {b:g}] is not a shaft-angle window;"
+                                 " each window is [from, to] with both ends in 0 .. 360 deg and"
+                                 " from != to ([350, 20] wraps through 0; [0, 360] is the whole"
+                                 " cycle)")
         return self
 
 
@@ -597,11 +684,16 @@ def _allowed_keys(model: type[BaseModel]) -> list[str]:
     return sorted(model.model_fields)
 
 
-def _model_at(loc: tuple, raw) -> tuple[type[BaseModel] | None, list[str]]:
-    """Walk MachineSpec along a pydantic error location; return the innermost model and the
-    human-readable table path."""
+def _model_at(loc: tuple, raw) -> tuple[type[BaseModel] | None, list[str], int, tuple]:
+    """Walk MachineSpec along a pydantic error location.
+
+    Returns the innermost model, the human-readable path (tables, list items with their
+    ``name``, keys), how many of its parts lead to that model (its table) and the parts of
+    ``loc`` left over below the last field (tuple indices, unknown keys).
+    """
     model: type[BaseModel] | None = MachineSpec
     path: list[str] = []
+    n_model = 0
     node = raw
     i = 0
     ann = None
@@ -627,7 +719,7 @@ def _model_at(loc: tuple, raw) -> tuple[type[BaseModel] | None, list[str]]:
                     label = f"[{key}]"
                     if isinstance(node, list) and isinstance(key, int) and key < len(node):
                         node = node[key]
-                        if isinstance(node, dict) and "name" in node:
+                        if isinstance(node, dict) and isinstance(node.get("name"), str):
                             label += f' "{node["name"]}"'
                     else:
                         node = None
@@ -654,35 +746,61 @@ def _model_at(loc: tuple, raw) -> tuple[type[BaseModel] | None, list[str]]:
                 continue
             if isinstance(ann, type) and issubclass(ann, BaseModel):
                 model = ann
+                n_model = len(path)
             ann = None
-    return model, path
+    return model, path, n_model, tuple(loc[i:])
+
+
+def _short(value, limit: int = 60) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def _explain(err: dict, raw: dict, file: str) -> MachineFileError:
     loc = tuple(err["loc"])
-    model, path = _model_at(loc, raw)
-    table = ".".join(path[:-1]) if path else ""
-    key = path[-1] if path else ""
+    model, path, n_model, rest = _model_at(loc, raw)
     etype = err["type"]
-    if etype == "extra_forbidden":
-        key = str(loc[-1])
-        table = ".".join(path) if path else ""
-        allowed = ", ".join(_allowed_keys(model)) if model is not None else "?"
-        msg = f"unknown key '{key}'; expected one of: {allowed}"
-    elif etype == "missing":
-        key = str(loc[-1])
-        table = ".".join(path[:-1]) if len(path) > 1 else (path[0] if path and path[0] != key else "")
-        msg = f"missing required key '{key}'"
-    elif etype == "literal_error" and key == "branch":
-        msg = (f"branch must be +1 or -1 (the assembly branch of the unit), got {err['input']!r}")
-    elif etype in ("greater_than", "greater_than_equal") and "length" in key:
-        msg = f"must be a positive length in mm, got {err['input']!r}"
-    elif etype == "union_tag_invalid":
-        msg = (f"unknown unit type {err['input'].get('type')!r}; expected one of: crank, point,"
-               " rrr, rrp, rpr, loop") if isinstance(err.get("input"), dict) else err["msg"]
+    if model is not None and n_model == len(path) and not rest:
+        table, key = ".".join(path), ""  # the table as a whole (a model validator)
     else:
-        msg = f"{err['msg']} (got {err.get('input')!r})"
-    return MachineFileError(file, table, key, msg)
+        table = ".".join(path[:n_model])
+        key = ".".join(path[n_model:])
+        for part in rest:
+            key += f"[{part}]" if isinstance(part, int) else (f".{part}" if key else str(part))
+    got = err.get("input")
+    hint = ""
+    if etype == "extra_forbidden":
+        allowed = ", ".join(_allowed_keys(model)) if model is not None else "?"
+        msg = f"unknown key '{loc[-1]}'; expected one of: {allowed}"
+        hint = "Fix the spelling or remove the key (docs/machine-files.md)"
+    elif etype == "missing":
+        msg = f"missing required key '{loc[-1]}'"
+        if model is not None and n_model == len(path):
+            key = str(loc[-1])
+        hint = "Add it (docs/machine-files.md lists every key)"
+    elif etype == "finite_number":
+        msg = f"must be a finite number, got {_short(got)}"
+        hint = "nan and inf are not values sewmech can compute with; write the number"
+    elif etype == "literal_error" and key == "branch":
+        msg = f"branch must be +1 or -1 (the assembly branch of the unit), got {got!r}"
+    elif etype == "literal_error" and key == "length_unit":
+        msg = f"length_unit must be \"mm\", got {_short(got)}"
+        hint = ("sewmech reads every length of a machine file in millimetres; convert the"
+                " file's lengths to mm")
+    elif etype in ("greater_than", "greater_than_equal") and "length" in key:
+        msg = f"must be a positive length in mm, got {_short(got)}"
+    elif etype == "union_tag_invalid":
+        msg = (f"unknown unit type {got.get('type')!r}; expected one of: crank, point,"
+               " rrr, rrp, rpr, loop") if isinstance(got, dict) else err["msg"]
+    elif etype == "value_error":
+        msg = err["msg"].removeprefix("Value error, ")
+        if not isinstance(got, dict | list):
+            msg += f" (got {_short(got)})"
+    elif etype in ("dict_type", "model_type", "model_attributes_type"):
+        msg = f"must be a table ({{ key = value, ... }} or [{'.'.join(path)}]), got {_short(got)}"
+    else:
+        msg = f"{err['msg']} (got {_short(got)})"
+    return MachineFileError(file, table, key, msg, hint)
 
 
 def parse_machine(text: str, file: str = "<string>") -> MachineSpec:
