@@ -55,10 +55,14 @@ class MachineFileError(SewmechError, ValueError):
         self.file = file
         self.table = table
         self.key = key
-        where = f"[{table}]" if table else "(top level)"
-        if key:
-            where += f" {key}"
-        super().__init__(f"{file}: {where}", message, hint)
+        if table or key:
+            where = f"[{table}]" if table else "(top level)"
+            if key:
+                where += f" {key}"
+            where = f"{file}: {where}"
+        else:  # the file as a whole
+            where = file
+        super().__init__(where, message, hint)
 
 
 class OptionError(SewmechError, ValueError):

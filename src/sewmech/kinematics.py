@@ -16,8 +16,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _kernels as K
-from .errors import AssemblyError, ConvergenceError, ParameterError
-from .machine import Machine, domain_message, parameter_location
+from .errors import AssemblyError, ConvergenceError, OptionError, ParameterError
+from .machine import PARAM_LIMIT, Machine, domain_message, parameter_location
 from .results import KinematicsResult
 
 _REASONS = {
@@ -48,6 +48,9 @@ def _march(phi: np.ndarray, start: float, max_step: float):
     Returns (march angles, output row of each march step or -1 for an intermediate step, index
     into phi of the step's shaft speed). Gaps wider than max_step are split evenly.
     """
+    if not phi.size:
+        empty = np.empty(0, dtype=np.int64)
+        return np.empty(0), empty, empty
     offsets = np.mod(phi - start, 2.0 * math.pi)
     order = np.argsort(offsets, kind="stable")
     targets = offsets[order]
@@ -71,6 +74,35 @@ def _march(phi: np.ndarray, start: float, max_step: float):
         store = np.concatenate([[-1], store])
         where = np.concatenate([[order[0]], where])
     return march, store, where
+
+
+#: the fastest shaft speed sewmech accepts, rev/min (household machines run at 1000-1500,
+#: industrial ones up to about 10,000)
+MAX_RPM = 1e5
+
+
+def check_speed(name: str, rpm: float) -> float:
+    """``rpm`` as a float, or an :class:`OptionError` unless it is a finite speed in
+    (0, MAX_RPM] rev/min."""
+    try:
+        value = float(rpm)
+    except (TypeError, ValueError):
+        raise OptionError(name, f"must be a number of rev/min, got {rpm!r}") from None
+    if not 0.0 < value <= MAX_RPM:  # (a NaN fails too)
+        raise OptionError(name, f"must be a shaft speed in (0, {MAX_RPM:g}] rev/min, got"
+                          f" {value:g}", "Give the working speed, e.g. 1000")
+    return value
+
+
+def check_finite(name: str, values: np.ndarray, unit: str, *, limit: float) -> None:
+    """An :class:`OptionError` unless every value is finite and within +-limit."""
+    values = np.asarray(values, dtype=float)
+    bad = ~(np.abs(values) <= limit)
+    if bad.any():
+        k = np.unravel_index(int(np.argmax(bad)), values.shape) if values.ndim else ()
+        at = f"[{', '.join(map(str, k))}]" if k else ""
+        raise OptionError(name, f"{name}{at} is {float(values[k])!r}: every value must be a"
+                          f" finite number within +-{limit:g} {unit}")
 
 
 def kernel_input(a: np.ndarray) -> np.ndarray:
@@ -130,19 +162,26 @@ class KinematicsPlan:
         extra_points: tuple[np.ndarray, np.ndarray] | None = None,
     ):
         if on_failure not in ("raise", "mask"):
-            raise ValueError(f"on_failure must be 'raise' or 'mask', got {on_failure!r}")
+            raise OptionError("on_failure", f"must be 'raise' or 'mask', got {on_failure!r}")
         phi = np.array(phi, dtype=float, ndmin=1)  # a private copy: the result freezes it
         if phi.ndim != 1:
-            raise ValueError(f"phi must be one-dimensional (n_phi,), got shape {phi.shape}")
-        if not np.isfinite(phi).all():
-            raise ValueError("phi contains NaN or infinite angles")
+            raise OptionError("phi", f"must be one-dimensional (n_phi,), got shape {phi.shape}")
+        check_finite("phi", phi, "rad", limit=PARAM_LIMIT)
         n_phi = phi.shape[0]
         if omega is None:
+            if rpm is not None:
+                check_speed("rpm", rpm)
             omega = rpm_to_rad_s(machine.rpm if rpm is None else rpm)
         omega_arr = np.empty(n_phi)
         omega_arr[...] = omega
+        check_finite("omega", omega_arr, "rad/s", limit=rpm_to_rad_s(MAX_RPM))
         eps_arr = np.empty(n_phi)
         eps_arr[...] = epsilon
+        check_finite("epsilon", eps_arr, "rad/s^2", limit=1e9)
+        for name, value, lo, hi in (("max_step_deg", max_step_deg, 1e-3, 90.0),
+                                    ("tol", tol, 1e-15, 1.0), ("max_iter", max_iter, 1, 1000)):
+            if not lo <= value <= hi:  # (a NaN fails too)
+                raise OptionError(name, f"must be in {lo:g} .. {hi:g}, got {value!r}")
         if machine.has_loops:
             march, store, where = _march(phi, machine.assembly_phi, math.radians(max_step_deg))
             march_omega, march_eps = omega_arr[where], eps_arr[where]
@@ -432,13 +471,12 @@ def angle_ranges(phi_deg: np.ndarray, mask: np.ndarray) -> list[tuple[float, flo
 def _parameter_error(machine: Machine, j: int, design: tuple, value: float) -> ParameterError:
     """A parameter outside its domain, located in the machine file where it comes from."""
     name = machine.parameter_names[j]
-    msg = domain_message(name, value, machine.parameter_units[j],
-                         float(machine.parameter_lo[j]), float(machine.parameter_hi[j]))
+    msg, hint = domain_message(name, value, machine.parameter_units[j],
+                               float(machine.parameter_lo[j]), float(machine.parameter_hi[j]))
     src = machine.parameter_sources[j] if machine.parameter_sources else None
-    hint = "Give a value inside the domain"
-    if src is not None:
+    if src is not None and not name.startswith("input."):
         table, key = parameter_location(machine.spec, src)
-        hint += f" (the file's value is at {machine.file}: [{table}] {key})"
+        hint += f" (the parameter of {machine.file}: [{table}] {key})"
     return ParameterError(name, design, value, msg, hint)
 
 

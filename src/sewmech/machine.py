@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike
 
 from . import _kernels as K
 from .cams import CONSTANT_WIDTH_KEYS, constant_width_arcs
-from .errors import MachineFileError, name_index
+from .errors import MachineFileError, ParameterError, name_index
 from .mass import from_spec as mass_from_spec
 from .spec import (
     FRAME,
@@ -351,18 +351,19 @@ class Machine:
         items: dict[int, np.ndarray] = {}
         designs: dict[str, dict[str, np.ndarray]] = {}
         for name, value in (overrides or {}).items():
+            value = _finite_values(name, value)
             cam, _, key = name.rpartition(".")
             if cam in self.cam_designs and key in CONSTANT_WIDTH_KEYS:
-                designs.setdefault(cam, {})[key] = np.asarray(value, dtype=float)
+                designs.setdefault(cam, {})[key] = value
                 continue
-            items[self.parameter_index(name)] = np.asarray(value, dtype=float)
+            items[self.parameter_index(name)] = value
         for cam, given in designs.items():  # a cam design value moves all six arcs
             arcs = constant_width_arcs(**{**self.cam_designs[cam], **given})
             for key, values in arcs.items():
                 for k in range(6):
                     items[self.parameter_index(f"{cam}.arc{k}.{key}")] = values[..., k]
         for name, value in (inputs or {}).items():
-            items[self.parameter_index(f"input.{name}")] = np.asarray(value, dtype=float)
+            items[self.parameter_index(f"input.{name}")] = _finite_values(f"input.{name}", value)
         b = self.defaults if base is None else np.asarray(base, dtype=float)
         if b.shape[-1:] != self.defaults.shape:
             raise ValueError(f"base must end in ({self.defaults.size},) parameters, got {b.shape}")
@@ -381,6 +382,22 @@ PARAM_LIMIT = 1e6
 MIN_LENGTH = 1e-6
 
 
+def _finite_values(name: str, value: ArrayLike) -> np.ndarray:
+    """``value`` as a float array, or a :class:`ParameterError` naming the first design whose
+    value is not a finite number."""
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(name, (), math.nan, f"must be numbers (internal units, mm or rad),"
+                             f" got {value!r}") from None
+    bad = ~np.isfinite(a)
+    if bad.any():
+        k = tuple(int(i) for i in np.unravel_index(int(np.argmax(bad)), a.shape))
+        raise ParameterError(name, k, float(a[k]), f"is {float(a[k])}: every value must be a"
+                             " finite number", "nan and inf are not designs")
+    return a
+
+
 def _input_bounds(inp) -> tuple[float, float]:
     """Domain (rad) of a setting input: its declared range, else +-PARAM_LIMIT."""
     lo = math.radians(inp.min_deg) if inp.min_deg is not None else -PARAM_LIMIT
@@ -389,20 +406,28 @@ def _input_bounds(inp) -> tuple[float, float]:
 
 
 def domain_message(name: str, value: float, unit: str, lo: float, hi: float, *,
-                   file_units: bool = False) -> str:
-    """Why ``value`` is outside [lo, hi], in the units the user sees (degrees in files)."""
+                   file_units: bool = False) -> tuple[str, str]:
+    """(why ``value`` is outside [lo, hi], what to do), in the units the user sees (degrees
+    in files and for setting inputs)."""
     deg = unit == "rad" and (file_units or name.startswith("input."))
-    show = (lambda x: f"{math.degrees(x):.6g} deg") if deg else (
-        lambda x: f"{x:.6g} {unit}" if unit != "1" else f"{x:.6g}")
+
+    def show(x):
+        if deg:
+            return f"{math.degrees(x):.6g} deg"
+        return f"{x:.6g} {unit}" if unit != "1" else f"{x:.6g}"
+
     if not math.isfinite(value):
-        return f"is {value}: every number must be finite (no nan or inf)"
+        return (f"is {value}: every number must be finite",
+                "nan and inf are not values sewmech can compute with; give the number")
     if name.startswith("input.") and (lo > -PARAM_LIMIT or hi < PARAM_LIMIT):
         return (f"is {show(value)}: outside the range {show(lo)} .. {show(hi)} declared in"
-                f" [inputs.{name[6:]}]; give a setting inside it or widen min_deg/max_deg")
+                f" [inputs.{name[6:]}]", "Give a setting inside it, or widen min_deg/max_deg"
+                " in the machine file")
     if lo == MIN_LENGTH:
         return (f"is {show(value)}: a length must be positive (at least {MIN_LENGTH:g} mm) and"
-                f" at most {PARAM_LIMIT:g} mm")
-    return f"is {show(value)}: its magnitude must be at most {show(PARAM_LIMIT)}"
+                f" at most {PARAM_LIMIT:g} mm", "Give a length inside that range")
+    return (f"is {show(value)}: its magnitude must be at most {show(PARAM_LIMIT)}",
+            "Give a value inside that range")
 
 
 def parameter_location(spec: MachineSpec, path: tuple) -> tuple[str, str]:
@@ -657,8 +682,9 @@ class _Compiler:
         for i, (value, lo, hi) in enumerate(zip(self.pvalues, self.plo, self.phi)):
             if not lo <= value <= hi and self.psrc[i] is not None:
                 table, key = parameter_location(spec, self.psrc[i])
-                raise self.err(table, key, domain_message(self.pnames[i], value, self.punits[i],
-                                                          lo, hi, file_units=True))
+                raise self.err(table, key, *domain_message(self.pnames[i], value,
+                                                           self.punits[i], lo, hi,
+                                                           file_units=True))
         defaults = np.asarray(self.pvalues, dtype=float)
         defaults.setflags(write=False)
         lo, hi = (np.asarray(x, dtype=float) for x in (self.plo, self.phi))

@@ -684,14 +684,15 @@ def _allowed_keys(model: type[BaseModel]) -> list[str]:
     return sorted(model.model_fields)
 
 
-def _model_at(loc: tuple, raw) -> tuple[type[BaseModel] | None, list[str], int, tuple]:
+def _model_at(loc: tuple, raw, root: type[BaseModel] = MachineSpec
+              ) -> tuple[type[BaseModel] | None, list[str], int, tuple]:
     """Walk MachineSpec along a pydantic error location.
 
     Returns the innermost model, the human-readable path (tables, list items with their
     ``name``, keys), how many of its parts lead to that model (its table) and the parts of
     ``loc`` left over below the last field (tuple indices, unknown keys).
     """
-    model: type[BaseModel] | None = MachineSpec
+    model: type[BaseModel] | None = root
     path: list[str] = []
     n_model = 0
     node = raw
@@ -756,9 +757,10 @@ def _short(value, limit: int = 60) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
-def _explain(err: dict, raw: dict, file: str) -> MachineFileError:
+def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpec
+             ) -> MachineFileError:
     loc = tuple(err["loc"])
-    model, path, n_model, rest = _model_at(loc, raw)
+    model, path, n_model, rest = _model_at(loc, raw, root)
     etype = err["type"]
     if model is not None and n_model == len(path) and not rest:
         table, key = ".".join(path), ""  # the table as a whole (a model validator)
@@ -803,6 +805,61 @@ def _explain(err: dict, raw: dict, file: str) -> MachineFileError:
     return MachineFileError(file, table, key, msg, hint)
 
 
+#: the largest machine or load file sewmech reads, bytes (the shipped JB files are 40 kB)
+MAX_FILE_BYTES = 4 * 1024 * 1024
+
+
+def read_toml_text(path: str | Path, what: str = "machine file") -> str:
+    """The text of a TOML file, or a :class:`MachineFileError` that says why it cannot be read:
+    missing, a directory, too large, binary, not UTF-8."""
+    path = Path(path)
+    file = str(path)
+    try:
+        if path.is_dir():
+            raise MachineFileError(file, "", "", f"is a directory, not a {what}",
+                                   "Give the path of a .toml file")
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise MachineFileError(file, "", "", f"is {size / 2**20:.1f} MiB; a {what} is at"
+                                   f" most {MAX_FILE_BYTES // 2**20} MiB of TOML text",
+                                   f"Check that this is the {what} you meant")
+        with path.open("rb") as fh:
+            data = fh.read(MAX_FILE_BYTES + 1)
+    except OSError as exc:
+        raise MachineFileError(file, "", "", f"cannot read the file: {exc.strerror or exc}",
+                               "Check the path and its permissions") from None
+    if b"\0" in data:
+        raise MachineFileError(file, "", "", f"is a binary file, not a {what} (TOML text)",
+                               "Give the path of a .toml file")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise MachineFileError(file, "", "", f"is not UTF-8 text (byte 0x{data[exc.start]:02x}"
+                               f" on line {line})", "Save the file as UTF-8") from None
+
+
+def _parse_toml(text: str, file: str) -> dict:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise MachineFileError(file, "", "", f"not valid TOML: {exc}",
+                               "Fix the syntax at that line (https://toml.io)") from None
+    except RecursionError:
+        raise MachineFileError(file, "", "", "nests arrays or tables too deeply to be a machine"
+                               " file", "Check the file's brackets") from None
+
+
+def _validate(model: type[BaseModel], raw: dict, file: str):
+    try:
+        return model.model_validate(raw)
+    except ValidationError as exc:
+        raise _explain(exc.errors()[0], raw, file, model) from None
+    except RecursionError:
+        raise MachineFileError(file, "", "", "nests arrays or tables too deeply to be a machine"
+                               " file", "Check the file's brackets") from None
+
+
 def parse_machine(text: str, file: str = "<string>") -> MachineSpec:
     """Parse machine-file TOML text into a validated :class:`MachineSpec`.
 
@@ -811,36 +868,15 @@ def parse_machine(text: str, file: str = "<string>") -> MachineSpec:
     MachineFileError
         With file, table and key of the first problem found.
     """
-    try:
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise MachineFileError(file, "", "", f"not valid TOML: {exc}") from None
-    try:
-        return MachineSpec.model_validate(raw)
-    except ValidationError as exc:
-        raise _explain(exc.errors()[0], raw, file) from None
+    return _validate(MachineSpec, _parse_toml(text, file), file)
 
 
 def load_machine_spec(path: str | Path) -> MachineSpec:
     """Read and validate a machine file (TOML)."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise MachineFileError(str(path), "", "", f"cannot read the file: {exc.strerror}") from None
-    return parse_machine(text, str(path))
+    return parse_machine(read_toml_text(path), str(path))
 
 
 def load_load_file(path: str | Path) -> list[LoadSpec]:
     """Read and validate a load file (``[[loads]]`` tables, as in machine files)."""
-    path = Path(path)
-    try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise MachineFileError(str(path), "", "", f"cannot read the file: {exc.strerror}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise MachineFileError(str(path), "", "", f"not valid TOML: {exc}") from None
-    try:
-        return list(LoadFile.model_validate(raw).loads)
-    except ValidationError as exc:
-        raise _explain(exc.errors()[0], raw, str(path)) from None
+    raw = _parse_toml(read_toml_text(path, "load file"), str(path))
+    return list(_validate(LoadFile, raw, str(path)).loads)
