@@ -1,10 +1,22 @@
-"""The ``sewmech`` command line (typer + rich)."""
+"""The ``sewmech`` command line (typer + rich).
+
+Every command runs inside :func:`_guard`: an error sewmech raises on purpose is printed as one
+line ``error: <where>: <what is wrong>. <what to do>`` with exit code 2 (docs/errors.md), Ctrl-C
+and SIGTERM stop the command cleanly (exit 130 and 143; nothing half-written is left behind),
+and anything unexpected is reported as an internal error (exit 70) without a traceback unless
+``SEWMECH_DEBUG=1`` is set. Options are checked here, where they enter, before any work.
+"""
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import json
 import math
+import os
+import signal
 import sys
+import threading
 from enum import Enum
 from pathlib import Path
 
@@ -14,16 +26,22 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from .errors import SewmechError
+from .errors import OptionError, SewmechError
 from .machine import Machine, load_machine, shipped_machines
 
 DEFAULT_MACHINE = "jb1-3"
 
-app = typer.Typer(add_completion=False, no_args_is_help=True,
-                  help="sewmech: kinematics of sewing-machine mechanisms (mm, s, rad inside; "
-                       "degrees at the edges).")
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="sewmech: kinematics and dynamics of sewing-machine mechanisms (mm, s,"
+                       " rad inside; degrees at the edges).")
 console = Console()
 err_console = Console(stderr=True)
+
+#: exit codes: 2 a user error (bad file, option or output path), 70 an internal error,
+#: 130 / 143 interrupted by Ctrl-C / SIGTERM
+EXIT_ERROR, EXIT_INTERNAL, EXIT_SIGINT, EXIT_SIGTERM = 2, 70, 130, 143
+#: the finest shaft-angle step of any command, deg (36,000 positions per turn)
+MIN_STEP_DEG = 0.01
 
 
 class Format(str, Enum):
@@ -31,44 +49,190 @@ class Format(str, Enum):
     json = "json"
 
 
-def _fail(exc: Exception) -> None:
-    err_console.print(f"[bold red]error:[/] {escape(str(exc))}", markup=True, highlight=False,
+class Terminated(BaseException):
+    """Raised in the main thread when SIGTERM arrives, so that every ``finally`` and context
+    manager on the way out runs (staging directories and temporary files are removed)."""
+
+
+def _print_error(text: str) -> None:
+    err_console.print(f"[bold red]error:[/] {escape(text)}", markup=True, highlight=False,
                       soft_wrap=True)
-    raise typer.Exit(code=2)
 
 
-def _load(machine: str) -> Machine:
+@contextlib.contextmanager
+def _guard():
+    """One place where every command's failures become one clear line and an exit code."""
+    handler_set = False
+    if threading.current_thread() is threading.main_thread():
+        def on_term(signum, frame):
+            raise Terminated()
+
+        old = signal.signal(signal.SIGTERM, on_term)
+        handler_set = True
     try:
-        return load_machine(machine)
+        yield
+    except (typer.Exit, typer.Abort):
+        raise
     except SewmechError as exc:
-        _fail(exc)
+        _print_error(str(exc))
+        raise typer.Exit(EXIT_ERROR) from None
+    except KeyboardInterrupt:
+        _print_error("interrupted (Ctrl-C); nothing half-written was left behind")
+        raise typer.Exit(EXIT_SIGINT) from None
+    except Terminated:
+        _print_error("terminated (SIGTERM); nothing half-written was left behind")
+        raise typer.Exit(EXIT_SIGTERM) from None
+    except MemoryError:
+        _print_error("out of memory. Use a coarser --step-deg, or fewer designs at a time")
+        raise typer.Exit(EXIT_ERROR) from None
+    except (ValueError, KeyError) as exc:  # the library's argument checks
+        text = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+        _print_error(str(text))
+        raise typer.Exit(EXIT_ERROR) from None
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        _print_error(f"{where}{exc.strerror or exc}")
+        raise typer.Exit(EXIT_ERROR) from None
+    except Exception as exc:
+        if os.environ.get("SEWMECH_DEBUG"):
+            raise
+        _print_error(f"internal error ({type(exc).__name__}: {exc}). This is a bug in sewmech:"
+                     " please report it with the command line; SEWMECH_DEBUG=1 shows the"
+                     " traceback")
+        raise typer.Exit(EXIT_INTERNAL) from None
+    finally:
+        if handler_set:
+            signal.signal(signal.SIGTERM, old)
 
 
-def _phi_grid(machine: Machine, step_deg: float) -> np.ndarray:
-    if not (0 < step_deg <= 90):
-        _fail(ValueError(f"--step-deg must be in (0, 90], got {step_deg}"))
+def command(name: str):
+    """``@app.command(name)`` whose body runs inside :func:`_guard`."""
+    def deco(fn):
+        @functools.wraps(fn)
+        def run(*args, **kwargs):
+            with _guard():
+                return fn(*args, **kwargs)
+
+        return app.command(name)(run)
+    return deco
+
+
+# ---- options: checked where they enter -----------------------------------------------------
+
+
+def _load(machine: str, sets: list[str] | None = None) -> Machine:
+    """The machine (shipped name or file), with the ``--set`` changes applied."""
+    m = load_machine(machine)
+    values = _parse_sets(m, sets)
+    return m.with_parameters(values, origin="--set") if values else m
+
+
+_UNITS = {"mm": ("mm", 1.0), "deg": ("rad", math.pi / 180.0), "rad": ("rad", 1.0)}
+
+
+def _parse_sets(m: Machine, sets: list[str] | None) -> dict[str, float]:
+    """--set NAME=VALUE[mm|deg|rad] -> {name: value in internal units}."""
+    values: dict[str, float] = {}
+    designs = {f"{c}.{k}": ("mm" if k in ("width", "stroke") else "rad")
+               for c in m.cam_designs for k in ("width", "stroke", "dwell", "orientation")}
+    for item in sets or ():
+        name, eq, text = (x.strip() for x in item.partition("="))
+        if not eq or not name or not text:
+            raise OptionError("--set", f"{item!r} is not NAME=VALUE",
+                              "Write e.g. --set needle_bar.length=44 or"
+                              " --set needle_crank.phase=5deg")
+        unit = designs.get(name)
+        if unit is None:
+            if name not in m.parameter_names:
+                import difflib
+
+                close = difflib.get_close_matches(name, m.parameter_names, n=3)
+                hint = f"Did you mean {', '.join(close)}? " if close else ""
+                raise OptionError("--set", f"machine '{m.name}' has no parameter '{name}'",
+                                  hint + f"`sewmech check {m.name} --parameters` lists them")
+            unit = m.parameter_units[m.parameter_index(name)]
+        suffix = next((u for u in _UNITS if text.endswith(u)), None)
+        number = text[: -len(suffix)] if suffix else text
+        try:
+            value = float(number)
+        except ValueError:
+            raise OptionError("--set", f"{item!r}: {number!r} is not a number") from None
+        if not math.isfinite(value):
+            raise OptionError("--set", f"{item!r}: the value must be a finite number")
+        if unit == "rad" and suffix is None:
+            raise OptionError("--set", f"{item!r}: '{name}' is an angle; give its unit",
+                              f"Write {name}={number}deg (or {number}rad)")
+        if suffix is not None and _UNITS[suffix][0] != unit:
+            raise OptionError("--set", f"{item!r}: '{name}' is in {unit}, not {suffix}")
+        values[name] = value * (_UNITS[suffix][1] if suffix else 1.0)
+    return values
+
+
+def _phi_grid(step_deg: float, option: str = "--step-deg", min_step: float = MIN_STEP_DEG
+              ) -> np.ndarray:
+    """Shaft angles of one turn in steps of ``step_deg`` (which must divide 360), rad."""
+    if not min_step <= step_deg <= 90.0:  # (a NaN fails too)
+        raise OptionError(option, f"must be in {min_step:g} .. 90 deg, got {step_deg:g}",
+                          f"Give e.g. {option} 5 (72 positions per turn)")
     n = int(round(360.0 / step_deg))
     if not math.isclose(n * step_deg, 360.0, rel_tol=1e-9):
-        _fail(ValueError(f"--step-deg {step_deg} does not divide 360"))
+        raise OptionError(option, f"{step_deg:g} deg does not divide 360",
+                          "Give a step such as 0.5, 1, 2, 5 or 10")
     return np.radians(np.arange(n) * step_deg)
 
 
+def _phi(step_deg: float, phi_deg: list[float] | None) -> np.ndarray:
+    """--phi-deg angles if given (finite, any order), else one turn in --step-deg steps."""
+    if not phi_deg:
+        return _phi_grid(step_deg)
+    a = np.asarray(phi_deg, dtype=float)
+    if not (np.abs(a) <= 1e6).all():
+        raise OptionError("--phi-deg", f"must be finite angles in deg, got {list(phi_deg)}")
+    return np.radians(a)
+
+
+def _rpm(rpm: float | None) -> float | None:
+    from .kinematics import check_speed
+
+    return None if rpm is None else check_speed("--rpm", rpm)
+
+
 def _settings(m: Machine, inputs: list[str] | None) -> dict[str, float]:
-    """--input NAME=DEG options -> {name: rad}."""
+    """--input NAME=DEG options -> {name: rad}, checked against the declared ranges."""
     settings = {}
     for item in inputs or ():
-        name, _, value = item.partition("=")
+        name, _, value = (x.strip() for x in item.partition("="))
         if name not in m.spec.inputs:
-            _fail(ValueError(f"--input {item!r}: machine '{m.name}' has no input '{name}'"
-                             f" (inputs: {', '.join(m.spec.inputs) or 'none'})"))
+            raise OptionError("--input", f"{item!r}: machine '{m.name}' has no input"
+                              f" '{name}'", f"Inputs: {', '.join(m.spec.inputs) or 'none'}")
         try:
-            settings[name] = math.radians(float(value))
+            deg = float(value)
         except ValueError:
-            _fail(ValueError(f"--input {item!r}: expected NAME=DEGREES"))
+            raise OptionError("--input", f"{item!r}: expected NAME=DEGREES",
+                              f"Write e.g. --input {name}=20") from None
+        spec = m.spec.inputs[name]
+        lo = spec.min_deg if spec.min_deg is not None else -1e6
+        hi = spec.max_deg if spec.max_deg is not None else 1e6
+        if not lo <= deg <= hi:  # (a NaN fails too)
+            raise OptionError("--input", f"{item!r}: outside the range {lo:g} .. {hi:g} deg"
+                              f" declared in [inputs.{name}] of {m.file}",
+                              "Give a setting inside it")
+        settings[name] = math.radians(deg)
     return settings
 
 
-@app.command("machines")
+def _bounded(option: str, value: float, lo: float, hi: float, unit: str, example: str):
+    if not lo <= value <= hi:  # (a NaN fails too)
+        raise OptionError(option, f"must be in {lo:g} .. {hi:g} {unit}, got {value:g}",
+                          f"Give e.g. {option} {example}")
+    return value
+
+
+SET_HELP = ("change a parameter of the machine file, e.g. needle_bar.length=44 (mm) or"
+            " needle_crank.phase=5deg; names as `check --parameters` lists them; repeatable")
+
+
+@command("machines")
 def machines_cmd():
     """List the machine files shipped with sewmech."""
     table = Table(title="shipped machines")
@@ -80,19 +244,25 @@ def machines_cmd():
     console.print(table)
 
 
-@app.command("check")
-def check_cmd(file: Path = typer.Argument(..., help="machine file (TOML) or shipped name"),
-              step_deg: float = typer.Option(5.0, help="angle step of the assembly check, deg")):
+@command("check")
+def check_cmd(
+    file: str = typer.Argument(..., help="machine file (TOML) or shipped name"),
+    step_deg: float = typer.Option(5.0, help="angle step of the assembly check, deg"),
+    sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
+    list_parameters: bool = typer.Option(False, "--parameters", help="also list every"
+                                         " parameter: name, value, unit, where in the file"),
+):
     """Validate a machine file and assemble it over one revolution."""
+    from .dynamics import force_system
     from .kinematics import kinematics
 
-    m = _load(str(file))
-    try:
-        res = kinematics(m, _phi_grid(m, step_deg))
-    except SewmechError as exc:
-        _fail(exc)
+    m = _load(file, sets)
+    phi = _phi_grid(step_deg)
+    res = kinematics(m, phi)
     table = Table(title=f"{m.name}: valid", show_header=False)
     table.add_row("file", m.file)
+    if m.changes:
+        table.add_row("changed by --set", ", ".join(f"{k} = {v:g}" for k, v in m.changes.items()))
     table.add_row("angle convention", f"phi = {m.spec.convention.reference_phi_deg:g} deg: "
                   f"{m.spec.convention.reference_event}")
     table.add_row("points / links / variables", f"{len(m.point_names)} / "
@@ -101,73 +271,104 @@ def check_cmd(file: Path = typer.Argument(..., help="machine file (TOML) or ship
     table.add_row("branches", ", ".join(f"{k}: {v:+d}" for k, v in m.branches.items()) or "-")
     table.add_row("parameters", str(len(m.parameter_names)))
     table.add_row("assembles", f"at all {res.phi.size} positions (step {step_deg:g} deg)")
-    from .dynamics import force_system
-
     table.add_row("force analysis", escape(force_system(m)))
     console.print(table)
+    if list_parameters:
+        console.print(_parameter_table(m))
+
+
+def _parameter_table(m: Machine) -> Table:
+    table = Table(title=f"{m.name}: parameters (names for --set and Machine.parameters)")
+    for col in ("parameter", "value", "unit", "in the file"):
+        table.add_column(col, justify="right" if col == "value" else "left")
+    for name, value, unit in zip(m.parameter_names, m.defaults, m.parameter_units):
+        loc = m.parameter_location(name)
+        where = f"[{loc[0]}] {loc[1]}" if loc else "from the cam's constant_width"
+        shown = f"{math.degrees(value):.6g}" if unit == "rad" else f"{value:.6g}"
+        table.add_row(name, shown, "deg" if unit == "rad" else unit, escape(where))
+    return table
 
 
 def _summary(res) -> Table:
-    table = Table(title=f"{res.machine}: kinematics over {res.phi.size} positions "
-                        f"({res.omega_shaft[0] * 60 / (2 * math.pi):g} rpm)")
+    rpm = res.omega_shaft[0] * 60 / (2 * math.pi) if res.phi.size else 0.0
+    table = Table(title=f"{res.machine}: kinematics over {res.phi.size} positions ({rpm:g} rpm)",
+                  caption="rate: unit/s, accel: unit/s^2; link angles are unwrapped"
+                          " (continuous over the turn, so they may pass 360 deg)")
     for col in ("channel", "unit", "min", "max", "max |rate|", "max |accel|"):
         table.add_column(col, justify="right" if col not in ("channel", "unit") else "left")
+
+    def row(label, unit, x, dx, ddx, scale=1.0):
+        if np.ptp(x) < 1e-12:
+            table.add_row(label, unit, f"{x[0] * scale:.4f}", "(constant)", "0", "0")
+            return
+        table.add_row(label, unit, f"{x.min() * scale:.4f}", f"{x.max() * scale:.4f}",
+                      f"{np.abs(dx).max() * scale:.4g}", f"{np.abs(ddx).max() * scale:.4g}")
+
+    if not res.phi.size:
+        return table
     for pt in res.point_names:
         m = res.point(pt)
         for c, ax in (("x", 0), ("y", 1)):
-            if np.ptp(m.p[:, ax]) < 1e-12:
-                continue
-            table.add_row(f"{pt}.{c}", "mm, mm/s, mm/s^2", f"{m.p[:, ax].min():.4f}",
-                          f"{m.p[:, ax].max():.4f}", f"{np.abs(m.v[:, ax]).max():.4g}",
-                          f"{np.abs(m.a[:, ax]).max():.4g}")
+            row(f"{pt}.{c}", "mm", m.p[:, ax], m.v[:, ax], m.a[:, ax])
     for lk in res.link_names:
         if lk == "frame":
             continue
         m = res.link(lk)
-        th = np.degrees(np.unwrap(m.theta))
-        table.add_row(f"theta {lk}", "deg, rad/s, rad/s^2", f"{th.min():.3f}", f"{th.max():.3f}",
-                      f"{np.abs(m.omega).max():.4g}", f"{np.abs(m.epsilon).max():.4g}")
+        row(f"theta {lk}", "deg", np.unwrap(m.theta), m.omega, m.epsilon, 180.0 / math.pi)
+    for var in res.variable_names:
+        m = res.variable(var)
+        scale = 180.0 / math.pi if m.unit == "rad" else 1.0
+        row(f"q {var}", "deg" if m.unit == "rad" else m.unit, m.q, m.q_dot, m.q_ddot, scale)
     return table
 
 
-@app.command("kinematics")
+@command("kinematics")
 def kinematics_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="shipped machine name or TOML file"),
     step_deg: float = typer.Option(5.0, help="shaft-angle step, deg"),
+    phi_deg: list[float] = typer.Option(None, "--phi-deg", help="only at these shaft angles,"
+                                        " deg; repeatable (default: a turn in --step-deg steps)"),
     rpm: float = typer.Option(None, help="shaft speed, rev/min (default: the file's)"),
     out: Path = typer.Option(None, help="write the channels into this directory"),
     format: Format = typer.Option(Format.csv, "--format", help="file format with --out"),
     as_json: bool = typer.Option(False, "--json", help="print every channel as JSON to stdout"),
     inputs: list[str] = typer.Option(None, "--input", help="a setting input NAME=DEG, e.g."
                                      " regulator=20; repeatable (default: the file's)"),
+    sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
 ):
     """Positions, velocities and accelerations of every point, link and joint variable."""
     from .io import kinematics_to_dict, write_kinematics_csv, write_kinematics_json
     from .kinematics import kinematics
+    from .outdir import output_dir
 
-    m = _load(machine)
+    m = _load(machine, sets)
     settings = _settings(m, inputs)
-    try:
-        res = kinematics(m, _phi_grid(m, step_deg), rpm=rpm, inputs=settings or None)
-    except SewmechError as exc:
-        _fail(exc)
+    phi = _phi(step_deg, phi_deg)
+    rpm = _rpm(rpm)
+    if out is not None:
+        with output_dir(out, command="kinematics") as root:
+            res = kinematics(m, phi, rpm=rpm, inputs=settings or None)
+            path = root / f"{m.name}-kinematics.{format.value}"
+            (write_kinematics_csv if format is Format.csv else write_kinematics_json)(res, path)
+    else:
+        res = kinematics(m, phi, rpm=rpm, inputs=settings or None)
     if as_json:
         json.dump(kinematics_to_dict(res), sys.stdout)
         sys.stdout.write("\n")
         return
     console.print(_summary(res))
     if out is not None:
-        path = out / f"{m.name}-kinematics.{format.value}"
-        (write_kinematics_csv if format is Format.csv else write_kinematics_json)(res, path)
-        console.print(f"written: {path}")
+        console.print(f"written: {out / f'{m.name}-kinematics.{format.value}'}")
 
 
-@app.command("dynamics")
+@command("dynamics")
 def dynamics_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="shipped machine name or TOML file"),
     rpm: float = typer.Option(None, help="shaft speed, rev/min (default: the file's)"),
     step_deg: float = typer.Option(5.0, help="shaft-angle step, deg (5: the report's 72"
                                    " positions)"),
+    phi_deg: list[float] = typer.Option(None, "--phi-deg", help="only at these shaft angles,"
+                                        " deg; repeatable (default: a turn in --step-deg steps)"),
     as_json: bool = typer.Option(False, "--json", help="print the per-position figures as JSON"),
     inputs: list[str] = typer.Option(None, "--input", help="a setting input NAME=DEG, e.g."
                                      " regulator=30; repeatable (default: the file's)"),
@@ -177,64 +378,75 @@ def dynamics_cmd(
     gravity: bool = typer.Option(True, "--gravity/--no-gravity", help="weights of the links"),
     out: Path = typer.Option(None, help="also write the per-position table and the pair"
                              " forces (CSV) and the dynamics figures (PNG, SVG, CSV) here"),
+    sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
 ):
     """Inverse dynamics: driving torque, pair forces, shaking force and moment, energies,
     upper-shaft bearing reactions."""
     from .dynamics import inverse_dynamics
     from .io import dynamics_to_dict, write_dynamics_csv
+    from .outdir import output_dir
     from .spec import load_load_file
 
-    m = _load(machine)
+    m = _load(machine, sets)
     settings = _settings(m, inputs)
-    try:
-        load_specs = [] if no_loads else (load_load_file(loads) if loads is not None else None)
-        if load_specs:
-            m.check_loads(load_specs, str(loads))
-        res = inverse_dynamics(m, _phi_grid(m, step_deg), rpm=rpm, inputs=settings or None,
-                               gravity=gravity, loads=load_specs)
-        data = dynamics_to_dict(res)
-    except (SewmechError, ValueError) as exc:
-        _fail(exc)
+    phi = _phi(step_deg, phi_deg)
+    rpm = _rpm(rpm)
+    load_specs = [] if no_loads else (load_load_file(loads) if loads is not None else None)
+    if load_specs:
+        m.check_loads(load_specs, str(loads))
+    has_loads = bool(m.spec.loads if load_specs is None else load_specs)
+    if not m.spec.masses and not has_loads:
+        raise SewmechError(f"{m.file}", "the machine has no [masses] tables and no loads: every"
+                           " force would be zero", "Add [masses.LINK] tables (docs/machine-"
+                           "files.md) or a load file (--loads); `sewmech kinematics` needs"
+                           " neither")
+    res = inverse_dynamics(m, phi, rpm=rpm, inputs=settings or None, gravity=gravity,
+                           loads=load_specs)
+    data = dynamics_to_dict(res)
     if as_json:
         json.dump(data, sys.stdout)
         sys.stdout.write("\n")
         return
+    if not m.spec.masses:
+        console.print("[yellow]note:[/] the machine has no [masses] tables: no inertia forces"
+                      " or weights, only the loads")
     console.print(_dynamics_summary(res, data))
     console.print(_pair_table(res))
     if out is not None:
-        for path in write_dynamics_csv(res, out):
-            console.print(f"written: {path}")
-        if m.spec.sewing is not None:
-            _dynamics_figures(m, out, settings, rpm, load_specs, gravity)
+        with output_dir(out, command="dynamics") as root:
+            written = write_dynamics_csv(res, root)
+            n_figs = 0
+            if m.spec.sewing is not None:
+                n_figs = _dynamics_figures(m, root, settings, rpm, load_specs, gravity)
+        for path in written:
+            console.print(f"written: {out / path.name}")
+        if n_figs:
+            console.print(f"written: {out / f'{m.name}-dynamics-key-figures.csv'} and {n_figs}"
+                          f" figures (PNG, SVG, CSV) in {out}")
 
 
-def _dynamics_figures(m, out, settings, rpm, load_specs, gravity):
-    """The report's dynamics figures for the CLI's settings, written into ``out``."""
+def _dynamics_figures(m, out, settings, rpm, load_specs, gravity) -> int:
+    """The report's dynamics figures for the CLI's settings, written into ``out``; returns
+    how many figures."""
     import matplotlib
 
     matplotlib.use("Agg")
     from rich.progress import Progress
 
+    from .io import atomic_write
     from .report import _Figures
     from .report_dynamics import dynamics_section
 
-    out.mkdir(parents=True, exist_ok=True)
     figs = _Figures(out, m.name)
     with Progress(console=console, transient=True) as progress:
         progress.add_task("dynamics figures", total=None)
-        try:
-            # the command's settings (the file's defaults unless --input), as its tables
-            inputs = {n: math.radians(i.default_deg) for n, i in m.spec.inputs.items()}
-            key = dynamics_section(figs, m, inputs={**inputs, **settings}, rpm=rpm,
-                                   loads=load_specs, gravity=gravity)
-        except (SewmechError, ValueError) as exc:
-            _fail(exc)
-    from .io import atomic_write
-
-    path = out / f"{m.name}-dynamics-key-figures.csv"
-    with atomic_write(path) as fh:
+        # the command's settings (the file's defaults unless --input), as its tables
+        inputs = {n: math.radians(i.default_deg) for n, i in m.spec.inputs.items()}
+        key = dynamics_section(figs, m, inputs={**inputs, **settings}, rpm=rpm,
+                               loads=load_specs, gravity=gravity)
+    with atomic_write(out / f"{m.name}-dynamics-key-figures.csv") as fh:
         key.to_csv(fh, index=False, float_format="%.10g")
-    console.print(f"written: {path} and {len(figs.blocks)} figures (PNG, SVG, CSV) in {out}")
+    return len(figs.blocks)
 
 
 def _dynamics_summary(res, data) -> Table:
@@ -282,24 +494,23 @@ def _pair_table(res) -> Table:
     return table
 
 
-@app.command("feed")
+@command("feed")
 def feed_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="machine name or TOML file"),
     step_mm: float = typer.Option(0.5, help="stitch-length step of the scale marks, mm"),
     as_json: bool = typer.Option(False, "--json", help="print the figures as JSON to stdout"),
+    sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
 ):
     """Stitch length, lift and timing of the feed dog; scale-plate marks; feed-cam phase."""
     from . import feed as FD
 
-    m = _load(machine)
-    try:
-        lo, hi = FD.regulator_range_deg(m)
-        zero = m.spec.inputs[m.spec.sewing.regulator].default_deg
-        cyc = FD.feed_cycles(m, [lo, zero, hi]).to_pandas()
-        marks = FD.scale_marks(m, step_mm)
-        timing = FD.set_feed_timing(m, 0.0) if m.spec.sewing.feed_cam else None
-    except (SewmechError, ValueError) as exc:
-        _fail(exc)
+    _bounded("--step-mm", step_mm, 0.01, 10.0, "mm", "0.5")
+    m = _load(machine, sets)
+    lo, hi = FD.regulator_range_deg(m)
+    zero = m.spec.inputs[m.spec.sewing.regulator].default_deg
+    cyc = FD.feed_cycles(m, [lo, zero, hi]).to_pandas()
+    marks = FD.scale_marks(m, step_mm)
+    timing = FD.set_feed_timing(m, 0.0) if m.spec.sewing.feed_cam else None
     phase_now = next((u.phase_deg for u in m.spec.units if timing and
                       u.name == m.spec.sewing.feed_cam), None)
     if as_json:
@@ -331,28 +542,28 @@ def feed_cmd(
                       " deg puts the middle of the feed stroke at the top of lift")
 
 
-@app.command("embroidery-take-up")
+@command("embroidery-take-up")
 def embroidery_cmd(
     alpha_deg: float = typer.Option(10.0, help="frame line AD from +x, degrees"),
     beta_deg: float = typer.Option(35.0, help="DE from DC (clockwise), degrees"),
-    points: int = typer.Option(12, help="equally spaced positions from phi = 0"),
+    points: int = typer.Option(12, help="equally spaced positions from phi = 0 (2 .. 3600)"),
     machine: str = typer.Option("embroidery-131", help="machine name or TOML file"),
     as_json: bool = typer.Option(False, "--json", help='print {"phi_deg": [...], "L_mm": [...]}'),
-    out: Path = typer.Option(None, help="without --json: also save the figure (PNG) here"),
+    out: Path = typer.Option(None, help="without --json: also save the figure (PNG) in this"
+                             " directory"),
 ):
     """Thread drawn L(phi) = l_max - l by the embroidery take-up for one (alpha, beta)."""
     from . import embroidery as EM
 
-    if points < 2:
-        _fail(ValueError(f"--points must be at least 2, got {points}"))
+    _bounded("--alpha-deg", alpha_deg, -360.0, 360.0, "deg", "10")
+    _bounded("--beta-deg", beta_deg, -360.0, 360.0, "deg", "35")
+    _bounded("--points", points, 2, 3600, "positions", "12")
     m = _load(machine)
-    try:
-        phi, L = EM.thread_drawn(m, alpha_deg, beta_deg, n_points=points)
-    except (SewmechError, ValueError, KeyError) as exc:
-        _fail(exc)
+    phi, L = EM.thread_drawn(m, alpha_deg, beta_deg, n_points=points)
     if not np.isfinite(L).all():
-        _fail(ValueError(f"the take-up cannot be assembled at alpha = {alpha_deg:g} deg,"
-                         f" beta = {beta_deg:g} deg"))
+        raise OptionError("--alpha-deg/--beta-deg", f"the take-up of {m.file} cannot be"
+                          f" assembled at alpha = {alpha_deg:g} deg, beta = {beta_deg:g} deg",
+                          "The paper's study uses alpha 5 .. 30 deg and beta 33 .. 35 deg")
     if as_json:
         json.dump({"phi_deg": phi.tolist(), "L_mm": L.tolist()}, sys.stdout)
         sys.stdout.write("\n")
@@ -363,10 +574,15 @@ def embroidery_cmd(
     for a, b in zip(phi, L):
         table.add_row(f"{a:g}", f"{b:.2f}")
     console.print(table)
+    if out is None:
+        return
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from .io import atomic_write
+    from .outdir import output_dir
 
     fphi, fL = EM.thread_drawn(m, alpha_deg, beta_deg, n_points=360)
     fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
@@ -376,22 +592,26 @@ def embroidery_cmd(
     ax.set_ylabel("thread drawn L [mm]")
     ax.set_title(f"{m.name}: alpha {alpha_deg:g} deg, beta {beta_deg:g} deg")
     ax.grid(True, alpha=0.3)
-    from .io import atomic_write
+    name = f"{m.name}-L-a{alpha_deg:g}-b{beta_deg:g}.png"
+    try:
+        with output_dir(out, command=f"embroidery {name}") as root:
+            with atomic_write(root / name, "wb", encoding=None) as fh:
+                fig.savefig(fh, format="png", dpi=120)
+    finally:
+        plt.close(fig)
+    console.print(f"figure: {out / name}")
 
-    path = (out or Path("out")) / f"{m.name}-L-a{alpha_deg:g}-b{beta_deg:g}.png"
-    with atomic_write(path, "wb", encoding=None) as fh:
-        fig.savefig(fh, format="png", dpi=120)
-    plt.close(fig)
-    console.print(f"figure: {path}")
 
-
-@app.command("report")
+@command("report")
 def report_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="machine name or TOML file"),
-    out: Path = typer.Option(Path("out/report"), help="output directory (replaced as a whole)"),
+    out: Path = typer.Option(Path("out/report"), help="output directory: new, empty, or one"
+                             " that sewmech wrote (its files are replaced, no other file is"
+                             " touched)"),
     step_deg: float = typer.Option(1.0, help="shaft-angle step of the diagrams, degrees"),
     compare: list[str] = typer.Option(None, help="machine (name or file) to compare side by"
                                       " side; repeatable (default: the file's [machine] variants)"),
+    sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
 ):
     """The main job: DIR/index.html with checks, timing, feed, figures (PNG, SVG), tables (CSV)."""
     import pandas as pd
@@ -399,9 +619,15 @@ def report_cmd(
 
     from .report import write_report
 
-    m = _load(machine)
-    _phi_grid(m, step_deg)  # validates the step
+    from .outdir import preflight
+
+    from .timing import roles
+
+    _phi_grid(step_deg, min_step=0.1)  # validates the step
+    m = _load(machine, sets)
     variants = [_load(v) for v in (compare or m.spec.machine.variants)]
+    roles(m)  # the machine's [sewing] roles, which the report reads
+    preflight(out, command="report")
     s = m.spec.sewing
     steps = ["kinematics", "timing checks", "figures"]
     if s is not None and s.feed_dog and s.regulator:
@@ -415,12 +641,9 @@ def report_cmd(
     steps += ["tables", "page"]
     with Progress(console=console, transient=True) as progress:
         task = progress.add_task(f"report {m.name}", total=len(steps))
-        try:
-            index = write_report(m, out, step_deg=step_deg, variants=variants,
-                                 advance=lambda name: progress.update(task, advance=1,
-                                                                      description=name))
-        except (SewmechError, ValueError) as exc:
-            _fail(exc)
+        index = write_report(m, out, step_deg=step_deg, variants=variants,
+                             advance=lambda name: progress.update(task, advance=1,
+                                                                  description=name))
     table = Table(title=f"{m.name}: checks")
     for col in ("check", "value", "expected", "result"):
         table.add_column(col)
@@ -432,10 +655,11 @@ def report_cmd(
     console.print(f"  figures (PNG, SVG) and tables (CSV) in {index.parent.resolve()}")
 
 
-@app.command("demo")
-def demo_cmd(out: Path = typer.Option(Path("out/demo"), help="output directory")):
+@command("demo")
+def demo_cmd(out: Path = typer.Option(Path("out/demo"), help="output directory (as for"
+                                      " report)")):
     """Same as `sewmech report jb1-3 --out DIR` (the main job on the default machine)."""
-    report_cmd(DEFAULT_MACHINE, out, 1.0, None)
+    report_cmd.__wrapped__(DEFAULT_MACHINE, out, 1.0, None, None)
 
 
 def main():  # pragma: no cover - entry point

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .outdir import file_mode
 from .results import KinematicsResult
 
 
@@ -23,12 +24,15 @@ from .results import KinematicsResult
 def atomic_write(path: str | Path, mode: str = "w", encoding: str | None = "utf-8") -> Iterator:
     """Open a temporary file beside ``path``; on success rename it over ``path``.
 
-    On an exception the temporary file is removed and ``path`` is left as it was.
+    On an exception the temporary file is removed and ``path`` is left as it was. The file gets
+    the mode the umask gives (0644 under umask 022). Commands write through
+    :func:`sewmech.outdir.output_dir`, which decides whether ``path`` may be replaced at all.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        os.fchmod(fd, file_mode())  # mkstemp makes 0600: the umask decides, as for open()
         kwargs = {"encoding": encoding, "newline": ""} if "b" not in mode else {}
         with os.fdopen(fd, mode, **kwargs) as fh:
             yield fh

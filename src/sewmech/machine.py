@@ -8,6 +8,7 @@ mm, angles in rad), so a batch of designs is just an array of parameter vectors.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 from collections.abc import Mapping
@@ -36,6 +37,7 @@ from .spec import (
     load_machine_spec,
     parse_machine,
 )
+from .spec import _validate as _validate_model
 
 MACHINES_PACKAGE = "sewmech.data.machines"
 
@@ -112,6 +114,8 @@ class Machine:
     parameter_owner : tuple[int, ...]
         Index into ``unit_names`` of the unit that defines each parameter (-1: frame points,
         setting inputs, cams not used by a loop unit).
+    changes : dict[str, float]
+        The parameters changed by :meth:`with_parameters` (``--set``), internal units.
     parameter_sources : tuple
         Where each parameter's value sits in the machine file (a path of keys), or None when
         it cannot be set on its own (the arcs of a ``constant_width`` cam: set its design
@@ -145,6 +149,7 @@ class Machine:
     parameter_owner: tuple[int, ...] = field(default=(), repr=False)
     parameter_lo: np.ndarray = field(default=None, repr=False)
     parameter_hi: np.ndarray = field(default=None, repr=False)
+    changes: dict[str, float] = field(default_factory=dict, repr=False)
 
     # ---- names -----------------------------------------------------------------------------
     @property
@@ -256,6 +261,17 @@ class Machine:
         rows = np.asarray(keep[::-1], dtype=np.int64)
         rows.setflags(write=False)
         return rows
+
+    def with_parameters(self, values: Mapping[str, float], *,
+                        origin: str = "with_parameters") -> Machine:
+        """A new machine with some file values changed (see :func:`with_parameters`)."""
+        return with_parameters(self, values, origin=origin)
+
+    def parameter_location(self, name: str) -> tuple[str, str] | None:
+        """(table, key) of a parameter's value in the machine file; None for the arcs of a
+        constant-width cam (their design values are in ``cams.NAME.constant_width``)."""
+        src = self.parameter_sources[self.parameter_index(name)]
+        return None if src is None else parameter_location(self.spec, src)
 
     def upstream_units(self, unit: int) -> list[int]:
         """Indices of the units whose outputs unit ``unit`` reads, directly or through other
@@ -380,6 +396,71 @@ class Machine:
 PARAM_LIMIT = 1e6
 #: the shortest length of a link, rod, loop term or cam arc, mm (one nanometre)
 MIN_LENGTH = 1e-6
+
+
+_CAM_DESIGN_KEYS = {"width": ("width", 1.0), "stroke": ("stroke", 1.0),
+                    "dwell": ("dwell_deg", 180.0 / math.pi),
+                    "orientation": ("orientation_deg", 180.0 / math.pi)}
+
+
+def with_parameters(machine: Machine, values: Mapping[str, float], *,
+                    origin: str = "with_parameters") -> Machine:
+    """A new machine whose file values are changed: ``values`` maps parameter names (as
+    :meth:`Machine.parameters` takes them, cam design values included) to one value each,
+    internal units (mm, rad).
+
+    The change is made in the machine file's data and the result validated and compiled again,
+    so every check of a machine file applies to it, and everything that reads the file (the
+    report's tables, the timing, the feed) sees the new values. ``origin`` names where the
+    values came from in error messages (e.g. ``--set``).
+
+    Raises
+    ------
+    ParameterError
+        An unknown name, a non-finite value, or a parameter that cannot be set on its own (an
+        arc of a constant-width cam: set the cam's design values).
+    MachineFileError
+        The changed file is not a valid machine (e.g. a negative length).
+    """
+    raw = machine.spec.model_dump()
+    for name, value in values.items():
+        v = float(_finite_values(name, value))
+        cam, _, key = name.rpartition(".")
+        if cam in machine.cam_designs and key in _CAM_DESIGN_KEYS:
+            file_key, scale = _CAM_DESIGN_KEYS[key]
+            path, x = ("cams", cam, "constant_width", file_key), v * scale
+        else:
+            if name not in machine.parameter_names:
+                close = difflib.get_close_matches(name, machine.parameter_names, n=3)
+                hint = f"Did you mean {', '.join(close)}? " if close else ""
+                raise ParameterError(name, (), v, f"machine '{machine.name}' has no parameter"
+                                     " of that name", hint + "`sewmech check MACHINE"
+                                     " --parameters` lists them all")
+            i = machine.parameter_index(name)
+            path = machine.parameter_sources[i]
+            if path is None:
+                raise ParameterError(name, (), v, "is an arc of a constant-width cam and cannot"
+                                     " be set on its own", f"Set {cam.split('.')[0]}.width,"
+                                     " .stroke, .dwell or .orientation instead")
+            x = math.degrees(v) if machine.parameter_units[i] == "rad" else v
+        node = raw
+        for part in path[:-1]:
+            node = node[part]
+        if isinstance(node, tuple):  # a (u, v) pair or a lengths pair: rebuild it as a list
+            parent = raw
+            for part in path[:-2]:
+                parent = parent[part]
+            node = parent[path[-2]] = list(node)
+        node[path[-1]] = x
+    where = f"{machine.file} ({origin} {', '.join(values)})"
+    changed = compile_machine(_validate_spec(raw, where), where)
+    return dataclasses.replace(changed, file=machine.file,
+                               changes={**machine.changes, **{k: float(v) for k, v in
+                                                              values.items()}})
+
+
+def _validate_spec(raw: dict, file: str) -> MachineSpec:
+    return _validate_model(MachineSpec, raw, file)
 
 
 def _finite_values(name: str, value: ArrayLike) -> np.ndarray:

@@ -15,13 +15,9 @@ sections join as those analyses land.
 from __future__ import annotations
 
 import base64
-import contextlib
 import html
 import io
 import math
-import os
-import shutil
-import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -33,6 +29,7 @@ from . import timing as T
 from .io import atomic_write
 from .kinematics import kinematics
 from .machine import Machine
+from .outdir import output_dir
 
 MM_TO_M = 1e-3
 
@@ -75,26 +72,6 @@ def _table_html(df: pd.DataFrame, classes: str = "") -> str:
                       escape=True)
 
 
-@contextlib.contextmanager
-def _staging(out_dir: Path):
-    """A fresh directory beside ``out_dir``; swapped in on success, removed on failure."""
-    out_dir = Path(out_dir)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
-    try:
-        yield tmp
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    old = None
-    if out_dir.exists():
-        old = out_dir.with_name(f".{out_dir.name}.old-{os.getpid()}")
-        os.replace(out_dir, old)
-    os.replace(tmp, out_dir)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
-
-
 def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0,
                  advance: Callable[[str], None] | None = None,
                  variants: Sequence[Machine] = ()) -> Path:
@@ -102,14 +79,24 @@ def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0
 
     step_deg: shaft-angle step of the diagrams, deg. advance: called with a step name after
     each step (progress display). variants: machines compared side by side with this one.
-    Requires the machine's ``[sewing]`` roles.
+    Requires the machine's ``[sewing]`` roles. ``out_dir`` is written through
+    :func:`sewmech.outdir.output_dir`: it must be new, empty or written by sewmech, and it
+    changes only when the whole report has been built.
     """
+    T.roles(machine)  # a machine the report cannot read fails before the output is touched
+    with output_dir(out_dir, command="report") as root:
+        _build_report(machine, root, step_deg, step=advance or (lambda name: None),
+                      variants=variants)
+    return Path(out_dir) / "index.html"
+
+
+def _build_report(machine: Machine, root: Path, step_deg: float, *, step, variants) -> None:
+    """Every section of the report, written into the directory ``root``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    step = advance or (lambda name: None)
     s = T.roles(machine)
     conv = machine.spec.convention
     n = int(round(360.0 / step_deg))
@@ -124,195 +111,193 @@ def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0
     sw = T.shuttle_swing(machine) if s.shuttle_link else None
     step("timing checks")
 
-    with _staging(Path(out_dir)) as root:
-        figs = _Figures(root, machine.name)
-        ref = f"phi = {conv.reference_phi_deg:g} deg: {conv.reference_event}"
+    figs = _Figures(root, machine.name)
+    ref = f"phi = {conv.reference_phi_deg:g} deg: {conv.reference_event}"
 
-        # ---- motion diagrams ---------------------------------------------------------------
-        cols = [("needle point", s.needle_point, "point")]
-        if s.shuttle_link:
-            cols.append(("shuttle", s.shuttle_link, "link"))
-        if s.take_up_eye:
-            cols.append(("take-up eye", s.take_up_eye, "point"))
-        fig, axs = plt.subplots(3, len(cols), figsize=(4.2 * len(cols), 7.5), sharex=True,
-                                constrained_layout=True, squeeze=False)
-        data = {"phi_deg": phi_deg}
-        for j, (title, name, kind) in enumerate(cols):
-            if kind == "point":
-                pm = res.point(name)
-                series = [(pm.p[:, 1], "height y [mm]"), (pm.v[:, 1] * MM_TO_M, "v_y [m/s]"),
-                          (pm.a[:, 1] * MM_TO_M, "a_y [m/s^2]")]
-            else:
-                lm = res.link(name)
-                series = [(np.degrees(np.unwrap(lm.theta)), "angle [deg]"),
-                          (lm.omega, "omega [rad/s]"), (lm.epsilon, "epsilon [rad/s^2]")]
-            for i, (y, label) in enumerate(series):
-                ax = axs[i, j]
-                ax.plot(phi_deg, y, lw=1.4)
-                ax.set_ylabel(label)
-                ax.grid(True, alpha=0.3)
-                data[f"{name} {label}"] = y
-            axs[0, j].set_title(title)
-            axs[-1, j].set_xlabel("shaft angle phi [deg]")
-            axs[-1, j].set_xticks(np.arange(0, 361, 90))
-        fig.suptitle(f"{machine.name}: motion diagrams at {machine.rpm:g} rpm ({ref})")
-        figs.add(fig, "motion", "Motion diagrams",
-                 f"Position, velocity and acceleration over one revolution at {machine.rpm:g}"
-                 " rpm (velocities in m/s, accelerations in m/s^2).", pd.DataFrame(data))
-
-        # ---- take-up eye path ----------------------------------------------------------------
-        if s.take_up_eye:
-            p = res.point(s.take_up_eye).p
-            fig, ax = plt.subplots(figsize=(5.5, 5.5), constrained_layout=True)
-            ax.plot(p[:, 0], p[:, 1], lw=1.6)
-            for k in range(0, n, max(1, int(round(30 / step_deg)))):
-                ax.plot(p[k, 0], p[k, 1], "o", ms=3, color="C1")
-                ax.annotate(f"{phi_deg[k]:.0f}", p[k], textcoords="offset points", xytext=(4, 2),
-                            fontsize=7)
-            ax.set_aspect("equal", adjustable="datalim")
-            ax.set_xlabel("x [mm]")
-            ax.set_ylabel("y [mm]")
+    # ---- motion diagrams ---------------------------------------------------------------
+    cols = [("needle point", s.needle_point, "point")]
+    if s.shuttle_link:
+        cols.append(("shuttle", s.shuttle_link, "link"))
+    if s.take_up_eye:
+        cols.append(("take-up eye", s.take_up_eye, "point"))
+    fig, axs = plt.subplots(3, len(cols), figsize=(4.2 * len(cols), 7.5), sharex=True,
+                            constrained_layout=True, squeeze=False)
+    data = {"phi_deg": phi_deg}
+    for j, (title, name, kind) in enumerate(cols):
+        if kind == "point":
+            pm = res.point(name)
+            series = [(pm.p[:, 1], "height y [mm]"), (pm.v[:, 1] * MM_TO_M, "v_y [m/s]"),
+                      (pm.a[:, 1] * MM_TO_M, "a_y [m/s^2]")]
+        else:
+            lm = res.link(name)
+            series = [(np.degrees(np.unwrap(lm.theta)), "angle [deg]"),
+                      (lm.omega, "omega [rad/s]"), (lm.epsilon, "epsilon [rad/s^2]")]
+        for i, (y, label) in enumerate(series):
+            ax = axs[i, j]
+            ax.plot(phi_deg, y, lw=1.4)
+            ax.set_ylabel(label)
             ax.grid(True, alpha=0.3)
-            ax.set_title(f"{machine.name}: take-up eye path (labels: phi in deg)")
-            figs.add(fig, "eye-path", "Take-up eye path",
-                     "The thread eye's coupler curve (the report's 'big knife'); dots every"
-                     " 30 deg of shaft angle.",
-                     pd.DataFrame({"phi_deg": phi_deg, "x_mm": p[:, 0], "y_mm": p[:, 1]}))
+            data[f"{name} {label}"] = y
+        axs[0, j].set_title(title)
+        axs[-1, j].set_xlabel("shaft angle phi [deg]")
+        axs[-1, j].set_xticks(np.arange(0, 361, 90))
+    fig.suptitle(f"{machine.name}: motion diagrams at {machine.rpm:g} rpm ({ref})")
+    figs.add(fig, "motion", "Motion diagrams",
+             f"Position, velocity and acceleration over one revolution at {machine.rpm:g}"
+             " rpm (velocities in m/s, accelerations in m/s^2).", pd.DataFrame(data))
 
-        # ---- timing diagram ------------------------------------------------------------------
-        has_feed = s.feed_dog is not None and s.regulator is not None
+    # ---- take-up eye path ----------------------------------------------------------------
+    if s.take_up_eye:
+        p = res.point(s.take_up_eye).p
+        fig, ax = plt.subplots(figsize=(5.5, 5.5), constrained_layout=True)
+        ax.plot(p[:, 0], p[:, 1], lw=1.6)
+        for k in range(0, n, max(1, int(round(30 / step_deg)))):
+            ax.plot(p[k, 0], p[k, 1], "o", ms=3, color="C1")
+            ax.annotate(f"{phi_deg[k]:.0f}", p[k], textcoords="offset points", xytext=(4, 2),
+                        fontsize=7)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel("x [mm]")
+        ax.set_ylabel("y [mm]")
+        ax.grid(True, alpha=0.3)
+        ax.set_title(f"{machine.name}: take-up eye path (labels: phi in deg)")
+        figs.add(fig, "eye-path", "Take-up eye path",
+                 "The thread eye's coupler curve (the report's 'big knife'); dots every"
+                 " 30 deg of shaft angle.",
+                 pd.DataFrame({"phi_deg": phi_deg, "x_mm": p[:, 0], "y_mm": p[:, 1]}))
+
+    # ---- timing diagram ------------------------------------------------------------------
+    has_feed = s.feed_dog is not None and s.regulator is not None
+    if has_feed:
+        reg_max = FD.regulator_range_deg(machine)[1]
+        fres = kinematics(machine, np.radians(phi_deg), points=[s.feed_dog],
+                          inputs={s.regulator: math.radians(reg_max)})
+        dog = fres.point(s.feed_dog).p
+        dog_up = dog[:, 1] > s.plate_y
+    rows = 1 + bool(s.shuttle_link) + bool(s.take_up_eye) + 2 * has_feed
+    fig, axs = plt.subplots(rows, 1, figsize=(9, 2.3 * rows + 0.6), sharex=True,
+                            constrained_layout=True, squeeze=False)
+    axs = axs[:, 0]
+    tdata = {"phi_deg": phi_deg}
+    y_needle = res.point(s.needle_point).p[:, 1]
+    ax = axs[0]
+    ax.plot(phi_deg, y_needle, label="needle point")
+    ax.axhline(s.plate_y, color="k", lw=1, label="throat plate")
+    ax.axhline(s.plate_y + s.fabric_thickness, color="0.5", lw=1, ls="--", label="fabric top")
+    ax.set_ylabel("height y [mm]")
+    tdata["needle_point_y_mm"] = y_needle
+    i = 1
+    if s.shuttle_link:
+        th = np.degrees(np.unwrap(res.link(s.shuttle_link).theta))
+        axs[i].plot(phi_deg, th, color="C2", label="shuttle angle")
+        axs[i].set_ylabel("shuttle [deg]")
+        tdata["shuttle_deg"] = th
+        i += 1
+    if s.take_up_eye:
+        ye = res.point(s.take_up_eye).p[:, 1]
+        axs[i].plot(phi_deg, ye, color="C3", label="take-up eye")
+        axs[i].set_ylabel("eye y [mm]")
+        tdata["take_up_eye_y_mm"] = ye
+        i += 1
+    if has_feed:
+        axs[i].plot(phi_deg, dog[:, 0], color="C4", label="feed dog x (fore-aft)")
+        axs[i].set_ylabel("dog x [mm]")
+        axs[i + 1].plot(phi_deg, dog[:, 1], color="C5", label="feed dog tooth tip")
+        axs[i + 1].axhline(s.plate_y, color="k", lw=1, label="throat plate")
+        axs[i + 1].set_ylabel("dog y [mm]")
+        tdata[f"dog_x_mm_at_regulator_{reg_max:g}deg"] = dog[:, 0]
+        tdata[f"dog_y_mm_at_regulator_{reg_max:g}deg"] = dog[:, 1]
+        tdata["dog_above_plate"] = dog_up
+    inside = w_in.contains(phi_deg)
+    tdata["needle_in_fabric"] = inside
+    for ax in axs:
+        _shade(ax, phi_deg, inside, "C0", "needle in fabric")
         if has_feed:
-            reg_max = FD.regulator_range_deg(machine)[1]
-            fres = kinematics(machine, np.radians(phi_deg), points=[s.feed_dog],
-                              inputs={s.regulator: math.radians(reg_max)})
-            dog = fres.point(s.feed_dog).p
-            dog_up = dog[:, 1] > s.plate_y
-        rows = 1 + bool(s.shuttle_link) + bool(s.take_up_eye) + 2 * has_feed
-        fig, axs = plt.subplots(rows, 1, figsize=(9, 2.3 * rows + 0.6), sharex=True,
-                                constrained_layout=True, squeeze=False)
-        axs = axs[:, 0]
-        tdata = {"phi_deg": phi_deg}
-        y_needle = res.point(s.needle_point).p[:, 1]
-        ax = axs[0]
-        ax.plot(phi_deg, y_needle, label="needle point")
-        ax.axhline(s.plate_y, color="k", lw=1, label="throat plate")
-        ax.axhline(s.plate_y + s.fabric_thickness, color="0.5", lw=1, ls="--", label="fabric top")
-        ax.set_ylabel("height y [mm]")
-        tdata["needle_point_y_mm"] = y_needle
-        i = 1
-        if s.shuttle_link:
-            th = np.degrees(np.unwrap(res.link(s.shuttle_link).theta))
-            axs[i].plot(phi_deg, th, color="C2", label="shuttle angle")
-            axs[i].set_ylabel("shuttle [deg]")
-            tdata["shuttle_deg"] = th
-            i += 1
-        if s.take_up_eye:
-            ye = res.point(s.take_up_eye).p[:, 1]
-            axs[i].plot(phi_deg, ye, color="C3", label="take-up eye")
-            axs[i].set_ylabel("eye y [mm]")
-            tdata["take_up_eye_y_mm"] = ye
-            i += 1
-        if has_feed:
-            axs[i].plot(phi_deg, dog[:, 0], color="C4", label="feed dog x (fore-aft)")
-            axs[i].set_ylabel("dog x [mm]")
-            axs[i + 1].plot(phi_deg, dog[:, 1], color="C5", label="feed dog tooth tip")
-            axs[i + 1].axhline(s.plate_y, color="k", lw=1, label="throat plate")
-            axs[i + 1].set_ylabel("dog y [mm]")
-            tdata[f"dog_x_mm_at_regulator_{reg_max:g}deg"] = dog[:, 0]
-            tdata[f"dog_y_mm_at_regulator_{reg_max:g}deg"] = dog[:, 1]
-            tdata["dog_above_plate"] = dog_up
-        inside = w_in.contains(phi_deg)
-        tdata["needle_in_fabric"] = inside
-        for ax in axs:
-            _shade(ax, phi_deg, inside, "C0", "needle in fabric")
-            if has_feed:
-                _shade(ax, phi_deg, dog_up, "C5", "dog above plate")
-            ax.axvline(ns.top_phi_deg, color="0.3", lw=0.8, ls=":")
-            if ll is not None:
-                ax.axvline(ll.phi_deg, color="C2", lw=0.8, ls="--")
-            ax.grid(True, alpha=0.3)
-            ax.legend(loc="upper right", fontsize=7)
+            _shade(ax, phi_deg, dog_up, "C5", "dog above plate")
+        ax.axvline(ns.top_phi_deg, color="0.3", lw=0.8, ls=":")
         if ll is not None:
-            axs[0].annotate(f"shuttle meets needle\nphi = {ll.phi_deg:.1f} deg, lift"
-                            f" {ll.rise_mm:.2f} mm", (ll.phi_deg, ns.bottom_y),
-                            textcoords="offset points", xytext=(8, 8), fontsize=7)
-        axs[-1].set_xlabel("shaft angle phi [deg]")
-        axs[-1].set_xticks(np.arange(0, 361, 30))
-        fig.suptitle(f"{machine.name}: timing diagram ({ref}; dotted: needle top)")
-        figs.add(fig, "timing-diagram", "Timing diagram",
-                 "Needle height with the throat plate and the fabric top, shuttle angle,"
-                 " take-up eye height and the feed dog's fore-aft and vertical motion (at the"
-                 " longest forward stitch) over one revolution; shaded: needle in the fabric"
-                 " and dog above the plate; dashed: the shuttle point meets the needle.",
-                 pd.DataFrame(tdata))
-        step("figures")
-        feed_tables = _feed_section(figs, machine, step) if has_feed else {}
-        if machine.spec.thread is not None and machine.spec.thread.bobbin_case_radius:
-            _thread_section(figs, machine)
-            step("thread")
-        if machine.spec.masses:
-            from .report_dynamics import dynamics_section
+            ax.axvline(ll.phi_deg, color="C2", lw=0.8, ls="--")
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper right", fontsize=7)
+    if ll is not None:
+        axs[0].annotate(f"shuttle meets needle\nphi = {ll.phi_deg:.1f} deg, lift"
+                        f" {ll.rise_mm:.2f} mm", (ll.phi_deg, ns.bottom_y),
+                        textcoords="offset points", xytext=(8, 8), fontsize=7)
+    axs[-1].set_xlabel("shaft angle phi [deg]")
+    axs[-1].set_xticks(np.arange(0, 361, 30))
+    fig.suptitle(f"{machine.name}: timing diagram ({ref}; dotted: needle top)")
+    figs.add(fig, "timing-diagram", "Timing diagram",
+             "Needle height with the throat plate and the fabric top, shuttle angle,"
+             " take-up eye height and the feed dog's fore-aft and vertical motion (at the"
+             " longest forward stitch) over one revolution; shaded: needle in the fabric"
+             " and dog above the plate; dashed: the shuttle point meets the needle.",
+             pd.DataFrame(tdata))
+    step("figures")
+    feed_tables = _feed_section(figs, machine, step) if has_feed else {}
+    if machine.spec.thread is not None and machine.spec.thread.bobbin_case_radius:
+        _thread_section(figs, machine)
+        step("thread")
+    if machine.spec.masses:
+        from .report_dynamics import dynamics_section
 
-            intro = len(figs.blocks)
-            key = dynamics_section(figs, machine, variants)
-            key.to_csv(root / f"{machine.name}-dynamics-key-figures.csv", index=False,
-                       float_format="%.10g")
-            figs.blocks.insert(intro, _dynamics_intro(machine, key))
-            step("dynamics")
-        if variants:
-            _comparison(figs, [machine] + list(variants))
-            step("comparison")
-
-        # ---- tables --------------------------------------------------------------------------
-        chk = pd.DataFrame([{"check": c.name, "value": c.value, "unit": c.unit,
-                             "expected": c.expected, "result": "pass" if c.passed else "FAIL",
-                             "source": c.source} for c in checks])
-        chk.to_csv(root / f"{machine.name}-checks.csv", index=False, float_format="%.10g")
-        timing_rows = [("needle top dead centre", ns.top_phi_deg, "deg"),
-                       ("needle bottom dead centre", ns.bottom_phi_deg, "deg"),
-                       ("needle stroke", ns.stroke, "mm"),
-                       ("needle enters fabric", w_in.start_deg % 360, "deg"),
-                       ("needle leaves fabric", w_in.end_deg % 360, "deg"),
-                       ("needle below plate from", w_below.start_deg % 360, "deg"),
-                       ("needle below plate to", w_below.end_deg % 360, "deg")]
-        if ll is not None:
-            timing_rows += [("shuttle point meets needle", ll.phi_deg, "deg"),
-                            ("  after needle bottom dead centre", ll.after_bdc_deg, "deg")]
-        if sw is not None:
-            timing_rows += [("shuttle angle min", sw.min_deg, "deg"),
-                            ("shuttle angle max", sw.max_deg, "deg")]
-        if has_feed:
-            fc = feed_tables["cycle"]
-            timing_rows += [(f"dog rises through the plate (regulator {reg_max:g} deg)",
-                             float(fc.rise_deg), "deg"),
-                            ("dog at the top of its lift", float(fc.top_deg), "deg"),
-                            ("dog halfway through its feed stroke", float(fc.mid_feed_deg),
-                             "deg"),
-                            ("dog drops through the plate", float(fc.fall_deg), "deg"),
-                            ("dog lift above the plate", float(fc.lift_mm), "mm"),
-                            ("stitch length", float(fc.stitch_mm), "mm")]
-        tim = pd.DataFrame(timing_rows, columns=["event", "value", "unit"])
-        tim.to_csv(root / f"{machine.name}-timing-events.csv", index=False,
+        intro = len(figs.blocks)
+        key = dynamics_section(figs, machine, variants)
+        key.to_csv(root / f"{machine.name}-dynamics-key-figures.csv", index=False,
                    float_format="%.10g")
-        par = pd.DataFrame({"parameter": machine.parameter_names,
-                            "value": [_display(v, u) for v, u in
-                                      zip(machine.defaults, machine.parameter_units)],
-                            "unit": [("deg" if u == "rad" else u)
-                                     for u in machine.parameter_units]})
-        par.to_csv(root / f"{machine.name}-parameters.csv", index=False, float_format="%.10g")
-        src = Path(machine.file)
-        text = src.read_text(encoding="utf-8") if src.is_file() else ""
-        if text:
-            (root / src.name).write_text(text, encoding="utf-8")
-        step("tables")
+        figs.blocks.insert(intro, _dynamics_intro(machine, key))
+        step("dynamics")
+    if variants:
+        _comparison(figs, [machine] + list(variants))
+        step("comparison")
 
-        for name, df in feed_tables.get("csv", {}).items():
-            df.to_csv(root / f"{machine.name}-{name}.csv", index=False, float_format="%.10g")
-        page = _page(machine, ref, chk, tim, par, figs.blocks, text, src.name,
-                     feed_tables.get("html", []))
-        (root / "index.html").write_text(page, encoding="utf-8")
-        step("page")
-    return Path(out_dir) / "index.html"
+    # ---- tables --------------------------------------------------------------------------
+    chk = pd.DataFrame([{"check": c.name, "value": c.value, "unit": c.unit,
+                         "expected": c.expected, "result": "pass" if c.passed else "FAIL",
+                         "source": c.source} for c in checks])
+    chk.to_csv(root / f"{machine.name}-checks.csv", index=False, float_format="%.10g")
+    timing_rows = [("needle top dead centre", ns.top_phi_deg, "deg"),
+                   ("needle bottom dead centre", ns.bottom_phi_deg, "deg"),
+                   ("needle stroke", ns.stroke, "mm"),
+                   ("needle enters fabric", w_in.start_deg % 360, "deg"),
+                   ("needle leaves fabric", w_in.end_deg % 360, "deg"),
+                   ("needle below plate from", w_below.start_deg % 360, "deg"),
+                   ("needle below plate to", w_below.end_deg % 360, "deg")]
+    if ll is not None:
+        timing_rows += [("shuttle point meets needle", ll.phi_deg, "deg"),
+                        ("  after needle bottom dead centre", ll.after_bdc_deg, "deg")]
+    if sw is not None:
+        timing_rows += [("shuttle angle min", sw.min_deg, "deg"),
+                        ("shuttle angle max", sw.max_deg, "deg")]
+    if has_feed:
+        fc = feed_tables["cycle"]
+        timing_rows += [(f"dog rises through the plate (regulator {reg_max:g} deg)",
+                         float(fc.rise_deg), "deg"),
+                        ("dog at the top of its lift", float(fc.top_deg), "deg"),
+                        ("dog halfway through its feed stroke", float(fc.mid_feed_deg),
+                         "deg"),
+                        ("dog drops through the plate", float(fc.fall_deg), "deg"),
+                        ("dog lift above the plate", float(fc.lift_mm), "mm"),
+                        ("stitch length", float(fc.stitch_mm), "mm")]
+    tim = pd.DataFrame(timing_rows, columns=["event", "value", "unit"])
+    tim.to_csv(root / f"{machine.name}-timing-events.csv", index=False,
+               float_format="%.10g")
+    par = pd.DataFrame({"parameter": machine.parameter_names,
+                        "value": [_display(v, u) for v, u in
+                                  zip(machine.defaults, machine.parameter_units)],
+                        "unit": [("deg" if u == "rad" else u)
+                                 for u in machine.parameter_units]})
+    par.to_csv(root / f"{machine.name}-parameters.csv", index=False, float_format="%.10g")
+    src = Path(machine.file)
+    text = src.read_text(encoding="utf-8") if src.is_file() else ""
+    if text:
+        (root / src.name).write_text(text, encoding="utf-8")
+    step("tables")
+
+    for name, df in feed_tables.get("csv", {}).items():
+        df.to_csv(root / f"{machine.name}-{name}.csv", index=False, float_format="%.10g")
+    page = _page(machine, ref, chk, tim, par, figs.blocks, text, src.name,
+                 feed_tables.get("html", []))
+    (root / "index.html").write_text(page, encoding="utf-8")
+    step("page")
 
 
 def _feed_section(figs: _Figures, machine: Machine, step) -> dict:
