@@ -247,34 +247,96 @@ def machines_cmd():
 @command("check")
 def check_cmd(
     file: str = typer.Argument(..., help="machine file (TOML) or shipped name"),
-    step_deg: float = typer.Option(5.0, help="angle step of the assembly check, deg"),
+    step_deg: float = typer.Option(5.0, help="grid of the assembly check, deg (assembly between"
+                                   " the grid points is proved too)"),
     sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
     list_parameters: bool = typer.Option(False, "--parameters", help="also list every"
                                          " parameter: name, value, unit, where in the file"),
 ):
-    """Validate a machine file and assemble it over one revolution."""
+    """Validate a machine file, prove that it assembles over the whole turn (at every setting
+    limit) and check its angle convention."""
+    from .assembly import prove_assembly
     from .dynamics import force_system
+    from .errors import format_ranges
+    from .extremes import check_reference
     from .kinematics import kinematics
 
     m = _load(file, sets)
     phi = _phi_grid(step_deg)
-    res = kinematics(m, phi)
+    kinematics(m, phi)  # a failure at a grid point: the located error, with branch hints
+    settings = [("", None)]
+    for name, spec in m.spec.inputs.items():
+        for label, deg in (("min", spec.min_deg), ("max", spec.max_deg)):
+            if deg is not None and deg != spec.default_deg:
+                settings.append((f"{name} = {deg:g} deg ({label})",
+                                 {name: math.radians(deg)}))
+    proofs = []
+    for label, inputs in settings:
+        proof = prove_assembly(m, inputs=inputs, step_deg=step_deg)
+        if not proof.ok:
+            f = proof.failures[0]
+            at = f" at {label}" if label else ""
+            more = f" ({len(proof.failures) - 1} more)" if len(proof.failures) > 1 else ""
+            span = format_ranges([(round(f.from_deg, 4), round(f.to_deg, 4))])
+            raise SewmechError(m.file, f"cannot be assembled over the whole turn{at}: unit"
+                               f" '{f.unit}' fails over phi {span} deg: {f.reason}{more}",
+                               "Change the unit's lengths or the positions of the points it"
+                               " joins; the margin says by how much")
+        proofs.append((label, proof))
+    ref = check_reference(m)
+    conv = m.spec.convention
+    if ref.status == "mismatch":
+        if ref.found_deg is not None:
+            off = (ref.found_deg - conv.reference_phi_deg + 180.0) % 360.0 - 180.0
+            hint = (f"Set reference_phi_deg = {ref.found_deg % 360.0:.6g}, or change the phase_deg"
+                    f" of every crank on the shaft by {off:+.6g} deg")
+        else:
+            hint = "Correct [convention]"
+        from .errors import MachineFileError
+
+        raise MachineFileError(m.file, "convention", "reference_phi_deg", ref.text, hint)
     table = Table(title=f"{m.name}: valid", show_header=False)
     table.add_row("file", m.file)
     if m.changes:
         table.add_row("changed by --set", ", ".join(f"{k} = {v:g}" for k, v in m.changes.items()))
-    table.add_row("angle convention", f"phi = {m.spec.convention.reference_phi_deg:g} deg: "
-                  f"{m.spec.convention.reference_event}")
+    table.add_row("angle convention", escape(f"phi = {conv.reference_phi_deg:g} deg:"
+                                             f" {conv.reference_event} ({ref.text})"))
     table.add_row("points / links / variables", f"{len(m.point_names)} / "
                   f"{len(m.link_names) - 1} / {len(m.variable_names)}")
     table.add_row("units", ", ".join(f"{n} ({t})" for n, t in zip(m.unit_names, m.unit_types)))
     table.add_row("branches", ", ".join(f"{k}: {v:+d}" for k, v in m.branches.items()) or "-")
     table.add_row("parameters", str(len(m.parameter_names)))
-    table.add_row("assembles", f"at all {res.phi.size} positions (step {step_deg:g} deg)")
+    text = "over the whole turn, proved (grid of the margins' minima: " + f"{step_deg:g} deg)"
+    if len(proofs) > 1:
+        text += " at the default setting and at " + ", ".join(lb for lb, _ in proofs[1:])
+    if proofs[0][1].loop_steps:
+        from .assembly import LOOP_STEP_DEG
+
+        text += (f"; loop units ({', '.join(proofs[0][1].loop_units)}) continued in"
+                 f" {LOOP_STEP_DEG:g} deg steps without a branch jump")
+    table.add_row("assembles", escape(text))
     table.add_row("force analysis", escape(force_system(m)))
     console.print(table)
+    console.print(_margin_table(m, proofs))
     if list_parameters:
         console.print(_parameter_table(m))
+
+
+def _margin_table(m: Machine, proofs) -> Table:
+    """The smallest assembly margin of every closed-form unit over the turn and settings."""
+    table = Table(title=f"{m.name}: assembly margins (how far each unit is from failing to"
+                        " assemble; smallest over the turn)")
+    for col in ("unit", "condition", "margin [mm]", "at phi [deg]", "setting"):
+        table.add_column(col, justify="right" if col.startswith(("margin", "at")) else "left")
+    worst: dict[str, tuple] = {}
+    for label, proof in proofs:
+        for g in proof.margins:
+            if g.unit not in worst or g.value_mm < worst[g.unit][0].value_mm:
+                worst[g.unit] = (g, label or "default")
+    for g, label in worst.values():
+        table.add_row(g.unit, escape(g.condition), f"{g.value_mm:.4g}", f"{g.phi_deg:.4g}",
+                      label)
+    return table
 
 
 def _parameter_table(m: Machine) -> Table:

@@ -200,3 +200,62 @@ def crossings(
     for root, i, j in _roots_on_grid(g, grid, f, xtol):
         found.append(Crossing(float(root), 1 if g[j] > g[i] else -1))
     return tuple(found)
+
+
+@dataclass(frozen=True)
+class ReferenceCheck:
+    """Whether the file's angle convention holds: at ``reference_phi_deg`` the reference event
+    happens (``[convention] reference_point``/``reference_extreme`` or
+    ``reference_link``/``reference_angle_deg``).
+
+    status is "ok", "mismatch" or "unchecked" (the file does not say what makes the event
+    checkable); ``found_deg`` is where the event happens (None when unchecked), ``text`` one
+    sentence for people.
+    """
+
+    status: str
+    found_deg: float | None
+    text: str
+
+
+#: how far (deg) the reference event may be from ``reference_phi_deg``
+REFERENCE_TOL_DEG = 0.01
+
+
+def check_reference(machine: Machine, *, params=None) -> ReferenceCheck:
+    """Locate the reference event of the file's convention and compare it with
+    ``reference_phi_deg`` (to :data:`REFERENCE_TOL_DEG`)."""
+    c = machine.spec.convention
+    ref = c.reference_phi_deg
+    if c.reference_point is not None:
+        axis = "y" if c.reference_extreme in ("top", "bottom") else "x"
+        res = extremes(machine, f"p_{c.reference_point}_{axis}", params=params)
+        big = c.reference_extreme in ("top", "right")
+        try:
+            found = (res.maximum if big else res.minimum).phi_deg
+        except ValueError:  # the point does not move along that axis
+            return ReferenceCheck("mismatch", None, f"'{c.reference_point}' has no"
+                                  f" {c.reference_extreme} position: it does not move along"
+                                  f" {axis}")
+        what = f"{c.reference_point} at its {c.reference_extreme}"
+    elif c.reference_link is not None:
+        r = kinematics(machine, np.radians([ref]), params=params, links=[c.reference_link],
+                       points=[], variables=[])
+        theta = math.degrees(float(r.link(c.reference_link).theta[0]))
+        off = (theta - c.reference_angle_deg + 180.0) % 360.0 - 180.0
+        found = ref - off  # exact for a link turning at the shaft's rate
+        what = f"link {c.reference_link} at {c.reference_angle_deg:g} deg"
+        if abs(off) <= REFERENCE_TOL_DEG:
+            return ReferenceCheck("ok", ref, f"{what} at phi = {ref:g} deg: checked")
+        return ReferenceCheck("mismatch", found, f"reference_phi_deg = {ref:g} but there the"
+                              f" link {c.reference_link} is at {theta % 360.0:.6g} deg, not"
+                              f" {c.reference_angle_deg:g} deg")
+    else:
+        return ReferenceCheck("unchecked", None, "not checked: the file does not say what makes"
+                              " the event checkable (add reference_point and reference_extreme,"
+                              " or reference_link and reference_angle_deg, to [convention])")
+    off = (found - ref + 180.0) % 360.0 - 180.0
+    if abs(off) <= REFERENCE_TOL_DEG:
+        return ReferenceCheck("ok", found, f"{what} at phi = {found:.6g} deg: checked")
+    return ReferenceCheck("mismatch", found, f"reference_phi_deg = {ref:g} but {what} is at"
+                          f" phi = {found % 360.0:.6g} deg")

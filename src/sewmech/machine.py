@@ -700,6 +700,11 @@ class _Compiler:
         for name, cam in spec.cams.items():
             if name not in self.cam_index:
                 self.compile_cam(f"cams.{name}", name, cam)  # unused cams are still checked
+        conv = spec.convention
+        if conv.reference_point is not None:
+            self.known_point("convention", "reference_point", conv.reference_point)
+        if conv.reference_link is not None:
+            self.known_link("convention", "reference_link", conv.reference_link)
         if spec.sewing is not None:  # roles must name parts that exist
             sew = spec.sewing
             for key in ("needle_point", "needle_eye", "take_up_eye", "shuttle_point"):
