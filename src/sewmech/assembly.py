@@ -29,7 +29,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from . import _kernels as K
-from .kinematics import kinematics
+from .kinematics import check_design, kinematics
 from .machine import Machine
 
 #: the largest step of the loop units' continuation check, deg
@@ -188,6 +188,7 @@ def prove_assembly(machine: Machine, *, params=None, inputs=None,
     kw = dict(params=params, inputs=inputs, omega=1.0, epsilon=0.0, on_failure="mask")
     P = machine.parameters(inputs=inputs, base=params) if params is not None or inputs else \
         machine.defaults
+    check_design(machine, P)
     res = kinematics(machine, grid, **kw)
     failures: list[AssemblyFailure] = []
     names = machine.unit_names
@@ -226,6 +227,8 @@ def prove_assembly(machine: Machine, *, params=None, inputs=None,
                 return float(exact(x)[0][0])
 
             try:
+                if not (slope(x0) < 0.0 < slope(x1)):  # a minimum at a grid point itself
+                    continue
                 xm = brentq(slope, x0, x1, xtol=1e-12)
                 vm = value(xm)
                 if vm < 0.0:  # the unit fails between two grid points: locate the range

@@ -16,8 +16,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _kernels as K
-from .errors import AssemblyError, ConvergenceError, OptionError, ParameterError
-from .machine import PARAM_LIMIT, Machine, domain_message, parameter_location
+from .errors import AssemblyError, ConvergenceError, OptionError, ParameterError, SewmechError
+from .machine import PARAM_LIMIT, Machine, compile_machine, domain_message, parameter_location
+from .spec import MachineSpec
 from .results import KinematicsResult
 
 _REASONS = {
@@ -435,7 +436,7 @@ def _raise_first(machine, phi, store, batch, row, fail_unit, fail_code, loop_res
         same[order] = (row[d, order] == r) & (fail_code[d, order] != K.FAIL_NONE)
         ranges = angle_ranges(phi_deg, same)
         if code in (K.FAIL_ASSEMBLY, K.FAIL_SINGULAR):
-            hint = _branch_hint(machine, ui, hint)
+            hint = _branch_hint(machine, ui, hint, phi, params[d])
         if code in (K.FAIL_NEWTON, K.FAIL_SINGULAR) and machine.unit_types[ui] == "loop":
             g = int(machine.program[r, 1])
             spec = machine.spec.units[ui]
@@ -468,6 +469,19 @@ def angle_ranges(phi_deg: np.ndarray, mask: np.ndarray) -> list[tuple[float, flo
     return out
 
 
+def check_design(machine: Machine, params: ArrayLike) -> None:
+    """A :class:`ParameterError` for the first parameter of the first design (params: batch +
+    (n_parameters,)) outside its domain (``Machine.parameter_lo``/``parameter_hi``)."""
+    P = np.asarray(params, dtype=float)
+    bad = ~((P >= machine.parameter_lo) & (P <= machine.parameter_hi))
+    if bad.any():
+        flat = bad.reshape(-1, bad.shape[-1])
+        d = int(np.flatnonzero(flat.any(axis=1))[0])
+        j = int(np.flatnonzero(flat[d])[0])
+        design = tuple(int(x) for x in np.unravel_index(d, P.shape[:-1])) if P.ndim > 1 else ()
+        raise _parameter_error(machine, j, design, float(P.reshape(-1, P.shape[-1])[d, j]))
+
+
 def _parameter_error(machine: Machine, j: int, design: tuple, value: float) -> ParameterError:
     """A parameter outside its domain, located in the machine file where it comes from."""
     name = machine.parameter_names[j]
@@ -480,13 +494,27 @@ def _parameter_error(machine: Machine, j: int, design: tuple, value: float) -> P
     return ParameterError(name, design, value, msg, hint)
 
 
-def _branch_hint(machine: Machine, ui: int, hint: str) -> str:
+def _branch_hint(machine: Machine, ui: int, hint: str, phi: np.ndarray,
+                 params: np.ndarray) -> str:
     """Name the closed-form units upstream of unit ``ui`` whose assembly branch decides where
-    its inputs are: one of them on its other branch may assemble."""
-    up = [machine.unit_names[k] for k in machine.upstream_units(ui)
-          if machine.unit_names[k] in machine.branches]
+    its inputs are; if flipping one of them makes this design assemble at every angle asked
+    for, say so."""
+    up = [k for k in machine.upstream_units(ui) if machine.unit_names[k] in machine.branches]
     if not up:
         return hint
-    listed = ", ".join(f"'{n}' (branch {machine.branches[n]:+d})" for n in up)
-    return (f"{hint}. Its inputs depend on the branch of {listed}: the other branch of one of"
-            " them may assemble")
+    for k in up:  # try the other branch of each (a few compiled calls, only on failure)
+        raw = machine.spec.model_dump()
+        raw["units"][k]["branch"] = -raw["units"][k]["branch"]
+        try:
+            other = compile_machine(MachineSpec.model_validate(raw), machine.file)
+            ok = kinematics(other, phi, params=params, on_failure="mask").all_feasible
+        except (SewmechError, ValueError):
+            ok = False
+        if ok:
+            name = machine.unit_names[k]
+            return (f"{hint}. With branch = {-machine.branches[name]:+d} in unit '{name}' (its"
+                    " other assembly) the machine assembles at every angle asked for")
+    listed = ", ".join(f"'{n}' (branch {machine.branches[n]:+d})"
+                       for n in (machine.unit_names[k] for k in up))
+    return (f"{hint}. Its inputs depend on the branch of {listed}; the other branch of each"
+            " does not help either")
