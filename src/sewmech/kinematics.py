@@ -289,7 +289,8 @@ class KinematicsPlan:
             theta=shape(TH, (n_l,)), omega=shape(OM, (n_l,)), epsilon=shape(EP, (n_l,)),
             q=shape(S, (n_v,)), q_dot=shape(SD, (n_v,)), q_ddot=shape(SDD, (n_v,)),
             feasible=shape(feasible), failure_unit=shape(failure_unit),
-            loop_residual=shape(loop_res, (n_g,)), branches=dict(m.branches))
+            loop_residual=shape(loop_res, (n_g,)), branches=dict(m.branches),
+            failure_code=shape(fail_code))
         named = dict(zip(("P", "V", "A", "TH", "OM", "EP", "S", "SD", "SDD"), out[:9]),
                      GP=extra[0], GV=extra[1], GA=extra[2], feasible=feasible)
         buffers = (out, feasible, failure_unit, named)

@@ -605,6 +605,22 @@ pre{background:#f6f6f6;padding:1em;overflow-x:auto;font-size:0.8em}
 """
 
 
+def _changes_html(machine) -> str:
+    """The values changed with ``--set`` (the file below shows the file as it is)."""
+    if not machine.changes:
+        return ""
+    items = []
+    for name, value in machine.changes.items():
+        unit = ("mm" if name.rsplit(".", 1)[-1] in ("width", "stroke") else "deg") \
+            if name not in machine.parameter_names else \
+            machine.parameter_units[machine.parameter_index(name)]
+        shown = f"{math.degrees(value):.6g} deg" if unit in ("rad", "deg") else \
+            f"{value:.6g} {unit}".rstrip(" 1")
+        items.append(f"<li><code>{html.escape(name)}</code> = {html.escape(shown)}</li>")
+    return ('<p class="fail">This report is of a variant: these values differ from the machine'
+            f' file (set with --set):</p><ul>{"".join(items)}</ul>')
+
+
 def _page(machine, ref, chk, tim, par, blocks, file_text, file_name, extra=()) -> str:
     info = machine.spec.machine
     n_fail = int((chk["result"] != "pass").sum()) if len(chk) else 0
@@ -620,7 +636,7 @@ def _page(machine, ref, chk, tim, par, blocks, file_text, file_name, extra=()) -
 <p class="sub">{e(info.description)}</p>
 <p>Angle convention: {e(ref)}. {e(machine.spec.convention.description)} Working speed
 {machine.rpm:g} rpm. Lengths in mm. Machine file: <a href="{e(file_name)}">{e(file_name)}</a>.</p>
-<h2>Checks</h2>{verdict}{chk_html}
+{_changes_html(machine)}<h2>Checks</h2>{verdict}{chk_html}
 <p>Data: <a href="{e(info.name)}-checks.csv">checks (CSV)</a>.</p>
 <h2>Timing</h2>{_table_html(tim)}
 <p>Data: <a href="{e(info.name)}-timing-events.csv">timing events (CSV)</a>.</p>

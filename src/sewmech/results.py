@@ -27,6 +27,18 @@ CHANNEL_KINDS = {
 }
 
 
+#: failure codes of the kernels (sewmech._kernels.FAIL_*): (word, explanation)
+FAILURE_REASONS = {
+    0: ("", ""),
+    1: ("assembly", "the closure equations have no real solution: a link is too short or too"
+                    " long for the distance it must bridge"),
+    2: ("singular", "a dead centre or toggle: the velocity is not defined"),
+    3: ("newton", "the loop solver did not converge"),
+    4: ("lost", "the loop's continuation was lost after it failed at an earlier angle"),
+    5: ("parameter", "a parameter of the design is not finite or outside its domain"),
+}
+
+
 @dataclass(frozen=True)
 class PointMotion:
     """Position (mm), velocity (mm/s), acceleration (mm/s^2) of one point; (..., n_phi, 2)."""
@@ -76,7 +88,12 @@ class KinematicsResult:
     feasible : ndarray of bool, shape batch + (n_phi,)
         False where some unit could not be assembled; only there are the values NaN.
     failure_unit : ndarray of int, shape batch + (n_phi,)
-        Index into ``unit_names`` of the unit that failed, -1 where feasible.
+        Index into ``unit_names`` of the unit that failed, -1 where feasible (and where a
+        parameter of a frame point or a setting input is outside its domain); names in
+        :attr:`failure_units`, reasons in :attr:`failure_reasons`, a table in
+        :meth:`failures`.
+    failure_code : ndarray of int, shape batch + (n_phi,)
+        Why it failed (:data:`FAILURE_REASONS`), 0 where feasible.
     loop_residual : ndarray, shape batch + (n_phi, n_loop_units)
         Max-norm of the loop-closure residual (mm) of each loop unit after Newton; NaN for a
         loop unit that the requested outputs did not need (it was not solved).
@@ -106,12 +123,73 @@ class KinematicsResult:
     failure_unit: np.ndarray = field(repr=False)
     loop_residual: np.ndarray = field(repr=False)
     branches: dict[str, int] = field(default_factory=dict)
+    failure_code: np.ndarray = field(default=None, repr=False)
 
     def __post_init__(self):
+        if self.failure_code is None:
+            object.__setattr__(self, "failure_code",
+                               np.where(self.feasible, 0, 1).astype(np.int64))
         for name in ("phi", "omega_shaft", "epsilon_shaft", "p", "v", "a", "theta", "omega",
                      "epsilon", "q", "q_dot", "q_ddot", "feasible", "failure_unit",
-                     "loop_residual"):
+                     "loop_residual", "failure_code"):
             getattr(self, name).setflags(write=False)
+
+    # ---- failures -----------------------------------------------------------------------------
+    @property
+    def failure_units(self) -> np.ndarray:
+        """Name of the unit that failed at each position (object array, batch + (n_phi,));
+        "" where feasible, "(parameters)" where a frame point's or setting input's value is
+        outside its domain."""
+        names = np.asarray(self.unit_names + ("",), dtype=object)
+        out = names[np.where(self.failure_unit >= 0, self.failure_unit, len(self.unit_names))]
+        out[(self.failure_unit < 0) & ~self.feasible] = "(parameters)"
+        return out
+
+    @property
+    def failure_reasons(self) -> np.ndarray:
+        """Why each position failed, as a word (object array, batch + (n_phi,)); "" where
+        feasible (see :data:`FAILURE_REASONS`)."""
+        words = np.asarray([FAILURE_REASONS[k][0] for k in sorted(FAILURE_REASONS)],
+                           dtype=object)
+        return words[self.failure_code]
+
+    def failures(self):
+        """A DataFrame with one row per failing design, unit and reason: the design index
+        (batches), the unit, the reason, its explanation, and the ranges of shaft angles (deg)
+        where it fails, e.g. "120..145, 300"."""
+        import pandas as pd
+
+        from .errors import format_ranges
+
+        rows = []
+        batch = self.batch_shape
+        feasible = self.feasible.reshape(-1, self.phi.shape[0])
+        units = self.failure_units.reshape(feasible.shape)
+        codes = self.failure_code.reshape(feasible.shape)
+        order = np.argsort(self.phi_deg, kind="stable")
+        phi = self.phi_deg[order]
+        for d in np.flatnonzero(~feasible.all(axis=1)):
+            for unit, code in sorted({(units[d, i], int(codes[d, i]))
+                                      for i in np.flatnonzero(~feasible[d])}):
+                mask = ((units[d] == unit) & (codes[d] == code))[order]
+                runs, k = [], 0
+                while k < mask.size:
+                    if mask[k]:
+                        j = k
+                        while j + 1 < mask.size and mask[j + 1]:
+                            j += 1
+                        runs.append((round(float(phi[k]), 6), round(float(phi[j]), 6)))
+                        k = j + 1
+                    else:
+                        k += 1
+                row = {"design": tuple(int(x) for x in np.unravel_index(d, batch))} \
+                    if batch else {}
+                row.update(unit=unit, reason=FAILURE_REASONS[code][0],
+                           explanation=FAILURE_REASONS[code][1],
+                           phi_deg=format_ranges(runs, limit=len(runs)))
+                rows.append(row)
+        cols = (["design"] if batch else []) + ["unit", "reason", "explanation", "phi_deg"]
+        return pd.DataFrame(rows, columns=cols)
 
     # ---- shapes -------------------------------------------------------------------------------
     @property
