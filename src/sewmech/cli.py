@@ -26,7 +26,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from .errors import OptionError, SewmechError
+from .errors import AnalysisError, OptionError, SewmechError
 from .machine import Machine, load_machine, shipped_machines
 
 DEFAULT_MACHINE = "jb1-3"
@@ -319,7 +319,7 @@ def check_cmd(
     console.print(table)
     console.print(_margin_table(m, proofs))
     if list_parameters:
-        console.print(_parameter_table(m))
+        _print_parameters(m)
 
 
 def _margin_table(m: Machine, proofs) -> Table:
@@ -339,16 +339,20 @@ def _margin_table(m: Machine, proofs) -> Table:
     return table
 
 
-def _parameter_table(m: Machine) -> Table:
-    table = Table(title=f"{m.name}: parameters (names for --set and Machine.parameters)")
-    for col in ("parameter", "value", "unit", "in the file"):
-        table.add_column(col, justify="right" if col == "value" else "left")
+def _print_parameters(m: Machine) -> None:
+    """Every parameter, one per line (names are never wrapped, so they can be copied)."""
+    rows = []
     for name, value, unit in zip(m.parameter_names, m.defaults, m.parameter_units):
         loc = m.parameter_location(name)
-        where = f"[{loc[0]}] {loc[1]}" if loc else "from the cam's constant_width"
+        where = f"[{loc[0]}] {loc[1]}" if loc else "(built from the cam's constant_width)"
         shown = f"{math.degrees(value):.6g}" if unit == "rad" else f"{value:.6g}"
-        table.add_row(name, shown, "deg" if unit == "rad" else unit, escape(where))
-    return table
+        rows.append((name, shown, "deg" if unit == "rad" else unit, where))
+    w = [max(len(r[k]) for r in rows) for k in range(3)]
+    console.print(f"{m.name}: parameters (names for --set and Machine.parameters; values as in"
+                  " the file)", highlight=False)
+    for name, shown, unit, where in rows:
+        console.print(escape(f"  {name:<{w[0]}}  {shown:>{w[1]}} {unit:<{w[2]}}  {where}"),
+                      highlight=False, soft_wrap=True)
 
 
 def _summary(res) -> Table:
@@ -458,10 +462,10 @@ def dynamics_cmd(
         m.check_loads(load_specs, str(loads))
     has_loads = bool(m.spec.loads if load_specs is None else load_specs)
     if not m.spec.masses and not has_loads:
-        raise SewmechError(f"{m.file}", "the machine has no [masses] tables and no loads: every"
-                           " force would be zero", "Add [masses.LINK] tables (docs/machine-"
-                           "files.md) or a load file (--loads); `sewmech kinematics` needs"
-                           " neither")
+        raise AnalysisError(m.file, "the machine has no [masses] tables and no loads: every"
+                            " force would be zero", "Add [masses.LINK] tables (docs/machine-"
+                            "files.md) or a load file (--loads); `sewmech kinematics` needs"
+                            " neither")
     res = inverse_dynamics(m, phi, rpm=rpm, inputs=settings or None, gravity=gravity,
                            loads=load_specs)
     data = dynamics_to_dict(res)
@@ -470,8 +474,8 @@ def dynamics_cmd(
         sys.stdout.write("\n")
         return
     if not m.spec.masses:
-        console.print("[yellow]note:[/] the machine has no [masses] tables: no inertia forces"
-                      " or weights, only the loads")
+        console.print("[yellow]note:[/] " + escape("the machine has no [masses] tables: no"
+                                                   " inertia forces or weights, only the loads"))
     console.print(_dynamics_summary(res, data))
     console.print(_pair_table(res))
     if out is not None:

@@ -31,8 +31,8 @@ from numpy.typing import ArrayLike
 
 from . import _kernels as K
 from ._blocks import MAX_BLOCK
-from .errors import SewmechError
-from .kinematics import KinematicsPlan, kernel_input, kernel_params
+from .errors import AnalysisError, OptionError, SewmechError
+from .kinematics import KinematicsPlan, check_speed, kernel_input, kernel_params
 from .machine import Machine, Pair
 from .mass import MassProperties
 from .results import KinematicsResult
@@ -650,7 +650,7 @@ def _load_tables(machine: Machine, loads: Sequence[LoadSpec], phi_deg: np.ndarra
     return (np.asarray(ints, dtype=np.int64).reshape(-1, 4),
             np.asarray(floats, dtype=float).reshape(-1, 3),
             np.asarray(toward, dtype=np.int64),
-            np.asarray(on, dtype=float).reshape(-1, phi_deg.shape[0]))
+            np.asarray(on, dtype=float).reshape(len(loads), phi_deg.shape[0]))
 
 
 #: a DynamicsResult's own fields; anything else in its __dict__ is a cached derived quantity
@@ -905,13 +905,21 @@ def speed_fluctuation(machine: Machine, *, rpm: float | None = None, flywheel: f
     motion at unit speed). A steady cycle needs M = mean Q; the energy integral then gives
     omega(phi), scaled so that its mean over the cycle is ``rpm``.
     """
+    if not 0.0 <= flywheel <= 1e12:  # (a NaN fails too)
+        raise OptionError("flywheel", f"must be a moment of inertia in 0 .. 1e12 kg mm^2, got"
+                          f" {flywheel!r}", "Give the flywheel's inertia about the shaft")
+    if rpm is not None:
+        rpm = check_speed("rpm", rpm)
+    if not 8 <= n_phi <= 100_000:
+        raise OptionError("n_phi", f"must be in 8 .. 100000 positions, got {n_phi!r}")
     phi = np.linspace(0.0, 2 * math.pi, n_phi, endpoint=False)
     unit = inverse_dynamics(machine, phi, omega=1.0, inputs=inputs, loads=loads,
                             gravity=gravity, masses=masses)  # omega = 1 rad/s: rates = d/dphi
     J = unit.reduced_inertia + flywheel  # kg mm^2
     if not (J > 0).all():
-        raise ValueError(f"machine '{machine.name}': the reduced inertia J(phi) is zero (no"
-                         " [masses] and no flywheel); the speed cannot be computed")
+        raise AnalysisError(machine.file, "the reduced inertia J(phi) is zero (no [masses] and"
+                           " no flywheel): the speed cannot be computed", "Add [masses.LINK]"
+                           " tables or give a flywheel")
     Q = unit.potential_energy_rate - unit.external_power  # N mm per rad
     M = float(Q.mean())
     # work of M - Q from phi = 0, by the trapezoidal rule on the periodic grid (closed cycle)
@@ -928,8 +936,9 @@ def speed_fluctuation(machine: Machine, *, rpm: float | None = None, flywheel: f
     w0 = brentq(lambda w: omega_for(w).mean() - w_nom, 1e-3 * w_nom, 10 * w_nom, xtol=1e-12)
     om = omega_for(w0)
     if not (J[0] * w0 ** 2 + 2e3 * W > 0).all():
-        raise ValueError("the shaft stops within the cycle: the motor torque cannot carry the"
-                         " machine at this speed; add a flywheel or raise the speed")
+        raise AnalysisError(machine.file, "the shaft stops within the cycle: the motor torque"
+                           " cannot carry the machine at this speed", "Add a flywheel or raise"
+                           " the speed")
     # epsilon = omega domega/dphi = (M - Q - 1/2 J' omega^2) / J, J' from the motion (exact)
     dJ = 2e3 * unit.kinetic_energy_rate  # d(2T)/dphi at unit speed = dJ/dphi, kg mm^2 / rad
     eps = (1e3 * f - 0.5 * dJ * om ** 2) / J

@@ -98,6 +98,11 @@ class ParameterError(SewmechError, ValueError):
         super().__init__(f"parameter '{parameter}'{at}", message, hint)
 
 
+class AnalysisError(SewmechError, ValueError):
+    """An analysis cannot be done for this machine: what it lacks is named (no masses for the
+    speed fluctuation, a motor too weak to carry the cycle, no forces at all)."""
+
+
 class OutputError(SewmechError, OSError):
     """An output path cannot be written safely (it is a file, not writable, holds files that
     sewmech did not write, or another run is writing into it)."""

@@ -27,6 +27,7 @@ from scipy.optimize import brentq
 from ._events import at_rows as _at_rows
 from ._events import crossing_rows as _crossing_rows
 from ._events import extreme_rows as _extreme_rows
+from .errors import OptionError
 from .kinematics import kinematics
 from .machine import Machine
 from .spec import SewingSpec
@@ -237,8 +238,12 @@ def scale_marks(machine: Machine, step_mm: float = 0.5, *, params=None,
     ``curve``: a :func:`stitch_curve` of the same machine and ``params`` already computed (any
     number of settings over the whole travel); default: one of 61 settings.
     """
+    if not 0.001 <= step_mm <= 100.0:  # (a NaN fails too)
+        raise OptionError("step_mm", f"must be a stitch-length step in 0.001 .. 100 mm, got"
+                          f" {step_mm!r}", "Give e.g. 0.5")
     c = stitch_curve(machine, 61, params=params) if curve is None else curve
     st, rg = c.stitch_mm, c.regulator_deg
+    travel = regulator_range_deg(machine)
     d = np.diff(st)
     if not (np.all(d > 0) or np.all(d < 0)):
         raise ValueError(f"machine '{machine.name}': the stitch length is not monotonic over the"
@@ -256,7 +261,8 @@ def scale_marks(machine: Machine, step_mm: float = 0.5, *, params=None,
         if np.all(np.abs(f1) < 1e-6):
             break
         den = np.where(f1 != f0, f1 - f0, 1.0)
-        g0, g1, f0 = g1, np.where(np.abs(f1) < 1e-6, g1, g1 - f1 * (g1 - g0) / den), f1
+        g0, g1, f0 = g1, np.clip(np.where(np.abs(f1) < 1e-6, g1, g1 - f1 * (g1 - g0) / den),
+                                 *travel), f1
     return [ScaleMark(float(t), float(g)) for t, g in zip(targets, g1)]
 
 

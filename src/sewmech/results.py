@@ -163,7 +163,8 @@ class KinematicsResult:
 
         rows = []
         batch = self.batch_shape
-        feasible = self.feasible.reshape(-1, self.phi.shape[0])
+        n_design = int(np.prod(batch, dtype=np.int64))
+        feasible = self.feasible.reshape(n_design, self.phi.shape[0])
         units = self.failure_units.reshape(feasible.shape)
         codes = self.failure_code.reshape(feasible.shape)
         order = np.argsort(self.phi_deg, kind="stable")

@@ -743,7 +743,13 @@ def _model_at(loc: tuple, raw, root: type[BaseModel] = MachineSpec
                             ann = m
                     i += 1
                     continue
-                ann = members[0] if len(members) == 1 else None
+                rest_args = [a for a in args if a is not type(None)]
+                if len(members) == 1:
+                    ann = members[0]
+                elif not members and len(rest_args) == 1:  # X | None: X itself
+                    ann = rest_args[0]
+                else:
+                    ann = None
                 continue
             if isinstance(ann, type) and issubclass(ann, BaseModel):
                 model = ann
@@ -777,8 +783,8 @@ def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpe
         hint = "Fix the spelling or remove the key (docs/machine-files.md)"
     elif etype == "missing":
         msg = f"missing required key '{loc[-1]}'"
-        if model is not None and n_model == len(path):
-            key = str(loc[-1])
+        if path and path[-1] == str(loc[-1]):  # the key is the last part: its table is above
+            table, key = ".".join(path[:-1]), str(loc[-1])
         hint = "Add it (docs/machine-files.md lists every key)"
     elif etype == "finite_number":
         msg = f"must be a finite number, got {_short(got)}"

@@ -1,0 +1,773 @@
+"""Bad, hostile and edge-case input, as a new user meets it: every case ends with a clear exit
+code and a message that names the location, never a traceback, never a silent NaN, never a
+design reported feasible that is not, and never a file of the user's touched.
+
+The cases are grouped in the six classes of the robustness issue:
+1 non-finite numbers, 2 output paths and user data, 3 ordinary mistakes that used to give
+tracebacks, 4 impossible physics, 5 declared ranges, 6 newcomer frictions.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import BENCH, FOURBAR, SLIDER_CRANK
+from typer.testing import CliRunner
+
+import sewmech
+from sewmech.cli import app
+from sewmech.extremes import check_reference
+from sewmech.errors import (
+    AssemblyError,
+    MachineFileError,
+    OptionError,
+    OutputError,
+    ParameterError,
+    SewmechError,
+)
+
+runner = CliRunner()
+JB_FILE = Path(sewmech.shipped_machines()["jb1-3"])
+JB = JB_FILE.read_text(encoding="utf-8")
+FB = FOURBAR.format(**BENCH)
+
+
+def snapshot(root: Path) -> dict:
+    """Every file under root (hidden ones too) with its mode and content hash."""
+    out = {}
+    for p in sorted(root.rglob("*")):
+        if p.is_file() and not p.is_symlink():
+            out[str(p.relative_to(root))] = (p.stat().st_mode,
+                                             hashlib.sha256(p.read_bytes()).hexdigest())
+        elif p.is_dir():
+            out[str(p.relative_to(root)) + "/"] = None
+    return out
+
+
+def run(args, *, code=2, has=(), cwd=None):
+    """Run the CLI in-process; assert the exit code, the located message, no traceback."""
+    old = os.getcwd()
+    try:
+        if cwd is not None:
+            os.chdir(cwd)
+        out = runner.invoke(app, [str(a) for a in args])
+    finally:
+        os.chdir(old)
+    text = out.stdout + out.stderr
+    assert out.exit_code == code, (args, out.exit_code, text[-2000:])
+    assert "Traceback" not in text, text[-2000:]
+    assert out.exception is None or isinstance(out.exception, SystemExit), repr(out.exception)
+    if code == 2:
+        assert out.stderr.startswith("error: "), out.stderr
+        assert "internal error" not in out.stderr
+    for h in has:
+        assert h in out.stderr or h in out.stdout, (h, text[-2000:])
+    return out
+
+
+def mutated(old: str, new: str, text: str = JB) -> str:
+    assert old in text, old
+    return text.replace(old, new, 1)
+
+
+# ---- class 1: non-finite numbers, where they enter ---------------------------------------------
+
+FILE_NUMBERS = [  # (case, text to replace in jb1-3.toml, replacement, location in the message)
+    ("point-x-nan", "[points.O]                   # upper-shaft axis\nx = 0.0",
+     "[points.O]\nx = nan", "[points.O] x"),
+    ("point-y-inf", "[points.O]                   # upper-shaft axis\nx = 0.0\ny = 0.0",
+     "[points.O]\nx = 0.0\ny = inf", "[points.O] y"),
+    ("point-huge", "[points.O]                   # upper-shaft axis\nx = 0.0",
+     "[points.O]\nx = 1e300", "[points.O]"),
+    ("speed-nan", "rpm = 1000.0 ", "rpm = nan ", "[speed] rpm"),
+    ("speed-inf", "rpm = 1000.0 ", "rpm = inf ", "[speed] rpm"),
+    ("speed-zero", "rpm = 1000.0 ", "rpm = 0.0 ", "[speed] rpm"),
+    ("input-default-nan", "default_deg = 0.0 ", "default_deg = nan ",
+     "[inputs.regulator] default_deg"),
+    ("input-min-inf", "min_deg = -30.0 ", "min_deg = -inf ", "[inputs.regulator] min_deg"),
+    ("crank-phase-nan", "phase_deg = 0.0              # needle crank",
+     "phase_deg = nan # needle crank", 'units[0] "needle_crank"] phase_deg'),
+    ("crank-point-inf", "points = { B = [15.35, 0.0]", "points = { B = [inf, 0.0]",
+     'units[0] "needle_crank"] points.B[0]'),
+    ("rrp-length-nan", "length = 44.0 ", "length = nan ", 'units[1] "needle_bar"] length'),
+    ("rrp-guide-angle-inf", "guide_angle_deg = 90.0       # vertical guide",
+     "guide_angle_deg = inf # vertical", 'units[1] "needle_bar"] guide_angle_deg'),
+    ("rrr-length-nan", "lengths = [26.5, 20.1]", "lengths = [nan, 20.1]",
+     'units[3] "take_up"] lengths[0]'),
+    ("rrr-length-neg-inf", "lengths = [26.5, 20.1]", "lengths = [26.5, -inf]",
+     'units[3] "take_up"] lengths[1]'),
+    ("loop-init-nan", "unknown_links_deg = { feed_fork = 99.887",
+     "unknown_links_deg = { feed_fork = nan", 'units[11] "feed_fork"] unknown_links_deg'),
+    ("loop-length-init-inf", "unknown_lengths_mm = { fork_on_cam = 170.28",
+     "unknown_lengths_mm = { fork_on_cam = inf", 'units[11] "feed_fork"] unknown_lengths_mm'),
+    ("loop-term-length-nan", '{ link = "feed_fork", length = 125.0 }',
+     '{ link = "feed_fork", length = nan }', "terms[2]"),
+    ("loop-term-angle-inf", "length = 10.0, angle_deg = 90.0, sign = -1",
+     "length = 10.0, angle_deg = inf, sign = -1", "angle_deg"),
+    ("cam-width-nan", "constant_width = { width = 20.0", "constant_width = { width = nan",
+     "[cams.feed_cam.constant_width] width"),
+    ("cam-dwell-inf", "dwell_deg = 60.0 }", "dwell_deg = inf }",
+     "[cams.feed_cam.constant_width] dwell_deg"),
+    ("cam-arc-radius-nan", "radius = 8.0, normal_from_deg", "radius = nan, normal_from_deg",
+     "[cams.lift_cam.arcs[0]] radius"),
+    ("cam-arc-center-inf", "center = [1.3, 0.0]", "center = [inf, 0.0]",
+     "[cams.lift_cam.arcs[0]] center[0]"),
+    ("sewing-plate-nan", "plate_y = ", "plate_y = nan #", "[sewing] plate_y"),
+    ("load-force-nan", "force_N = 2.94", "force_N = nan", 'loads[0] "'),
+    ("load-window-inf", "windows_deg = [[135.0, 155.0]]", "windows_deg = [[135.0, inf]]",
+     'loads[0] "'),
+    ("shaft-z-nan", "bearings = { front = ", "bearings = { front = nan, x = ", "[shaft]"),
+]
+
+
+@pytest.mark.parametrize("case,old,new,where", FILE_NUMBERS, ids=[c[0] for c in FILE_NUMBERS])
+def test_1_file_numbers_must_be_finite(tmp_path, case, old, new, where):
+    path = tmp_path / "m.toml"
+    path.write_text(mutated(old, new))
+    before = snapshot(tmp_path)
+    out = run(["check", path], has=(str(path), where))
+    assert snapshot(tmp_path) == before
+    assert "nan" not in out.stdout.lower()
+
+
+OPTION_NUMBERS = [  # (case, argv, the option named in the message)
+    ("rpm-nan", ["kinematics", "jb1-3", "--rpm", "nan"], "--rpm"),
+    ("rpm-inf", ["kinematics", "jb1-3", "--rpm", "inf"], "--rpm"),
+    ("rpm-zero", ["dynamics", "jb1-3", "--rpm", "0"], "--rpm"),
+    ("rpm-negative", ["dynamics", "jb1-3", "--rpm", "-5"], "--rpm"),
+    ("rpm-huge", ["kinematics", "jb1-3", "--rpm", "1e9"], "--rpm"),
+    ("step-nan", ["check", "jb1-3", "--step-deg", "nan"], "--step-deg"),
+    ("step-inf", ["kinematics", "jb1-3", "--step-deg", "inf"], "--step-deg"),
+    ("step-zero", ["kinematics", "jb1-3", "--step-deg", "0"], "--step-deg"),
+    ("step-negative", ["dynamics", "jb1-3", "--step-deg", "-1"], "--step-deg"),
+    ("step-tiny", ["check", "jb1-3", "--step-deg", "1e-6"], "--step-deg"),
+    ("step-not-dividing", ["kinematics", "jb1-3", "--step-deg", "7"], "--step-deg"),
+    ("step-too-big", ["kinematics", "jb1-3", "--step-deg", "400"], "--step-deg"),
+    ("report-step-tiny", ["report", "jb1-3", "--step-deg", "0.01"], "--step-deg"),
+    ("input-nan", ["kinematics", "jb1-3", "--input", "regulator=nan"], "--input"),
+    ("input-inf", ["dynamics", "jb1-3", "--input", "regulator=inf"], "--input"),
+    ("step-mm-zero", ["feed", "jb1-3", "--step-mm", "0"], "--step-mm"),
+    ("step-mm-nan", ["feed", "jb1-3", "--step-mm", "nan"], "--step-mm"),
+    ("step-mm-negative", ["feed", "jb1-3", "--step-mm", "-1"], "--step-mm"),
+    ("alpha-nan", ["embroidery-take-up", "--alpha-deg", "nan"], "--alpha-deg"),
+    ("beta-inf", ["embroidery-take-up", "--beta-deg", "inf"], "--beta-deg"),
+    ("points-zero", ["embroidery-take-up", "--points", "0"], "--points"),
+    ("points-huge", ["embroidery-take-up", "--points", "1000000000"], "--points"),
+    ("phi-nan", ["kinematics", "jb1-3", "--phi-deg", "nan"], "--phi-deg"),
+    ("phi-inf", ["dynamics", "jb1-3", "--phi-deg", "inf"], "--phi-deg"),
+    ("set-nan", ["kinematics", "jb1-3", "--set", "needle_bar.length=nan"], "--set"),
+    ("set-inf", ["check", "jb1-3", "--set", "needle_bar.length=inf"], "--set"),
+]
+
+
+@pytest.mark.parametrize("case,argv,option", OPTION_NUMBERS, ids=[c[0] for c in OPTION_NUMBERS])
+def test_1_option_numbers_must_be_finite_and_in_range(tmp_path, case, argv, option):
+    run(argv, has=(f"error: {option}",), cwd=tmp_path)
+    assert list(tmp_path.iterdir()) == []  # nothing written
+
+
+def test_1_library_parameters_never_nan_feasible():
+    m = sewmech.load_machine("fourbar-benchmark")
+    phi = np.radians(np.arange(0.0, 360.0, 10.0))
+    P = np.tile(m.defaults, (4, 1))
+    P[1, m.parameter_index("dyad.length1")] = np.nan
+    P[2, m.parameter_index("A.x")] = np.inf
+    P[3, m.parameter_index("crank.phase")] = -np.inf
+    r = sewmech.kinematics(m, phi, params=P, on_failure="mask")
+    assert r.feasible[0].all() and not r.feasible[1:].any()
+    assert np.isfinite(r.p[0]).all() and np.isnan(r.p[1:]).all()
+    assert set(r.failure_reasons[1:].ravel()) == {"parameter"}
+    assert list(r.failure_units[1:, 0]) == ["dyad", "(parameters)", "crank"]
+    with pytest.raises(ParameterError, match=r"parameter 'dyad.length1' of design \(1,\): is nan"):
+        sewmech.kinematics(m, phi, params=P)
+    with pytest.raises(ParameterError, match="'dyad.length1'"):
+        m.parameters({"dyad.length1": [40.0, np.nan]})
+    with pytest.raises(ParameterError, match="'input.regulator'"):
+        sewmech.load_machine("jb1-3").parameters(inputs={"regulator": np.inf})
+
+
+@pytest.mark.parametrize("kw,name", [
+    (dict(rpm=float("nan")), "rpm"), (dict(rpm=0.0), "rpm"), (dict(rpm=-5.0), "rpm"),
+    (dict(omega=np.inf), "omega"), (dict(epsilon=np.nan), "epsilon"),
+    (dict(phi=[0.0, np.nan]), "phi"), (dict(max_step_deg=0.0), "max_step_deg"),
+    (dict(tol=np.nan), "tol"), (dict(on_failure="ignore"), "on_failure"),
+], ids=["rpm-nan", "rpm-0", "rpm-neg", "omega-inf", "epsilon-nan", "phi-nan", "max-step-0",
+        "tol-nan", "on-failure"])
+def test_1_library_arguments_are_checked(kw, name):
+    m = sewmech.load_machine("jb1-3")
+    phi = kw.pop("phi", [0.0, 1.0])
+    with pytest.raises(OptionError) as exc:
+        sewmech.kinematics(m, phi, **kw)
+    assert exc.value.option == name and str(exc.value).startswith(f"{name}:")
+
+
+def test_1_dynamics_and_downstream_refuse_non_finite():
+    from sewmech.dynamics import inverse_dynamics, speed_fluctuation
+
+    m = sewmech.load_machine("jb1-3")
+    phi = np.radians(np.arange(0.0, 360.0, 30.0))
+    with pytest.raises(OptionError, match="rpm"):
+        inverse_dynamics(m, phi, rpm=float("nan"))
+    with pytest.raises(SewmechError, match="flywheel"):
+        speed_fluctuation(m, flywheel=float("nan"))
+    with pytest.raises(SewmechError, match="flywheel"):
+        speed_fluctuation(m, flywheel=-1.0)
+    from sewmech import feed
+
+    with pytest.raises(SewmechError, match="regulator"):
+        feed.feed_cycles(m, [float("nan")])
+    with pytest.raises(SewmechError, match="step"):
+        feed.scale_marks(m, float("nan"))
+
+
+# ---- class 2: output paths; nothing of the user's is lost --------------------------------------
+
+
+def _user_dir(tmp_path: Path) -> Path:
+    d = tmp_path / "mine"
+    d.mkdir()
+    (d / "notes.txt").write_text("my notes")
+    (d / "index.html").write_text("my page")
+    return d
+
+
+@pytest.mark.parametrize("argv", [
+    ["report", "jb1-3", "--step-deg", "5"], ["demo"], ["kinematics", "jb1-3"],
+    ["dynamics", "jb1-3"], ["embroidery-take-up"],
+], ids=["report", "demo", "kinematics", "dynamics", "embroidery"])
+def test_2_a_directory_with_the_users_files_is_refused(tmp_path, argv):
+    d = _user_dir(tmp_path)
+    before = snapshot(tmp_path)
+    run(argv + ["--out", d], has=(f"--out {d}", "did not write", "notes.txt"))
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("argv", [
+    ["report", "jb1-3"], ["kinematics", "jb1-3"], ["dynamics", "jb1-3"],
+], ids=["report", "kinematics", "dynamics"])
+def test_2_an_existing_file_as_out_is_refused(tmp_path, argv):
+    f = tmp_path / "result.csv"
+    f.write_text("mine")
+    before = snapshot(tmp_path)
+    run(argv + ["--out", f], has=("is a file, not a directory",))
+    assert snapshot(tmp_path) == before
+
+
+def test_2_a_device_or_fifo_is_never_replaced(tmp_path):
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    run(["report", "jb1-3", "--out", fifo], has=("is a file, not a directory",))
+    assert fifo.exists() and not fifo.is_dir() and sorted(os.listdir(tmp_path)) == ["pipe"]
+
+
+def test_2_out_dot_in_a_project_directory_fails_at_once(tmp_path):
+    (tmp_path / "README.md").write_text("my project")
+    t = time.perf_counter()
+    run(["report", "jb1-3", "--out", "."], has=("--out .", "README.md"), cwd=tmp_path)
+    assert time.perf_counter() - t < 5.0  # before the report is computed, not after
+    assert sorted(os.listdir(tmp_path)) == ["README.md"]
+
+
+def test_2_out_under_a_file_and_too_long(tmp_path):
+    (tmp_path / "f").write_text("x")
+    run(["kinematics", "jb1-3", "--out", tmp_path / "f" / "sub"], has=("--out",))
+    run(["kinematics", "jb1-3", "--out", tmp_path / ("x" * 300)], has=("too long",))
+    assert sorted(os.listdir(tmp_path)) == ["f"]
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only directories")
+def test_2_read_only_directory(tmp_path):
+    d = tmp_path / "ro"
+    d.mkdir()
+    d.chmod(0o555)
+    try:
+        run(["kinematics", "jb1-3", "--out", d / "x"], has=("cannot write there",))
+    finally:
+        d.chmod(0o755)
+
+
+def test_2_sewmechs_own_directory_is_updated_and_stale_files_go(tmp_path):
+    d = tmp_path / "k"
+    run(["kinematics", "jb1-3", "--out", d], code=0)
+    run(["kinematics", "jb1-3", "--out", d, "--format", "json"], code=0)
+    names = sorted(os.listdir(d))
+    # the second run of the same command replaced the first one's files
+    assert names == [".sewmech-manifest.json", ".sewmech.lock", "jb1-3-kinematics.json"]
+    run(["dynamics", "jb1-3", "--out", d, "--step-deg", "30"], code=0)
+    assert "jb1-3-kinematics.json" in os.listdir(d)  # another command's files stay
+    manifest = json.loads((d / ".sewmech-manifest.json").read_text())["files"]
+    assert manifest["jb1-3-kinematics.json"]["command"] == "kinematics"
+
+
+def test_2_a_file_the_user_changed_is_not_overwritten(tmp_path):
+    d = tmp_path / "k"
+    run(["kinematics", "jb1-3", "--out", d], code=0)
+    f = d / "jb1-3-kinematics.csv"
+    f.write_text(f.read_text() + "my annotation\n")
+    before = snapshot(tmp_path)
+    run(["kinematics", "jb1-3", "--out", d], has=("changed since", "jb1-3-kinematics.csv"))
+    assert snapshot(tmp_path) == before
+
+
+def test_2_a_failing_run_leaves_the_previous_result_and_no_staging(tmp_path):
+    d = tmp_path / "k"
+    run(["kinematics", "jb1-3", "--out", d], code=0)
+    before = snapshot(tmp_path)
+    run(["kinematics", "jb1-3", "--out", d, "--input", "regulator=99"], has=("--input",))
+    run(["kinematics", "jb1-3", "--out", d, "--set", "needle_bar.length=1"],
+        has=("needle_bar",))
+    assert snapshot(tmp_path) == before
+    assert not [p for p in os.listdir(d) if p.startswith(".sewmech-staging")]
+
+
+def test_2_a_new_directory_is_removed_when_the_run_fails(tmp_path):
+    run(["kinematics", "jb1-3", "--out", tmp_path / "new" / "deeper",
+         "--set", "needle_bar.length=1"], has=("needle_bar",))
+    assert os.listdir(tmp_path) == []
+
+
+def test_2_a_locked_directory_is_refused(tmp_path):
+    import fcntl
+
+    d = tmp_path / "k"
+    run(["kinematics", "jb1-3", "--out", d], code=0)
+    before = snapshot(tmp_path)
+    fd = os.open(d / ".sewmech.lock", os.O_RDWR)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        run(["kinematics", "jb1-3", "--out", d], has=("another sewmech run",))
+    finally:
+        os.close(fd)
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("mask", [0o022, 0o077, 0o002])
+def test_2_modes_follow_the_umask(tmp_path, mask):
+    old = os.umask(mask)
+    try:
+        from sewmech import outdir
+
+        outdir._UMASK = None
+        run(["kinematics", "jb1-3", "--out", tmp_path / "k"], code=0)
+    finally:
+        os.umask(old)
+        outdir._UMASK = None
+    assert (tmp_path / "k").stat().st_mode & 0o777 == 0o777 & ~mask
+    for p in (tmp_path / "k").iterdir():
+        assert p.stat().st_mode & 0o777 == 0o666 & ~mask, p
+
+
+def _cli() -> list[str]:
+    exe = Path(sys.executable).with_name("sewmech")
+    return [str(exe)] if exe.exists() else [sys.executable, "-c",
+                                            "from sewmech.cli import main; main()"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig,code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)],
+                         ids=["sigterm", "sigint"])
+def test_2_interrupted_report_leaves_nothing(tmp_path, sig, code):
+    d = tmp_path / "rep"
+    p = subprocess.Popen(_cli() + ["report", "jb1-3", "--out", str(d), "--step-deg", "0.5"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
+    deadline = time.time() + 60
+    while time.time() < deadline and not (d.exists() and any(
+            n.startswith(".sewmech-staging") for n in os.listdir(d))):
+        time.sleep(0.05)
+    assert d.exists(), "the report never started writing"
+    time.sleep(0.5)
+    p.send_signal(sig)
+    out, err = p.communicate(timeout=60)
+    assert p.returncode == code, err.decode()
+    assert b"Traceback" not in err and b"nothing half-written" in err
+    assert os.listdir(tmp_path) == []  # the directory it created is gone too
+
+
+@pytest.mark.slow
+def test_2_concurrent_reports_end_with_one_complete_result(tmp_path):
+    d = tmp_path / "rep"
+    cmd = _cli() + ["report", "jb1-3", "--out", str(d), "--step-deg", "5"]
+    procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
+             for _ in range(2)]
+    results = [(p.wait(timeout=300), p.stderr.read().decode()) for p in procs]
+    codes = sorted(c for c, _ in results)
+    assert codes in ([0, 0], [0, 2]), results
+    for c, err in results:
+        assert "Traceback" not in err
+        if c == 2:
+            assert "another sewmech run" in err
+    manifest = json.loads((d / ".sewmech-manifest.json").read_text())["files"]
+    for name, rec in manifest.items():
+        assert (d / name).stat().st_size == rec["size"], name
+    assert "index.html" in manifest and not [n for n in os.listdir(d)
+                                             if n.startswith(".sewmech-staging")]
+
+
+# ---- class 3: ordinary mistakes (no traceback) ----------------------------------------------
+
+
+def _bad_files(tmp_path: Path) -> dict[str, Path]:
+    files = {}
+
+    def put(name, data):
+        p = tmp_path / name
+        p.write_bytes(data if isinstance(data, bytes) else data.encode())
+        files[name] = p
+
+    put("latin1.toml", JB.replace("ESTIMATE", "Schätzung").encode("latin-1", "replace"))
+    put("binary.toml", bytes(range(256)) * 4)
+    put("empty.toml", "")
+    put("nested.toml", "a = " + "[" * 5000 + "]" * 5000 + "\n")
+    put("deep-tables.toml", "".join(f"[{'.'.join(['t'] * k)}]\n" for k in range(1, 60)))
+    put("huge.toml", "# " + "x" * (5 * 2**20) + "\n")
+    put("bad-syntax.toml", "[machine\nname = 'x'\n")
+    put("string-number.toml", mutated("lengths = [26.5, 20.1]", 'lengths = ["long", 20.1]'))
+    put("table-for-number.toml", mutated("length = 44.0 ", "length = { a = 1 } "))
+    put("list-for-table.toml", mutated("[speed]\nrpm = 1000.0 ", "speed = [1, 2]\n#"))
+    put("missing-convention.toml", JB[:JB.index("[convention]")] + JB[JB.index("[speed]"):])
+    put("no-units.toml", JB[:JB.index("[[units]]")])
+    put("bom.toml", "\ufeff" + FB)
+    put("unknown-unit-type.toml", mutated('type = "rrr"', 'type = "rrrr"'))
+    put("duplicate-unit.toml", FB.replace('name = "cp"', 'name = "dyad"'))
+    return files
+
+
+BAD_FILES = [  # (file, message part)
+    ("latin1.toml", "not UTF-8"), ("binary.toml", "binary file"), ("empty.toml", "missing"),
+    ("nested.toml", "too deeply"), ("deep-tables.toml", "missing required key 'machine'"),
+    ("huge.toml", "MiB"), ("bad-syntax.toml", "not valid TOML"),
+    ("string-number.toml", "lengths[0]: Input should be a valid number"),
+    ("table-for-number.toml", "length"),
+    ("list-for-table.toml", "speed"), ("missing-convention.toml", "convention"),
+    ("no-units.toml", "units"), ("unknown-unit-type.toml", "unknown unit type"),
+    ("duplicate-unit.toml", "used twice"),
+]
+
+
+@pytest.mark.parametrize("name,part", BAD_FILES, ids=[b[0] for b in BAD_FILES])
+def test_3_unreadable_and_malformed_files(tmp_path, name, part):
+    path = _bad_files(tmp_path)[name]
+    before = snapshot(tmp_path)
+    run(["check", path], has=(str(path), part))
+    assert snapshot(tmp_path) == before
+
+
+def test_3_a_bom_is_fine_and_directories_and_missing_files_are_named(tmp_path):
+    path = _bad_files(tmp_path)["bom.toml"]
+    run(["check", path], code=0)
+    run(["check", tmp_path], has=("is a directory",))
+    run(["check", tmp_path / "nope.toml"], has=("nope.toml", "shipped machines"))
+    run(["kinematics", "jb13"], has=("jb13", "jb1-3"))
+
+
+MISTAKES = [  # (case, argv, message part)
+    ("feed-without-feed", ["feed", "fourbar-benchmark"], "[sewing]"),
+    ("report-without-sewing", ["report", "fourbar-benchmark"], "[sewing]"),
+    ("dynamics-without-masses", ["dynamics", "fourbar-benchmark"], "no [masses]"),
+    ("embroidery-on-jb", ["embroidery-take-up", "--machine", "jb1-3"], "jb1-3"),
+    ("compare-unknown", ["report", "jb1-3", "--compare", "jb9"], "jb9"),
+    ("loads-missing", ["dynamics", "jb1-3", "--loads", "nope.toml"], "nope.toml"),
+    ("input-unknown", ["kinematics", "jb1-3", "--input", "reg=20"], "no input 'reg'"),
+    ("input-not-number", ["kinematics", "jb1-3", "--input", "regulator=x"], "NAME=DEGREES"),
+    ("input-no-equals", ["kinematics", "jb1-3", "--input", "regulator"], "--input"),
+    ("set-no-equals", ["kinematics", "jb1-3", "--set", "needle_bar.length"], "NAME=VALUE"),
+    ("set-empty-name", ["kinematics", "jb1-3", "--set", "=3"], "NAME=VALUE"),
+    ("set-not-number", ["kinematics", "jb1-3", "--set", "needle_bar.length=abc"],
+     "not a number"),
+    ("set-unknown", ["kinematics", "jb1-3", "--set", "nedle_bar.length=44"],
+     "Did you mean needle_bar.length"),
+    ("set-wrong-unit", ["kinematics", "jb1-3", "--set", "needle_bar.length=44deg"],
+     "is in mm, not deg"),
+    ("set-cam-arc", ["kinematics", "jb1-3", "--set", "feed_cam.arc0.radius=3"],
+     "constant-width cam"),
+    ("set-negative-length", ["kinematics", "jb1-3", "--set", "needle_bar.length=-3"],
+     'units[1] "needle_bar"] length'),
+    ("set-breaks-assembly", ["kinematics", "jb1-3", "--set", "needle_bar.length=5"],
+     "unit 'needle_bar'"),
+]
+
+
+@pytest.mark.parametrize("case,argv,part", MISTAKES, ids=[m[0] for m in MISTAKES])
+def test_3_ordinary_mistakes_give_one_clear_line(tmp_path, case, argv, part):
+    run(argv, has=(part,), cwd=tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_3_usage_errors_are_clean(tmp_path):
+    out = runner.invoke(app, ["kinematics", "jb1-3", "--format", "xml", "--out", "x"])
+    assert out.exit_code == 2 and "Traceback" not in out.output
+    out = runner.invoke(app, ["kinematics", "jb1-3", "--rpm", "fast"])
+    assert out.exit_code == 2 and "Traceback" not in out.output
+
+
+def test_3_empty_angle_array_and_big_requests():
+    m = sewmech.load_machine("jb1-3")  # three loop units
+    r = sewmech.kinematics(m, [])
+    assert r.p.shape == (0, len(m.point_names), 2) and r.all_feasible
+    assert r.failures().empty
+    from sewmech.dynamics import inverse_dynamics
+
+    d = inverse_dynamics(m, [])
+    assert d.input_torque.shape == (0,)
+
+
+# ---- class 4: impossible physics --------------------------------------------------------------
+
+MASS = '\n[masses.crank]\n{body}\n'
+PHYSICS = [  # (case, [masses.crank] body, message part)
+    ("negative-mass", "mass = -1.0\ncom = [0.0, 0.0]\ninertia_zz = 1.0", "mass"),
+    ("zero-mass", "mass = 0.0\ncom = [0.0, 0.0]\ninertia_zz = 1.0", "mass"),
+    ("negative-izz", "mass = 1.0\ncom = [0.0, 0.0]\ninertia_zz = -1.0", "inertia_zz"),
+    ("nan-com", "mass = 1.0\ncom = [nan, 0.0]\ninertia_zz = 1.0", "com"),
+    ("negative-definite",
+     "mass = 1.0\ncom = [0.0, 0.0, 0.0]\ninertia = [[-1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]]",
+     "not positive semi-definite"),
+    ("triangle", "mass = 1.0\ncom = [0.0, 0.0, 0.0]\ninertia = [[1.0, 0, 0], [0, 1.0, 0],"
+     " [0, 0, 5.0]]", "triangle inequality"),
+    ("asymmetric", "mass = 1.0\ncom = [0.0, 0.0, 0.0]\ninertia = [[2.0, 0.5, 0], [0, 2.0, 0],"
+     " [0, 0, 2.0]]", "symmetric"),
+    ("hole-outside", 'density = 7850.0\nsolids = [ { type = "box", size = [10.0, 4.0, 4.0] },'
+     ' { type = "cylinder", radius = 1.0, length = 4.0, base = [30.0, 0.0, -2.0],'
+     ' hole = true } ]', "lies outside the material"),
+    ("hole-bigger", 'density = 7850.0\nsolids = [ { type = "sphere", radius = 1.0 },'
+     ' { type = "sphere", radius = 3.0, hole = true } ]', "lies outside the material"),
+    ("negative-point-mass", 'density = 7850.0\nsolids = [ { type = "point", mass = -0.1 } ]',
+     "mass"),
+    ("negative-density", 'density = -7850.0\nsolids = [ { type = "sphere", radius = 1.0 } ]',
+     "density"),
+    ("unknown-material", 'material = "unobtainium"\nsolids = [ { type = "sphere",'
+     ' radius = 1.0 } ]', "unknown material"),
+    ("tube-inside-out", 'density = 7850.0\nsolids = [ { type = "hollow_cylinder", r_out = 2.0,'
+     ' r_in = 3.0, length = 4.0 } ]', "r_in"),
+    ("zero-radius", 'density = 7850.0\nsolids = [ { type = "sphere", radius = 0.0 } ]',
+     "radius"),
+]
+
+
+@pytest.mark.parametrize("case,body,part", PHYSICS, ids=[p[0] for p in PHYSICS])
+def test_4_impossible_mass_properties(tmp_path, case, body, part):
+    path = tmp_path / "m.toml"
+    path.write_text(FB + MASS.format(body=body))
+    run(["check", path], has=(str(path), "masses.crank", part))
+
+
+def test_4_flywheel_and_machines_without_masses(tmp_path):
+    from sewmech.dynamics import speed_fluctuation
+
+    with pytest.raises(SewmechError, match="flywheel"):
+        speed_fluctuation(sewmech.load_machine("jb1-3"), flywheel=-0.5)
+    # no masses but a load: the forces are the load's, and the command says so
+    path = tmp_path / "m.toml"
+    path.write_text(SLIDER_CRANK.format(r=15.0, l=44.0, e=0.0, alpha=90.0, gx=0.0, gy=0.0,
+                                        branch=1)
+                    + '[[loads]]\nname = "press"\nlink = "block"\npoint = "C"\nforce_N = 10.0\n'
+                      'angle_deg = -90.0\n')
+    out = run(["dynamics", path, "--step-deg", "30"], code=0)
+    assert "no [masses]" in out.stdout
+
+
+# ---- class 5: declared ranges -------------------------------------------------------------------
+
+RANGES = [  # (case, argv or file change, message part)
+    ("input-above", ["kinematics", "jb1-3", "--input", "regulator=60"],
+     "outside the range -30 .. 30 deg"),
+    ("input-below", ["dynamics", "jb1-3", "--input", "regulator=-31"], "outside the range"),
+    ("input-set", ["kinematics", "jb1-3", "--set", "input.regulator=45deg"],
+     "default_deg 45"),
+]
+
+
+@pytest.mark.parametrize("case,argv,part", RANGES, ids=[r[0] for r in RANGES])
+def test_5_settings_outside_their_declared_range(case, argv, part):
+    run(argv, has=(part,))
+
+
+FILE_RANGES = [
+    ("default-outside", "default_deg = 0.0 ", "default_deg = 40.0 ", "default_deg 40"),
+    ("min-above-max", "min_deg = -30.0 ", "min_deg = 31.0 ", "larger than max_deg"),
+    ("window-beyond", "windows_deg = [[135.0, 155.0]]", "windows_deg = [[400.0, 900.0]]",
+     "[400, 900] is not a shaft-angle window"),
+    ("window-negative", "windows_deg = [[135.0, 155.0]]", "windows_deg = [[-10.0, 20.0]]",
+     "not a shaft-angle window"),
+    ("window-empty", "windows_deg = [[135.0, 155.0]]", "windows_deg = [[20.0, 20.0]]",
+     "from != to"),
+    ("reference-false", "reference_phi_deg = 90.0", "reference_phi_deg = 80.0",
+     "reference_phi_deg = 80 but needle.point at its top is at phi = 90"),
+]
+
+
+@pytest.mark.parametrize("case,old,new,part", FILE_RANGES, ids=[r[0] for r in FILE_RANGES])
+def test_5_ranges_in_files(tmp_path, case, old, new, part):
+    path = tmp_path / "m.toml"
+    path.write_text(mutated(old, new))
+    run(["check", path], has=(str(path), part))
+
+
+def test_5_library_enforces_input_ranges_and_masks():
+    m = sewmech.load_machine("jb1-3")
+    phi = np.radians([0.0, 90.0])
+    with pytest.raises(ParameterError, match="outside the range -30 deg .. 30 deg"):
+        sewmech.kinematics(m, phi, inputs={"regulator": math.radians(40)})
+    r = sewmech.kinematics(m, phi, inputs={"regulator": np.radians([20.0, 40.0])},
+                           on_failure="mask")
+    assert r.feasible[0].all() and not r.feasible[1].any()
+    assert set(r.failure_reasons[1]) == {"parameter"}
+
+
+def test_5_check_proves_assembly_between_grid_points(tmp_path):
+    path = tmp_path / "gap.toml"
+    path.write_text(FOURBAR.format(**{**BENCH, "bc": 30.0, "cd": 22.995, "phase": 2.5}))
+    run(["check", path, "--step-deg", "5"], has=("fails over phi 175.75", "between the grid"))
+    run(["check", path, "--step-deg", "5", "--set", "dyad.length2=23.1"], code=0)
+
+
+# ---- class 6: newcomer frictions ------------------------------------------------------------
+
+SIX_BAR = """
+[machine]
+name = "six-bar"
+length_unit = "mm"
+[convention]
+reference_event = "crank along +x"
+reference_phi_deg = 0.0
+reference_link = "crank"
+reference_angle_deg = 0.0
+[points.A]
+x = 0.0
+y = 0.0
+[points.D]
+x = 38.0
+y = 0.0
+[points.F]
+x = 60.0
+y = -20.0
+[[units]]
+type = "crank"
+name = "crank"
+pivot = "A"
+points = { B = { length = 15.0, angle_deg = 0.0 } }
+[[units]]
+type = "rrr"
+name = "dyad1"
+joints = ["B", "D"]
+new = "C"
+links = ["coupler", "rocker"]
+lengths = [40.0, 35.0]
+branch = -1
+[[units]]
+type = "point"
+name = "coupler_point"
+link = "coupler"
+origin = "B"
+points = { E = { length = 31.62, angle_deg = 18.43 } }
+[[units]]
+type = "rrp"
+name = "slider"
+pin = "E"
+rod = "rod"
+length = 50.0
+new = "S"
+slider = "block"
+guide_point = "F"
+guide_angle_deg = 0.0
+variable = "block_x"
+branch = 1
+"""
+
+
+def test_6_a_six_bar_from_the_docs(tmp_path):
+    path = tmp_path / "six.toml"
+    path.write_text(SIX_BAR)
+    out = run(["check", path], code=0)
+    assert "checked" in out.stdout and "proved" in out.stdout
+    assert check_reference(sewmech.load_machine(path)).status == "ok"
+    out = run(["kinematics", path, "--phi-deg", "30"], code=0)
+    assert "q block_x" in out.stdout and "(constant)" in out.stdout
+    assert "unwrapped" in out.stdout
+    m = sewmech.load_machine(path)
+    # the polar point is read as (length cos, length sin)
+    assert m.defaults[m.parameter_index("E.u")] == pytest.approx(31.62 * math.cos(
+        math.radians(18.43)))
+
+
+NEWCOMER = [  # (case, file change to the six-bar, message part)
+    ("length-unit", ('length_unit = "mm"', 'length_unit = "in"'), "length_unit must be \"mm\""),
+    ("point-form", ("{ length = 15.0, angle_deg = 0.0 }", "{ r = 15.0, a = 0.0 }"),
+     "a local point is [u, v]"),
+    ("point-three", ("{ length = 15.0, angle_deg = 0.0 }", "[15.0, 0.0, 1.0]"),
+     "a local point is [u, v]"),
+    ("reference-pair", ('reference_angle_deg = 0.0\n', ""), "reference_link and reference_angle"),
+    ("reference-unknown-link", ('reference_link = "crank"', 'reference_link = "crnk"'),
+     "reference_link"),
+    ("slider-too-short", ("length = 50.0", "length = 5.0"), "unit 'slider'"),
+]
+
+
+@pytest.mark.parametrize("case,change,part", NEWCOMER, ids=[n[0] for n in NEWCOMER])
+def test_6_newcomer_mistakes(tmp_path, case, change, part):
+    path = tmp_path / "six.toml"
+    path.write_text(mutated(*change, text=SIX_BAR))
+    out = run(["check", path], has=(part,))
+    assert str(path) in out.stderr
+
+
+def test_6_assembly_errors_name_file_unit_ranges_and_no_python_hint(tmp_path):
+    path = tmp_path / "six.toml"
+    path.write_text(mutated("length = 50.0", "length = 5.0", text=SIX_BAR))
+    out = run(["kinematics", path], has=(str(path), "unit 'slider'", "fails over phi"))
+    assert "on_failure" not in out.stderr
+    with pytest.raises(AssemblyError) as exc:
+        sewmech.kinematics(sewmech.load_machine(path), np.radians(np.arange(0, 360, 5.0)))
+    assert exc.value.file == str(path) and exc.value.ranges_deg
+
+
+def test_6_parameters_listed_and_set_everywhere(tmp_path):
+    out = run(["check", "jb1-3", "--parameters"], code=0)
+    assert "needle_bar.length" in out.stdout and '[units[1] "needle_bar"] length' in out.stdout
+    out = run(["check", "jb1-3", "--set", "needle_bar.length=45"], code=0)
+    assert "needle_bar.length = 45" in out.stdout
+    out = run(["kinematics", "jb1-3", "--json", "--step-deg", "90", "--set",
+               "needle_crank.phase=0.5deg"], code=0)
+    assert json.loads(out.stdout)["phi_deg"] == [0.0, 90.0, 180.0, 270.0]
+    run(["feed", "jb1-3", "--json", "--set", "feed_cam.stroke=6.5"], code=0)
+    run(["dynamics", "jb1-3", "--step-deg", "90", "--set", "needle_bar.length=45"], code=0)
+
+
+def test_6_results_name_failing_units():
+    m = sewmech.machine_from_toml(mutated("length = 50.0", "length = 5.0", text=SIX_BAR))
+    r = sewmech.kinematics(m, np.radians(np.arange(0, 360, 5.0)), on_failure="mask")
+    assert not r.all_feasible
+    f = r.failures()
+    assert list(f.unit) == ["slider"] and list(f.reason) == ["assembly"]
+    assert set(r.failure_units[~r.feasible]) == {"slider"}
+
+
+def test_6_docs_cover_what_newcomers_looked_for():
+    root = Path(__file__).resolve().parents[1]
+    files = (root / "docs" / "machine-files.md").read_text()
+    assert "length_unit" in files and "angle_deg = 30.0" in files and "guide_point" in files
+    assert "reference_point" in files and "--set" in files
+    readme = (root / "README.md").read_text()
+    assert 'r.link("take_up_lever").theta' in readme and "--phi-deg" in readme
+    errors = (root / "docs" / "errors.md").read_text()
+    for cls in ("MachineFileError", "OptionError", "ParameterError", "AssemblyError",
+                "OutputError"):
+        assert cls in errors
+
+
+def test_library_errors_are_sewmech_errors():
+    # every error class a user can meet is a SewmechError with where/message/hint
+    for cls in (MachineFileError, OptionError, ParameterError, OutputError, AssemblyError):
+        assert issubclass(cls, SewmechError)
+    e = OutputError("--out x", "is a file", "Give a directory")
+    assert str(e) == "--out x: is a file. Give a directory" and e.hint == "Give a directory"
