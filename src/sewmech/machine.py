@@ -585,8 +585,8 @@ class _Compiler:
         self.all_points, self.all_links = self._scan()
 
     # -- helpers
-    def err(self, table: str, key: str, msg: str) -> MachineFileError:
-        return MachineFileError(self.file, table, key, msg)
+    def err(self, table: str, key: str, msg: str, hint: str = "") -> MachineFileError:
+        return MachineFileError(self.file, table, key, msg, hint)
 
     def param(self, name: str, value: float, unit: str, src: tuple | None = None, *,
               positive: bool = False, bounds: tuple[float, float] | None = None) -> int:
