@@ -617,6 +617,7 @@ def embroidery_cmd(
     as_json: bool = typer.Option(False, "--json", help='print {"phi_deg": [...], "L_mm": [...]}'),
     out: Path = typer.Option(None, help="without --json: also save the figure (PNG) in this"
                              " directory"),
+    sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
 ):
     """Thread drawn L(phi) = l_max - l by the embroidery take-up for one (alpha, beta)."""
     from . import embroidery as EM
@@ -624,7 +625,7 @@ def embroidery_cmd(
     _bounded("--alpha-deg", alpha_deg, -360.0, 360.0, "deg", "10")
     _bounded("--beta-deg", beta_deg, -360.0, 360.0, "deg", "35")
     _bounded("--points", points, 2, 3600, "positions", "12")
-    m = _load(machine)
+    m = _load(machine, sets)
     phi, L = EM.thread_drawn(m, alpha_deg, beta_deg, n_points=points)
     if not np.isfinite(L).all():
         raise OptionError("--alpha-deg/--beta-deg", f"the take-up of {m.file} cannot be"
@@ -723,9 +724,10 @@ def report_cmd(
 
 @command("demo")
 def demo_cmd(out: Path = typer.Option(Path("out/demo"), help="output directory (as for"
-                                      " report)")):
+                                      " report)"),
+             sets: list[str] = typer.Option(None, "--set", help=SET_HELP)):
     """Same as `sewmech report jb1-3 --out DIR` (the main job on the default machine)."""
-    report_cmd.__wrapped__(DEFAULT_MACHINE, out, 1.0, None, None)
+    report_cmd.__wrapped__(DEFAULT_MACHINE, out, 1.0, None, sets)
 
 
 def main():  # pragma: no cover - entry point
