@@ -592,6 +592,23 @@ BLOCK = 32
 _U = np.uint64  # unsigned lane indices: numba then emits no negative-index wrap-around
 
 
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+def _nan_row(d, row, P, V, A, TH, OM, EP, S, SD, SDD, GP, GV, GA):
+    """A failed output row: NaN in every output of design d at row."""
+    P[d, row] = np.nan
+    V[d, row] = np.nan
+    A[d, row] = np.nan
+    TH[d, row] = np.nan
+    OM[d, row] = np.nan
+    EP[d, row] = np.nan
+    S[d, row] = np.nan
+    SD[d, row] = np.nan
+    SDD[d, row] = np.nan
+    GP[d, row] = np.nan
+    GV[d, row] = np.nan
+    GA[d, row] = np.nan
+
+
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _eval_designs(d0, d1, units, params, p_lo, p_hi, march_phi, mc, ms, march_store,
                   march_omega, march_eps, grp, unk, terms, cams_i, arcs_i, n_points, n_links,
@@ -672,18 +689,7 @@ def _eval_designs(d0, d1, units, params, p_lo, p_hi, march_phi, mc, ms, march_st
                 fail_unit[d, row] = bad
                 fail_code[d, row] = FAIL_PARAM
                 n_failed += 1
-                P[d, row] = np.nan
-                V[d, row] = np.nan
-                A[d, row] = np.nan
-                TH[d, row] = np.nan
-                OM[d, row] = np.nan
-                EP[d, row] = np.nan
-                S[d, row] = np.nan
-                SD[d, row] = np.nan
-                SDD[d, row] = np.nan
-                GP[d, row] = np.nan
-                GV[d, row] = np.nan
-                GA[d, row] = np.nan
+                _nan_row(d, row, P, V, A, TH, OM, EP, S, SD, SDD, GP, GV, GA)
             continue
         n_hist[:] = 0
         lost[:] = False
@@ -966,18 +972,7 @@ def _eval_designs(d0, d1, units, params, p_lo, p_hi, march_phi, mc, ms, march_st
                 fail_code[d, row] = fc[kb]
                 if fc[kb] != FAIL_NONE:
                     n_failed += 1
-                    P[d, row] = np.nan
-                    V[d, row] = np.nan
-                    A[d, row] = np.nan
-                    TH[d, row] = np.nan
-                    OM[d, row] = np.nan
-                    EP[d, row] = np.nan
-                    S[d, row] = np.nan
-                    SD[d, row] = np.nan
-                    SDD[d, row] = np.nan
-                    GP[d, row] = np.nan
-                    GV[d, row] = np.nan
-                    GA[d, row] = np.nan
+                    _nan_row(d, row, P, V, A, TH, OM, EP, S, SD, SDD, GP, GV, GA)
                     continue
                 for j in range(ex_tab.shape[0]):  # extra points: e.g. the centres of mass
                     L = ex_tab[j, 0]
