@@ -31,6 +31,7 @@ from scipy.optimize import brentq
 from . import _kernels as K
 from .kinematics import check_design, kinematics
 from .machine import Machine
+from .results import mask_runs
 
 #: the largest step of the loop units' continuation check, deg
 LOOP_STEP_DEG = 0.25
@@ -195,7 +196,7 @@ def prove_assembly(machine: Machine, *, params=None, inputs=None,
     if not res.all_feasible:  # failures at grid points: ranges of consecutive grid angles
         for ui in np.unique(res.failure_unit[~res.feasible]):
             mask = ~res.feasible & (res.failure_unit == ui)
-            for a, b in _runs(mask):
+            for a, b in mask_runs(mask):
                 failures.append(AssemblyFailure(names[ui] if ui >= 0 else "?",
                                                 math.degrees(grid[a]), math.degrees(grid[b]),
                                                 "it cannot be assembled at these grid angles"))
@@ -252,22 +253,6 @@ def prove_assembly(machine: Machine, *, params=None, inputs=None,
     return AssemblyProof(step_deg, tuple(margins), tuple(failures), steps, loops)
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """(first, last) index of each run of True in a 1-D mask."""
-    out = []
-    k = 0
-    while k < mask.size:
-        if mask[k]:
-            j = k
-            while j + 1 < mask.size and mask[j + 1]:
-                j += 1
-            out.append((k, j))
-            k = j + 1
-        else:
-            k += 1
-    return out
-
-
 def _loop_continuity(machine: Machine, kw: dict) -> tuple[int, list[AssemblyFailure]]:
     """Continue the loop units at LOOP_STEP_DEG and hold every step against the exact rates: a
     move beyond what they allow is a jump to another branch."""
@@ -279,7 +264,7 @@ def _loop_continuity(machine: Machine, kw: dict) -> tuple[int, list[AssemblyFail
     if not res.all_feasible:
         for ui in np.unique(res.failure_unit[~res.feasible]):
             mask = ~res.feasible & (res.failure_unit == ui)
-            for a, b in _runs(mask):
+            for a, b in mask_runs(mask):
                 failures.append(AssemblyFailure(
                     machine.unit_names[ui] if ui >= 0 else "?",
                     math.degrees(phi[a]) % 360.0, math.degrees(phi[b]) % 360.0,
@@ -304,7 +289,7 @@ def _loop_continuity(machine: Machine, kw: dict) -> tuple[int, list[AssemblyFail
             curv = np.maximum(np.abs(ddq[1:]), np.abs(ddq[:-1]))
             miss = np.abs(q[1:] - q[:-1])
             bound = h * rate + 2.0 * h * h * curv + JUMP_TOL
-            for a, b in _runs(miss > bound):
+            for a, b in mask_runs(miss > bound):
                 failures.append(AssemblyFailure(
                     unit, math.degrees(phi[a]) % 360.0, math.degrees(phi[b + 1]) % 360.0,
                     f"the solution jumps to another branch (it moves by"

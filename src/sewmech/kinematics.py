@@ -18,8 +18,8 @@ from numpy.typing import ArrayLike
 from . import _kernels as K
 from .errors import AssemblyError, ConvergenceError, OptionError, ParameterError, SewmechError
 from .machine import PARAM_LIMIT, Machine, compile_machine, domain_message, parameter_location
+from .results import KinematicsResult, mask_runs
 from .spec import MachineSpec
-from .results import KinematicsResult
 
 _REASONS = {
     K.FAIL_ASSEMBLY: ("cannot be assembled: its closure equations have no real solution (a link"
@@ -455,19 +455,8 @@ def _raise_first(machine, phi, store, batch, row, fail_unit, fail_code, loop_res
 def angle_ranges(phi_deg: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]]:
     """Ranges (first, last angle, deg) of the masked angles, consecutive in increasing order."""
     order = np.argsort(phi_deg, kind="stable")
-    m = mask[order]
-    out = []
-    k = 0
-    while k < m.size:
-        if not m[k]:
-            k += 1
-            continue
-        j = k
-        while j + 1 < m.size and m[j + 1]:
-            j += 1
-        out.append((round(float(phi_deg[order[k]]), 6), round(float(phi_deg[order[j]]), 6)))
-        k = j + 1
-    return out
+    return [(round(float(phi_deg[order[a]]), 6), round(float(phi_deg[order[b]]), 6))
+            for a, b in mask_runs(mask[order])]
 
 
 def check_design(machine: Machine, params: ArrayLike) -> None:

@@ -27,6 +27,13 @@ CHANNEL_KINDS = {
 }
 
 
+def mask_runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) index of every run of consecutive True values of a 1-D mask."""
+    m = np.concatenate([[False], np.asarray(mask, dtype=bool), [False]])
+    edges = np.flatnonzero(m[1:] != m[:-1])
+    return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2])]
+
+
 #: failure codes of the kernels (sewmech._kernels.FAIL_*): (word, explanation)
 FAILURE_REASONS = {
     0: ("", ""),
@@ -173,16 +180,8 @@ class KinematicsResult:
             for unit, code in sorted({(units[d, i], int(codes[d, i]))
                                       for i in np.flatnonzero(~feasible[d])}):
                 mask = ((units[d] == unit) & (codes[d] == code))[order]
-                runs, k = [], 0
-                while k < mask.size:
-                    if mask[k]:
-                        j = k
-                        while j + 1 < mask.size and mask[j + 1]:
-                            j += 1
-                        runs.append((round(float(phi[k]), 6), round(float(phi[j]), 6)))
-                        k = j + 1
-                    else:
-                        k += 1
+                runs = [(round(float(phi[a]), 6), round(float(phi[b]), 6))
+                        for a, b in mask_runs(mask)]
                 row = {"design": tuple(int(x) for x in np.unravel_index(d, batch))} \
                     if batch else {}
                 row.update(unit=unit, reason=FAILURE_REASONS[code][0],
