@@ -485,7 +485,7 @@ MISTAKES = [  # (case, argv, message part)
     ("set-not-number", ["kinematics", "jb1-3", "--set", "needle_bar.length=abc"],
      "not a number"),
     ("set-unknown", ["kinematics", "jb1-3", "--set", "nedle_bar.length=44"],
-     "Did you mean needle_bar.length"),
+     "did you mean needle_bar.length"),
     ("set-wrong-unit", ["kinematics", "jb1-3", "--set", "needle_bar.length=44deg"],
      "is in mm, not deg"),
     ("set-cam-arc", ["kinematics", "jb1-3", "--set", "feed_cam.arc0.radius=3"],

@@ -143,14 +143,11 @@ def _parse_sets(m: Machine, sets: list[str] | None) -> dict[str, float]:
                               " --set needle_crank.phase=5deg")
         unit = designs.get(name)
         if unit is None:
-            if name not in m.parameter_names:
-                import difflib
-
-                close = difflib.get_close_matches(name, m.parameter_names, n=3)
-                hint = f"Did you mean {', '.join(close)}? " if close else ""
-                raise OptionError("--set", f"machine '{m.name}' has no parameter '{name}'",
-                                  hint + f"`sewmech check {m.name} --parameters` lists them")
-            unit = m.parameter_units[m.parameter_index(name)]
+            try:
+                unit = m.parameter_units[m.parameter_index(name)]
+            except KeyError as exc:
+                raise OptionError("--set", exc.args[0], f"`sewmech check {m.name} --parameters`"
+                                  " lists them") from None
         suffix = next((u for u in _UNITS if text.endswith(u)), None)
         number = text[: -len(suffix)] if suffix else text
         try:

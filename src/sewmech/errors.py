@@ -34,7 +34,7 @@ class SewmechError(Exception):
 def _join(where: str, message: str, hint: str) -> str:
     text = f"{where}: {message}" if where else message
     if hint:
-        text = text.rstrip(".") + f". {hint}"
+        text = (text + " " if text.endswith(("?", "!")) else text.rstrip(".") + ". ") + hint
     return text
 
 

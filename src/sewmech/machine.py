@@ -36,8 +36,8 @@ from .spec import (
     RRRUnit,
     load_machine_spec,
     parse_machine,
+    validate_model,
 )
-from .spec import _validate as _validate_model
 
 MACHINES_PACKAGE = "sewmech.data.machines"
 
@@ -430,13 +430,11 @@ def with_parameters(machine: Machine, values: Mapping[str, float], *,
             file_key, scale = _CAM_DESIGN_KEYS[key]
             path, x = ("cams", cam, "constant_width", file_key), v * scale
         else:
-            if name not in machine.parameter_names:
-                close = difflib.get_close_matches(name, machine.parameter_names, n=3)
-                hint = f"Did you mean {', '.join(close)}? " if close else ""
-                raise ParameterError(name, (), v, f"machine '{machine.name}' has no parameter"
-                                     " of that name", hint + "`sewmech check MACHINE"
-                                     " --parameters` lists them all")
-            i = machine.parameter_index(name)
+            try:
+                i = machine.parameter_index(name)
+            except KeyError as exc:
+                raise ParameterError(name, (), v, exc.args[0], "`sewmech check MACHINE"
+                                     " --parameters` lists them all") from None
             path = machine.parameter_sources[i]
             if path is None:
                 raise ParameterError(name, (), v, "is an arc of a constant-width cam and cannot"
@@ -453,14 +451,10 @@ def with_parameters(machine: Machine, values: Mapping[str, float], *,
             node = parent[path[-2]] = list(node)
         node[path[-1]] = x
     where = f"{machine.file} ({origin} {', '.join(values)})"
-    changed = compile_machine(_validate_spec(raw, where), where)
+    changed = compile_machine(validate_model(MachineSpec, raw, where), where)
     return dataclasses.replace(changed, file=machine.file,
                                changes={**machine.changes, **{k: float(v) for k, v in
                                                               values.items()}})
-
-
-def _validate_spec(raw: dict, file: str) -> MachineSpec:
-    return _validate_model(MachineSpec, raw, file)
 
 
 def _finite_values(name: str, value: ArrayLike) -> np.ndarray:

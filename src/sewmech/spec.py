@@ -856,7 +856,9 @@ def _parse_toml(text: str, file: str) -> dict:
                                " file", "Check the file's brackets") from None
 
 
-def _validate(model: type[BaseModel], raw: dict, file: str):
+def validate_model(model: type[BaseModel], raw: dict, file: str):
+    """``model`` validated from TOML data, or the :class:`MachineFileError` of its first
+    problem (file, table, key)."""
     try:
         return model.model_validate(raw)
     except ValidationError as exc:
@@ -874,7 +876,7 @@ def parse_machine(text: str, file: str = "<string>") -> MachineSpec:
     MachineFileError
         With file, table and key of the first problem found.
     """
-    return _validate(MachineSpec, _parse_toml(text, file), file)
+    return validate_model(MachineSpec, _parse_toml(text, file), file)
 
 
 def load_machine_spec(path: str | Path) -> MachineSpec:
@@ -885,4 +887,4 @@ def load_machine_spec(path: str | Path) -> MachineSpec:
 def load_load_file(path: str | Path) -> list[LoadSpec]:
     """Read and validate a load file (``[[loads]]`` tables, as in machine files)."""
     raw = _parse_toml(read_toml_text(path, "load file"), str(path))
-    return list(_validate(LoadFile, raw, str(path)).loads)
+    return list(validate_model(LoadFile, raw, str(path)).loads)
