@@ -431,7 +431,15 @@ def _bad_files(tmp_path: Path) -> dict[str, Path]:
     put("deep-tables.toml", "".join(f"[{'.'.join(['t'] * k)}]\n" for k in range(1, 60)))
     put("huge.toml", "# " + "x" * (5 * 2**20) + "\n")
     put("bad-syntax.toml", "[machine\nname = 'x'\n")
-    put("string-number.toml", mutated("lengths = [26.5, 20.1]", 'lengths = ["long", 20.1]'))
+    put("string-number.toml", mutated("lengths = [26.5, 20.1]", 'lengths = ["26.5", 20.1]'))
+    put("bool-number.toml", FB.replace("x = 38.0", "x = true"))
+    put("misspelt-key.toml", FB.replace("lengths = [", "lenghts = ["))
+    put("no-type.toml", FB.replace('type = "rrr"\n', ""))
+    put("joint-twice.toml", FB.replace('joints = ["B", "D"]', 'joints = ["B", "B"]'))
+    put("ratio-zero.toml", FB.replace('phase_deg = 0.0', 'phase_deg = 0.0\nratio = 0.0'))
+    put("name-with-space.toml", FB.replace("P = [", '"P 1" = ['))
+    put("flag-number.toml", FB + '[[loads]]\nname = "p"\nlink = "rocker"\npoint = "C"\n'
+        'force_N = 1.0\nangle_deg = 0.0\nwindows_deg = []\n')
     put("table-for-number.toml", mutated("length = 44.0 ", "length = { a = 1 } "))
     put("list-for-table.toml", mutated("[speed]\nrpm = 1000.0 ", "speed = [1, 2]\n#"))
     put("missing-convention.toml", JB[:JB.index("[convention]")] + JB[JB.index("[speed]"):])
@@ -444,9 +452,18 @@ def _bad_files(tmp_path: Path) -> dict[str, Path]:
 
 BAD_FILES = [  # (file, message part)
     ("latin1.toml", "not UTF-8"), ("binary.toml", "binary file"), ("empty.toml", "missing"),
-    ("nested.toml", "too deeply"), ("deep-tables.toml", "missing required key 'machine'"),
+    ("nested.toml", "too deeply"), ("deep-tables.toml", "unknown key 't'"),
     ("huge.toml", "MiB"), ("bad-syntax.toml", "not valid TOML"),
-    ("string-number.toml", "lengths[0]: Input should be a valid number"),
+    ("string-number.toml", "lengths[0]: must be a number, got the string '26.5'. Write it"
+     " without quotes"),
+    ("bool-number.toml", "[points.D] x: must be a number, got true"),
+    ("misspelt-key.toml", "unknown key 'lenghts'; expected one of: branch, joints, lengths"),
+    ("misspelt-key.toml", "Did you mean 'lengths'?"),
+    ("no-type.toml", "missing key 'type'"),
+    ("joint-twice.toml", "the two joints must be different points"),
+    ("ratio-zero.toml", "ratio = 0"),
+    ("name-with-space.toml", "'P 1' is not a name"),
+    ("flag-number.toml", "windows_deg"),
     ("table-for-number.toml", "length"),
     ("list-for-table.toml", "speed"), ("missing-convention.toml", "convention"),
     ("no-units.toml", "units"), ("unknown-unit-type.toml", "unknown unit type"),

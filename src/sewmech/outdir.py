@@ -99,12 +99,23 @@ def _refuse_foreign(root: Path, manifest: dict, command: str, option: str) -> No
     if foreign:
         shown = ", ".join(foreign[:3]) + (f" and {len(foreign) - 3} more"
                                            if len(foreign) > 3 else "")
+        hint = ("sewmech writes only into a new or empty directory, or one it wrote itself, so"
+                " that none of your files is replaced or deleted; choose another directory,"
+                f" e.g. {option} {root / command.split()[0]}")
+        if not manifest and _legacy_report(root):
+            hint += (" (this looks like a report of an earlier sewmech, which kept no record of"
+                     " its files: remove the directory yourself if you no longer need it)")
         raise OutputError(f"{option} {root}", f"the directory holds {len(foreign)} file(s)"
                           f" that sewmech did not write, or that changed since it wrote them"
-                          f" ({shown})", "sewmech writes only into"
-                          " a new or empty directory, or one it wrote itself, so that none of"
-                          " your files is replaced or deleted; choose another directory, e.g."
-                          f" {option} {root / command.split()[0]}")
+                          f" ({shown})", hint)
+
+
+def _legacy_report(root: Path) -> bool:
+    try:
+        with open(root / "index.html", encoding="utf-8", errors="replace") as fh:
+            return "Written by sewmech." in fh.read(2_000_000)
+    except OSError:
+        return False
 
 
 def preflight(path: str | Path, *, command: str, option: str = "--out") -> None:

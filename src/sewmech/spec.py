@@ -24,8 +24,7 @@ from pydantic import (
     BeforeValidator,
     ConfigDict,
     Field,
-    NonNegativeFloat,
-    PositiveFloat,
+    Strict,
     ValidationError,
     field_validator,
     model_validator,
@@ -38,8 +37,15 @@ FRAME = "frame"
 SHAFT = "shaft"
 
 Name = Annotated[str, Field(pattern=NAME_RE.pattern, min_length=1)]
+# numbers and flags are taken as TOML gives them: a quoted "38.0" or a true is not a number,
+# and a 1 is not a flag (pydantic would convert them silently)
+Float = Annotated[float, Strict()]
+PosFloat = Annotated[float, Strict(), Field(gt=0.0)]
+NonNegFloat = Annotated[float, Strict(), Field(ge=0.0)]
+Int = Annotated[int, Strict()]
+Bool = Annotated[bool, Strict()]
 Branch = Literal[1, -1]
-Vec2 = tuple[float, float]
+Vec2 = tuple[Float, Float]
 
 
 #: the largest magnitude of any number in a machine file (mm, deg, kg, N, rpm ...): far beyond
@@ -123,15 +129,15 @@ class Convention(_Spec):
     """
 
     reference_event: str
-    reference_phi_deg: float
+    reference_phi_deg: Float
     description: str = ""
-    assembly_phi_deg: float | None = None
+    assembly_phi_deg: Float | None = None
     # what makes the reference event checkable (``sewmech check`` proves it): a point at an
     # extreme of its travel, or a link at an angle
     reference_point: Name | None = None
     reference_extreme: Literal["top", "bottom", "left", "right"] | None = None
     reference_link: Name | None = None
-    reference_angle_deg: float | None = None
+    reference_angle_deg: Float | None = None
 
     @model_validator(mode="after")
     def _checkable(self):
@@ -150,7 +156,7 @@ class Convention(_Spec):
 class Speed(_Spec):
     """``[speed]``: working speed of the upper shaft."""
 
-    rpm: Annotated[float, Field(gt=0.0, le=1e5)] = 1000.0
+    rpm: Annotated[Float, Field(gt=0.0, le=1e5)] = 1000.0
     note: str = ""
 
 
@@ -161,8 +167,8 @@ class SewingSpec(_Spec):
     so they work for any lockstitch machine file. Heights are frame y, mm.
     """
 
-    plate_y: float  # top surface of the throat plate, mm
-    fabric_thickness: NonNegativeFloat = 1.0  # mm, for the "needle in fabric" window
+    plate_y: Float  # top surface of the throat plate, mm
+    fabric_thickness: NonNegFloat = 1.0  # mm, for the "needle in fabric" window
     needle_point: Name
     needle_eye: Name
     take_up_eye: Name | None = None
@@ -182,17 +188,17 @@ class SewingSpec(_Spec):
 class PointSpec(_Spec):
     """``[points.NAME]``: a point fixed on the frame, mm."""
 
-    x: float
-    y: float
+    x: Float
+    y: Float
     note: str = ""
 
 
 class InputSpec(_Spec):
     """``[inputs.NAME]``: a setting input such as the stitch-length regulator angle, degrees."""
 
-    default_deg: float = 0.0
-    min_deg: float | None = None
-    max_deg: float | None = None
+    default_deg: Float = 0.0
+    min_deg: Float | None = None
+    max_deg: Float | None = None
     note: str = ""
 
     @model_validator(mode="after")
@@ -213,11 +219,19 @@ class CrankUnit(_Spec):
     name: Name
     link: Name | None = None
     pivot: Name
-    phase_deg: float = 0.0
-    ratio: float = 1.0
+    phase_deg: Float = 0.0
+    ratio: Float = 1.0
     input: Name = SHAFT
     points: dict[Name, LocalPoint] = Field(default_factory=dict)
     note: str = ""
+
+    @model_validator(mode="after")
+    def _turns(self):
+        if self.input == SHAFT and self.ratio == 0.0:
+            raise ValueError("ratio = 0: the shaft would not turn this crank; give its speed"
+                             " ratio to the shaft (1: turns with it, 2: twice as fast, -1: the"
+                             " other way)")
+        return self
 
 
 class PointUnit(_Spec):
@@ -242,9 +256,21 @@ class RRRUnit(_Spec):
     joints: tuple[Name, Name]
     new: Name
     links: tuple[Name, Name]
-    lengths: tuple[PositiveFloat, PositiveFloat]
+    lengths: tuple[PosFloat, PosFloat]
     branch: Branch
     note: str = ""
+
+    @model_validator(mode="after")
+    def _distinct(self):
+        if self.joints[0] == self.joints[1]:
+            raise ValueError(f"joints: the two joints must be different points (both are"
+                             f" '{self.joints[0]}')")
+        if self.links[0] == self.links[1]:
+            raise ValueError(f"links: the two links must be different (both are"
+                             f" '{self.links[0]}')")
+        if self.new in self.joints:
+            raise ValueError(f"new: '{self.new}' is one of the joints; name the new joint")
+        return self
 
 
 class RRPUnit(_Spec):
@@ -254,13 +280,13 @@ class RRPUnit(_Spec):
     name: Name
     pin: Name
     rod: Name
-    length: PositiveFloat
+    length: PosFloat
     new: Name
     slider: Name
     guide_point: Name
     guide_link: Name = FRAME
-    guide_angle_deg: float = 90.0
-    offset: float = 0.0
+    guide_angle_deg: Float = 90.0
+    offset: Float = 0.0
     variable: Name | None = None
     branch: Branch
     note: str = ""
@@ -274,7 +300,7 @@ class RPRUnit(_Spec):
     pin: Name
     pivot: Name
     link: Name
-    offset: float = 0.0
+    offset: Float = 0.0
     block: Name | None = None
     variable: Name | None = None
     branch: Branch
@@ -297,12 +323,12 @@ class LoopTerm(_Spec):
     link: Name | None = None
     angle: Name | None = None
     cam: Name | None = None
-    length: PositiveFloat | Name | None = None
-    angle_deg: float = 0.0
+    length: PosFloat | Name | None = None
+    angle_deg: Float = 0.0
     normal_link: Name | None = None
     normal_angle: Name | None = None
-    normal_deg: float = 0.0
-    offset: float = 0.0
+    normal_deg: Float = 0.0
+    offset: Float = 0.0
     sign: Literal[1, -1] = 1
 
     @model_validator(mode="after")
@@ -344,7 +370,7 @@ class CamContact(_Spec):
 
     cam: Name
     follower: Name | None = None
-    one_sided: bool = False  # a contact that can only push (a cam under a pad): it opens at N < 0
+    one_sided: Bool = False  # a contact that can only push (a cam under a pad): it opens at N < 0
 
 
 class SlotContact(_Spec):
@@ -358,8 +384,8 @@ class SlotContact(_Spec):
     slot: Name
     link: Name
     slot_link: Name
-    slot_deg: float = 0.0
-    one_sided: bool = False  # a roller on one flat face only: it lifts off at N < 0
+    slot_deg: Float = 0.0
+    one_sided: Bool = False  # a roller on one flat face only: it lifts off at N < 0
 
 
 class LoopUnit(_Spec):
@@ -367,9 +393,9 @@ class LoopUnit(_Spec):
 
     type: Literal["loop"]
     name: Name
-    unknown_links_deg: dict[Name, float] = Field(default_factory=dict)
-    unknown_lengths_mm: dict[Name, float] = Field(default_factory=dict)
-    unknown_angles_deg: dict[Name, float] = Field(default_factory=dict)
+    unknown_links_deg: dict[Name, Float] = Field(default_factory=dict)
+    unknown_lengths_mm: dict[Name, Float] = Field(default_factory=dict)
+    unknown_angles_deg: dict[Name, Float] = Field(default_factory=dict)
     # known points that an unknown link is pinned at (e.g. a rocker's frame pivot): later
     # `point` units may use them as origins on that link
     joints: dict[Name, list[Name]] = Field(default_factory=dict)
@@ -393,9 +419,9 @@ class CamArc(_Spec):
     """
 
     center: Vec2
-    radius: PositiveFloat
-    normal_from_deg: float
-    normal_to_deg: float
+    radius: PosFloat
+    normal_from_deg: Float
+    normal_to_deg: Float
 
     @model_validator(mode="after")
     def _range(self):
@@ -408,10 +434,10 @@ class ConstantWidthSpec(_Spec):
     """``constant_width = {...}``: the six-arc constant-width dwell cam of a feed fork
     (see :mod:`sewmech.cams`)."""
 
-    width: PositiveFloat  # gap between the fork's faces, mm
-    stroke: NonNegativeFloat  # fork travel between the dwells, mm
-    dwell_deg: Annotated[float, Field(ge=0.0, lt=180.0)]  # rest at each end of the stroke
-    orientation_deg: float = 0.0  # cam-frame normal at the middle of the inner dwell
+    width: PosFloat  # gap between the fork's faces, mm
+    stroke: NonNegFloat  # fork travel between the dwells, mm
+    dwell_deg: Annotated[Float, Field(ge=0.0, lt=180.0)]  # rest at each end of the stroke
+    orientation_deg: Float = 0.0  # cam-frame normal at the middle of the inner dwell
 
     @model_validator(mode="after")
     def _convex(self):
@@ -446,7 +472,7 @@ class GuideSpec(_Spec):
     """One thread guide: a point the thread passes through, or a pin it wraps."""
 
     point: Name
-    radius: NonNegativeFloat = 0.0  # mm; 0: a hole or eye
+    radius: NonNegFloat = 0.0  # mm; 0: a hole or eye
     wrap: Literal["ccw", "cw"] = "ccw"  # the thread's turn round a pin, seen from the hand wheel
     note: str = ""
 
@@ -456,8 +482,8 @@ class AdjustSpec(_Spec):
     rocker pivot's height on an eccentric stud) and its range, internal units (mm or rad)."""
 
     parameter: str
-    min: float
-    max: float
+    min: Float
+    max: Float
     note: str = ""
 
     @model_validator(mode="after")
@@ -472,10 +498,11 @@ class ThreadSpec(_Spec):
 
     guides: list[GuideSpec] = Field(min_length=2)
     # indices of the guides that bound the take-up section (its supply), both point guides
-    take_up: tuple[int, int]
-    thread_diameter: NonNegativeFloat = 0.0  # mm
-    bobbin_case_radius: PositiveFloat | None = None  # mm, about the shuttle axis: the loop's way
-    cast_off_deg: PositiveFloat = 180.0  # shuttle turn from seizure to casting the loop off
+    take_up: tuple[Int, Int]
+    thread_diameter: NonNegFloat = 0.0  # mm
+    bobbin_case_radius: PosFloat | None = None  # mm, about the shuttle axis: the loop's way
+    # shuttle turn from seizure to casting the loop off
+    cast_off_deg: Annotated[PosFloat, Field(le=360.0)] = 180.0
     adjust: AdjustSpec | None = None
     note: str = ""
 
@@ -493,58 +520,58 @@ class ThreadSpec(_Spec):
         return self
 
 
-Vec3 = tuple[float, float, float]
+Vec3 = tuple[Float, Float, Float]
 
 
 class _SolidBase(_Spec):
-    hole: bool = False  # a negative solid (bore, pocket)
+    hole: Bool = False  # a negative solid (bore, pocket)
     material: str | None = None  # this solid's own material (default: the link's)
-    density: PositiveFloat | None = None  # or density, kg/m^3
+    density: PosFloat | None = None  # or density, kg/m^3
     note: str = ""
 
 
 class CylinderSolid(_SolidBase):
     type: Literal["cylinder"]
-    radius: PositiveFloat
-    length: PositiveFloat
+    radius: PosFloat
+    length: PosFloat
     base: Vec3 = (0.0, 0.0, 0.0)  # centre of one end face, mm (link frame u, v, z)
     axis: Vec3 = (0.0, 0.0, 1.0)
 
 
 class TubeSolid(_SolidBase):
     type: Literal["hollow_cylinder"]
-    r_out: PositiveFloat
-    r_in: NonNegativeFloat
-    length: PositiveFloat
+    r_out: PosFloat
+    r_in: NonNegFloat
+    length: PosFloat
     base: Vec3 = (0.0, 0.0, 0.0)
     axis: Vec3 = (0.0, 0.0, 1.0)
 
 
 class FrustumSolid(_SolidBase):
     type: Literal["frustum", "cone"]
-    r1: PositiveFloat  # radius at the base
-    r2: NonNegativeFloat = 0.0  # radius at the far end (0: a cone)
-    height: PositiveFloat
+    r1: PosFloat  # radius at the base
+    r2: NonNegFloat = 0.0  # radius at the far end (0: a cone)
+    height: PosFloat
     base: Vec3 = (0.0, 0.0, 0.0)
     axis: Vec3 = (0.0, 0.0, 1.0)
 
 
 class BoxSolid(_SolidBase):
     type: Literal["box"]
-    size: tuple[PositiveFloat, PositiveFloat, PositiveFloat]  # edges along u, v, z, mm
+    size: tuple[PosFloat, PosFloat, PosFloat]  # edges along u, v, z, mm
     center: Vec3 = (0.0, 0.0, 0.0)
-    angle_deg: float = 0.0  # turn about z
+    angle_deg: Float = 0.0  # turn about z
 
 
 class SphereSolid(_SolidBase):
     type: Literal["sphere"]
-    radius: PositiveFloat
+    radius: PosFloat
     center: Vec3 = (0.0, 0.0, 0.0)
 
 
 class PointSolid(_SolidBase):
     type: Literal["point"]
-    mass: PositiveFloat  # kg
+    mass: PosFloat  # kg
     at: Vec3 = (0.0, 0.0, 0.0)
 
 
@@ -558,13 +585,13 @@ class MassSpec(_Spec):
     or a full ``inertia`` tensor, kg mm^2 about the centre of mass), or ``solids`` with a
     ``material`` or ``density`` (kg/m^3)."""
 
-    mass: PositiveFloat | None = None
-    com: tuple[float, float] | Vec3 | None = None
-    inertia_zz: NonNegativeFloat | None = None
+    mass: PosFloat | None = None
+    com: tuple[Float, Float] | Vec3 | None = None
+    inertia_zz: NonNegFloat | None = None
     inertia: tuple[Vec3, Vec3, Vec3] | None = None
     solids: list[Solid] | None = None
     material: str | None = None
-    density: PositiveFloat | None = None
+    density: PosFloat | None = None
     origin: Name | None = None  # the point at the frame's origin (default: the link's first)
     note: str = ""
 
@@ -605,10 +632,11 @@ class LoadSpec(_Spec):
     name: str
     link: Name
     point: Name
-    force_N: float
-    angle_deg: float | None = None
+    force_N: Float
+    angle_deg: Float | None = None
     toward: list[Name] | None = Field(default=None, min_length=1)
-    windows_deg: list[tuple[float, float]] = Field(default_factory=lambda: [(0.0, 360.0)])
+    windows_deg: list[tuple[Float, Float]] = Field(default_factory=lambda: [(0.0, 360.0)],
+                                                   min_length=1)
     note: str = ""
 
     @model_validator(mode="after")
@@ -640,8 +668,8 @@ class ShaftSpec(_Spec):
     axis that link mass properties also use.
     """
 
-    links: dict[Name, float] = Field(min_length=1)
-    bearings: dict[Literal["front", "rear"], float]
+    links: dict[Name, Float] = Field(min_length=1)
+    bearings: dict[Literal["front", "rear"], Float]
     note: str = ""
 
     @model_validator(mode="after")
@@ -758,6 +786,12 @@ def _model_at(loc: tuple, raw, root: type[BaseModel] = MachineSpec
     return model, path, n_model, tuple(loc[i:])
 
 
+def _first(errors: list[dict]) -> dict:
+    """The error to report: an unknown key before anything else (a misspelt key is also
+    reported missing under its right name; the misspelling is what the user must see)."""
+    return next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
+
+
 def _short(value, limit: int = 60) -> str:
     text = repr(value)
     return text if len(text) <= limit else text[:limit - 3] + "..."
@@ -778,9 +812,13 @@ def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpe
     got = err.get("input")
     hint = ""
     if etype == "extra_forbidden":
-        allowed = ", ".join(_allowed_keys(model)) if model is not None else "?"
-        msg = f"unknown key '{loc[-1]}'; expected one of: {allowed}"
-        hint = "Fix the spelling or remove the key (docs/machine-files.md)"
+        keys = _allowed_keys(model) if model is not None else []
+        import difflib
+
+        close = difflib.get_close_matches(str(loc[-1]), keys, n=1, cutoff=0.6)
+        msg = f"unknown key '{loc[-1]}'; expected one of: {', '.join(keys) or '?'}"
+        hint = (f"Did you mean '{close[0]}'?" if close else "Fix the spelling or remove the key")
+        hint += " (docs/machine-files.md)"
     elif etype == "missing":
         msg = f"missing required key '{loc[-1]}'"
         if path and path[-1] == str(loc[-1]):  # the key is the last part: its table is above
@@ -797,6 +835,21 @@ def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpe
                 " file's lengths to mm")
     elif etype in ("greater_than", "greater_than_equal") and "length" in key:
         msg = f"must be a positive length in mm, got {_short(got)}"
+    elif etype == "union_tag_not_found":
+        msg = "missing key 'type'"
+        hint = "Every unit says its type: crank, point, rrr, rrp, rpr or loop"
+    elif etype in ("float_type", "int_type", "bool_type") and isinstance(got, str):
+        what = "flag" if etype == "bool_type" else "number"
+        msg = f"must be a {what}, got the string {_short(got)}"
+        hint = "Write it without quotes"
+    elif etype in ("float_type", "int_type") and isinstance(got, bool):
+        msg = f"must be a number, got {str(got).lower()}"
+    elif etype == "bool_type":
+        msg = f"must be true or false, got {_short(got)}"
+    elif etype == "string_pattern_mismatch":
+        msg = f"{_short(got)} is not a name"
+        hint = ("Names are letters, digits and _ . - and start with a letter or _ (quote names"
+                " with dots as TOML keys: \"needle.eye\")")
     elif etype == "union_tag_invalid":
         msg = (f"unknown unit type {got.get('type')!r}; expected one of: crank, point,"
                " rrr, rrp, rpr, loop") if isinstance(got, dict) else err["msg"]
@@ -862,7 +915,7 @@ def validate_model(model: type[BaseModel], raw: dict, file: str):
     try:
         return model.model_validate(raw)
     except ValidationError as exc:
-        raise _explain(exc.errors()[0], raw, file, model) from None
+        raise _explain(_first(exc.errors()), raw, file, model) from None
     except RecursionError:
         raise MachineFileError(file, "", "", "nests arrays or tables too deeply to be a machine"
                                " file", "Check the file's brackets") from None
