@@ -384,19 +384,26 @@ def test_bearings_by_the_lever_rule(gravity):
 
 
 def test_shaft_masses_are_about_the_axis():
-    m = machine_from_toml(SHAFT_TOML.replace('[masses.crank]\nmaterial = "steel"',
+    # refused when the file is read, with the key to change
+    with pytest.raises(ValueError, match="masses.crank\\] origin: .*its mass frame's origin"
+                                         " must be the shaft's axis point 'O' \\(it is 'B'\\)"):
+        machine_from_toml(SHAFT_TOML.replace('[masses.crank]\nmaterial = "steel"',
                                              '[masses.crank]\nmaterial = "steel"\norigin = "B"'))
-    r = inverse_dynamics(m, [0.0, 1.0], loads=[])
-    with pytest.raises(ValueError, match="its \\[masses\\] origin must be the shaft's axis"
-                                         " point 'O' \\(it is 'B'\\)"):
-        _ = r.bearings
 
 
 def test_bearings_need_products_of_inertia():
     # the slider-crank's crank has measured planar values only (mass, com, inertia_zz)
-    m = machine_from_toml(SC_TOML + "[shaft]\nlinks = { crank = 0.0 }\n"
+    with pytest.raises(ValueError, match="inertia_zz: link 'crank' turns with the upper shaft"
+                                         ".*its bearing reactions need its products of inertia"):
+        machine_from_toml(SC_TOML + "[shaft]\nlinks = { crank = 0.0 }\n"
                           "bearings = { front = 20.0, rear = 170.0 }\n")
-    r = inverse_dynamics(m, [0.0, 1.0], loads=[])
+    # and by the bearing reactions, for planar masses given to inverse_dynamics
+    m = machine_from_toml(SHAFT_TOML)
+    from sewmech.mass import from_spec
+    from sewmech.spec import MassSpec
+
+    measured = from_spec(MassSpec(mass=0.1, com=(5.0, 0.0), inertia_zz=1.0))  # planar only
+    r = inverse_dynamics(m, [0.0, 1.0], loads=[], masses={"crank": measured})
     with pytest.raises(ValueError, match="gives only inertia_zz: the bearing reactions need"):
         _ = r.bearings
 

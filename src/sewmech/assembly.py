@@ -78,6 +78,9 @@ class AssemblyProof:
     ``margins`` holds the smallest margin of every condition of every closed-form unit;
     ``failures`` is empty when the machine assembles over the whole turn; ``loop_steps`` is
     the number of continuation steps at which the loop units were checked (0 without loops).
+    ``turns`` is how many shaft turns were covered: the machine's period (2 with a crank at
+    ratio 1/2); ``periodic`` is False for a machine that does not repeat within 100 turns (then
+    one turn is covered).
     """
 
     grid_deg: float
@@ -85,6 +88,8 @@ class AssemblyProof:
     failures: tuple[AssemblyFailure, ...]
     loop_steps: int = 0
     loop_units: tuple[str, ...] = field(default=())
+    turns: int = 1
+    periodic: bool = True
 
     @property
     def ok(self) -> bool:
@@ -183,8 +188,9 @@ def prove_assembly(machine: Machine, *, params=None, inputs=None,
     -------
     AssemblyProof
     """
-    n = int(round(360.0 / step_deg))
-    h = 2.0 * math.pi / n
+    turns = machine.period_turns or 1  # a crank at ratio 1/2 repeats after two turns
+    h = 2.0 * math.pi / int(round(360.0 / step_deg))
+    n = int(round(360.0 / step_deg)) * turns
     grid = np.arange(n) * h
     kw = dict(params=params, inputs=inputs, omega=1.0, epsilon=0.0, on_failure="mask")
     P = machine.parameters(inputs=inputs, base=params) if params is not None or inputs else \
@@ -200,7 +206,8 @@ def prove_assembly(machine: Machine, *, params=None, inputs=None,
                 failures.append(AssemblyFailure(names[ui] if ui >= 0 else "?",
                                                 math.degrees(grid[a]), math.degrees(grid[b]),
                                                 "it cannot be assembled at these grid angles"))
-        return AssemblyProof(step_deg, (), tuple(failures))
+        return AssemblyProof(step_deg, (), tuple(failures), turns=turns,
+                             periodic=machine.period_turns is not None)
 
     margins = []
     for c in _conditions(machine, P):
@@ -250,7 +257,8 @@ def prove_assembly(machine: Machine, *, params=None, inputs=None,
     if loops:
         steps, jumps = _loop_continuity(machine, kw)
         failures += jumps
-    return AssemblyProof(step_deg, tuple(margins), tuple(failures), steps, loops)
+    return AssemblyProof(step_deg, tuple(margins), tuple(failures), steps, loops, turns,
+                         machine.period_turns is not None)
 
 
 def _loop_continuity(machine: Machine, kw: dict) -> tuple[int, list[AssemblyFailure]]:

@@ -255,7 +255,7 @@ def check_cmd(
     from .assembly import prove_assembly
     from .dynamics import force_system
     from .errors import format_ranges
-    from .extremes import check_reference
+    from .extremes import require_reference
     from .kinematics import kinematics
 
     m = _load(file, sets)
@@ -280,18 +280,8 @@ def check_cmd(
                                "Change the unit's lengths or the positions of the points it"
                                " joins; the margin says by how much")
         proofs.append((label, proof))
-    ref = check_reference(m)
+    ref = require_reference(m)
     conv = m.spec.convention
-    if ref.status == "mismatch":
-        if ref.found_deg is not None:
-            off = (ref.found_deg - conv.reference_phi_deg + 180.0) % 360.0 - 180.0
-            hint = (f"Set reference_phi_deg = {ref.found_deg % 360.0:.6g}, or change the phase_deg"
-                    f" of every crank on the shaft by {off:+.6g} deg")
-        else:
-            hint = "Correct [convention]"
-        from .errors import MachineFileError
-
-        raise MachineFileError(m.file, "convention", "reference_phi_deg", ref.text, hint)
     table = Table(title=f"{m.name}: valid", show_header=False)
     table.add_row("file", m.file)
     if m.changes:
@@ -303,7 +293,13 @@ def check_cmd(
     table.add_row("units", ", ".join(f"{n} ({t})" for n, t in zip(m.unit_names, m.unit_types)))
     table.add_row("branches", ", ".join(f"{k}: {v:+d}" for k, v in m.branches.items()) or "-")
     table.add_row("parameters", str(len(m.parameter_names)))
-    text = "over the whole turn, proved (grid of the margins' minima: " + f"{step_deg:g} deg)"
+    first = proofs[0][1]
+    span = ("the whole turn" if first.turns == 1 else
+            f"{first.turns} turns (the machine's cycle)")
+    text = f"over {span}, proved (grid of the margins' minima: {step_deg:g} deg)"
+    if not first.periodic:
+        text += ("; the cranks' ratios do not repeat within 100 turns, so only the first turn"
+                 " is proved")
     if len(proofs) > 1:
         text += " at the default setting and at " + ", ".join(lb for lb, _ in proofs[1:])
     if proofs[0][1].loop_steps:
@@ -358,7 +354,8 @@ def _summary(res) -> Table:
                   caption="rate: unit/s, accel: unit/s^2; link angles are unwrapped"
                           " (continuous over the turn, so they may pass 360 deg)")
     for col in ("channel", "unit", "min", "max", "max |rate|", "max |accel|"):
-        table.add_column(col, justify="right" if col not in ("channel", "unit") else "left")
+        table.add_column(col, justify="right" if col not in ("channel", "unit") else "left",
+                         overflow="fold")  # long names wrap instead of being cut
 
     def row(label, unit, x, dx, ddx, scale=1.0):
         if np.ptp(x) < 1e-12:
@@ -377,7 +374,9 @@ def _summary(res) -> Table:
         if lk == "frame":
             continue
         m = res.link(lk)
-        row(f"theta {lk}", "deg", np.unwrap(m.theta), m.omega, m.epsilon, 180.0 / math.pi)
+        th = np.unwrap(m.theta)
+        th -= 2.0 * math.pi * np.round(th[0] / (2.0 * math.pi))  # start in (-180, 180] deg
+        row(f"theta {lk}", "deg", th, m.omega, m.epsilon, 180.0 / math.pi)
     for var in res.variable_names:
         m = res.variable(var)
         scale = 180.0 / math.pi if m.unit == "rad" else 1.0

@@ -408,10 +408,6 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
             raise ValueError(f"link '{lname}' turns with the upper shaft but its [masses] table"
                              " gives only inertia_zz: the bearing reactions need its products"
                              " of inertia (give the full inertia tensor or solids)")
-        if machine.point_names[res.mass.origins[li]] != pivot:
-            raise ValueError(f"link '{lname}' turns with the upper shaft: its [masses] origin"
-                             f" must be the shaft's axis point '{pivot}' (it is"
-                             f" '{machine.point_names[res.mass.origins[li]]}')")
         th = kin.theta[..., li]
         c, s = np.cos(th), np.sin(th)
         J = mp.about(np.zeros(3))  # about the axis point at z = 0

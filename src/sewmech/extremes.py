@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import brentq
 
+from .errors import MachineFileError
 from .kinematics import kinematics
 from .machine import Machine
 from .results import CHANNEL_KINDS
@@ -259,3 +260,20 @@ def check_reference(machine: Machine, *, params=None) -> ReferenceCheck:
         return ReferenceCheck("ok", found, f"{what} at phi = {found:.6g} deg: checked")
     return ReferenceCheck("mismatch", found, f"reference_phi_deg = {ref:g} but {what} is at"
                           f" phi = {found % 360.0:.6g} deg")
+
+
+def require_reference(machine: Machine) -> ReferenceCheck:
+    """:func:`check_reference`, raising :class:`~sewmech.errors.MachineFileError` at
+    ``[convention] reference_phi_deg`` (with the angle or phase change that fixes it) when the
+    convention does not hold. ``sewmech check`` and the report call it."""
+    ref = check_reference(machine)
+    if ref.status != "mismatch":
+        return ref
+    conv = machine.spec.convention
+    if ref.found_deg is not None:
+        off = (ref.found_deg - conv.reference_phi_deg + 180.0) % 360.0 - 180.0
+        hint = (f"Set reference_phi_deg = {ref.found_deg % 360.0:.6g}, or change the phase_deg"
+                f" of every crank on the shaft by {off:+.6g} deg")
+    else:
+        hint = "Correct [convention]"
+    raise MachineFileError(machine.file, "convention", "reference_phi_deg", ref.text, hint)

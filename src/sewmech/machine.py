@@ -161,6 +161,14 @@ class Machine:
         return self.groups.shape[0] > 0
 
     @cached_property
+    def period_turns(self) -> int | None:
+        """Shaft turns after which every crank is back where it started (1 for a machine whose
+        shaft-driven cranks all turn at whole-number ratios, 2 with a crank at ratio 0.5); None
+        when the motion does not repeat within 100 turns."""
+        return period_turns(u.ratio for u in self.spec.units
+                            if u.type == "crank" and u.input == SHAFT)
+
+    @cached_property
     def angle_readers(self) -> np.ndarray:
         """Mask over links whose angle (not only its cos/sin) a later unit reads."""
         need = np.zeros(len(self.link_names), dtype=np.bool_)
@@ -523,6 +531,22 @@ def parameter_location(spec: MachineSpec, path: tuple) -> tuple[str, str]:
     return table, key
 
 
+def period_turns(ratios) -> int | None:
+    """The least number of shaft turns after which cranks at these speed ratios are all back
+    where they started; None if that is more than 100 turns."""
+    from fractions import Fraction
+
+    turns = 1
+    for r in ratios:
+        f = Fraction(r).limit_denominator(100)
+        if abs(float(f) - r) > 1e-12:
+            return None
+        turns = math.lcm(turns, f.denominator)
+        if turns > 100:
+            return None
+    return turns
+
+
 def check_loads(machine_name: str, links, points, point_links, loads, file: str) -> None:
     """Raise :class:`MachineFileError` (file, load, key) if a load names a link or point the
     machine lacks, or a point that is not on its link."""
@@ -713,6 +737,13 @@ class _Compiler:
             self.cur_unit = ui
             getattr(self, f"unit_{u.type}")(ui, table, u)
         self.cur_unit = -1
+        if self.groups:  # the loop solver continues over one turn and wraps
+            for ui, u in enumerate(spec.units):
+                if u.type == "crank" and u.input == SHAFT and u.ratio != round(u.ratio):
+                    raise self.err(f'units[{ui}] "{u.name}"', "ratio", f"ratio = {u.ratio:g}:"
+                                   " a machine with loop units must repeat every turn of the"
+                                   " shaft (their solutions are continued over one turn)",
+                                   "Give a whole-number ratio")
         for name, cam in spec.cams.items():
             if name not in self.cam_index:
                 self.compile_cam(f"cams.{name}", name, cam)  # unused cams are still checked
@@ -895,6 +926,28 @@ class _Compiler:
             if len(pivots) > 1:
                 raise self.err("shaft", "links", "the shaft's cranks turn about different"
                                f" points ({', '.join(sorted(pivots))}); they must share one axis")
+            pivot = next(iter(pivots))
+            missing = [name for name, u in cranks.items() if u.input == SHAFT and u.ratio == 1.0
+                       and u.pivot == pivot and name not in spec.shaft.links]
+            if missing:
+                raise self.err("shaft", "links", f"{', '.join(missing)} turn(s) with the upper"
+                               f" shaft (about {pivot} at ratio 1) but have no z here: the"
+                               " bearing reactions would leave out their forces",
+                               "Give the z (mm) of each one's plane")
+            for lname in spec.shaft.links:
+                m = spec.masses.get(lname)
+                if m is None:
+                    continue
+                if m.mass is not None and m.inertia is None:
+                    raise self.err(f"masses.{lname}", "inertia_zz", f"link '{lname}' turns with"
+                                   " the upper shaft ([shaft] links): its bearing reactions need"
+                                   " its products of inertia, not only inertia_zz",
+                                   "Give the full inertia tensor, or solids")
+                if self.mass_origins[lname] != pivot:
+                    raise self.err(f"masses.{lname}", "origin", f"link '{lname}' turns with the"
+                                   f" upper shaft: its mass frame's origin must be the shaft's"
+                                   f" axis point '{pivot}' (it is"
+                                   f" '{self.mass_origins[lname]}')", f"Set origin = \"{pivot}\"")
 
     def unit_crank(self, ui, table, u: CrankUnit):
         pivot = self.known_point(table, "pivot", u.pivot)

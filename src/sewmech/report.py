@@ -28,6 +28,7 @@ from . import feed as FD
 from . import timing as T
 from .io import atomic_write
 from .kinematics import kinematics
+from .extremes import require_reference
 from .machine import Machine
 from .outdir import output_dir
 
@@ -84,13 +85,15 @@ def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0
     changes only when the whole report has been built.
     """
     T.roles(machine)  # a machine the report cannot read fails before the output is touched
+    reference = require_reference(machine)  # and one whose angle convention is false
     with output_dir(out_dir, command="report") as root:
         _build_report(machine, root, step_deg, step=advance or (lambda name: None),
-                      variants=variants)
+                      variants=variants, reference=reference.text)
     return Path(out_dir) / "index.html"
 
 
-def _build_report(machine: Machine, root: Path, step_deg: float, *, step, variants) -> None:
+def _build_report(machine: Machine, root: Path, step_deg: float, *, step, variants,
+                  reference: str) -> None:
     """Every section of the report, written into the directory ``root``."""
     import matplotlib
 
@@ -294,7 +297,7 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
 
     for name, df in feed_tables.get("csv", {}).items():
         df.to_csv(root / f"{machine.name}-{name}.csv", index=False, float_format="%.10g")
-    page = _page(machine, ref, chk, tim, par, figs.blocks, text, src.name,
+    page = _page(machine, f"{ref} ({reference})", chk, tim, par, figs.blocks, text, src.name,
                  feed_tables.get("html", []))
     (root / "index.html").write_text(page, encoding="utf-8")
     step("page")
