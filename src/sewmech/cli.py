@@ -261,15 +261,20 @@ def check_cmd(
     m = _load(file, sets)
     phi = _phi_grid(step_deg)
     kinematics(m, phi)  # a failure at a grid point: the located error, with branch hints
-    settings = [("", None)]
+    settings = [("", None, None)]  # (label, inputs, params): the default and every limit
     for name, spec in m.spec.inputs.items():
         for label, deg in (("min", spec.min_deg), ("max", spec.max_deg)):
             if deg is not None and deg != spec.default_deg:
                 settings.append((f"{name} = {deg:g} deg ({label})",
-                                 {name: math.radians(deg)}))
+                                 {name: math.radians(deg)}, None))
+    adj = m.spec.thread.adjust if m.spec.thread is not None else None
+    if adj is not None:  # the take-up's adjustable dimension, at both ends of its range
+        for label, value in (("[thread.adjust] min", adj.min), ("[thread.adjust] max", adj.max)):
+            settings.append((f"{adj.parameter} = {value:g} ({label})", None,
+                             m.parameters({adj.parameter: value})))
     proofs = []
-    for label, inputs in settings:
-        proof = prove_assembly(m, inputs=inputs, step_deg=step_deg)
+    for label, inputs, params in settings:
+        proof = prove_assembly(m, inputs=inputs, params=params, step_deg=step_deg)
         if not proof.ok:
             f = proof.failures[0]
             at = f" at {label}" if label else ""

@@ -69,8 +69,10 @@ class _Figures:
 
 
 def _table_html(df: pd.DataFrame, classes: str = "") -> str:
+    """A table for the page; a value that is not defined (NaN: no feed at the zero mark, no
+    take-up setting that passes) reads "none", never "NaN"."""
     return df.to_html(index=False, classes=classes, border=0, float_format=lambda x: f"{x:.6g}",
-                      escape=True)
+                      escape=True, na_rep="none")
 
 
 def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0,

@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ._events import crossing_rows as _crossing_rows
+from .errors import AnalysisError, OptionError
 from .kinematics import kinematics
 from .machine import Machine
 
@@ -156,8 +157,10 @@ def consumption_per_stitch(stitch_mm: ArrayLike, fabric_mm: ArrayLike,
     l = np.asarray(stitch_mm, dtype=float)
     t = np.asarray(fabric_mm, dtype=float)
     d = np.asarray(thread_diameter_mm, dtype=float)
-    if np.any(l <= 0) or np.any(t < 0) or np.any(d < 0):
-        raise ValueError("stitch length must be > 0, fabric thickness and thread diameter >= 0")
+    if not (np.all(l > 0) and np.all(t >= 0) and np.all(d >= 0)
+            and np.isfinite([l.max(), t.max(), d.max()]).all()):  # NaN fails too
+        raise OptionError("stitch_mm", "stitch length must be > 0, fabric thickness and thread"
+                          " diameter >= 0, all finite (mm)")
     each = l + t + 0.5 * math.pi * d
     inch = 25.4
     spi = inch / l
@@ -254,6 +257,11 @@ def thread_balance(machine: Machine, *, stitch_mm: float = 2.5, fabric_mm: float
         raise ValueError(f"machine '{machine.name}': [thread] bobbin_case_radius is needed for"
                          " the loop demand")
     fabric = s.fabric_thickness if fabric_mm is None else float(fabric_mm)
+    if not (0.0 < stitch_mm <= 100.0 and 0.0 <= fabric <= 100.0):  # (a NaN fails too)
+        raise OptionError("stitch_mm" if not 0.0 < stitch_mm <= 100.0 else "fabric_mm",
+                          f"stitch length {stitch_mm!r} mm and fabric thickness {fabric!r} mm"
+                          " must be finite, the stitch in (0, 100] mm, the fabric in [0, 100]"
+                          " mm")
     n = round(360.0 / step_deg)
     if n < 36 or abs(n * step_deg - 360.0) > 1e-9:
         raise ValueError(f"step_deg must divide 360 into at least 36 steps, got {step_deg}")
@@ -377,6 +385,11 @@ def adjust_take_up(machine: Machine, parameter: str, settings: ArrayLike, *,
     phi = np.arange(n) * (2.0 * math.pi / n)
     S = thread_path(machine, phi, params=P, on_failure="mask").supply  # (n_set, n)
     ok = np.isfinite(S).all(axis=-1)
+    if not ok.any():
+        raise AnalysisError(machine.file, f"the take-up cannot be assembled at any of the"
+                            f" {svals.size} settings of '{parameter}' from {svals.min():g} to"
+                            f" {svals.max():g}", "Give [thread.adjust] a range where it"
+                            " assembles (sewmech check --set PARAM=VALUE tries one)")
     k_top = np.argmin(np.where(ok[:, None], S, np.inf), axis=-1)
     margin = np.full((tvals.size, svals.size), np.nan)
     for a, t in enumerate(tvals):
