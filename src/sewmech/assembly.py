@@ -305,3 +305,39 @@ def _loop_continuity(machine: Machine, kw: dict) -> tuple[int, list[AssemblyFail
                     " rates allow): the loop passes a toggle or its assembly is ambiguous"
                     " here"))
     return n, failures
+
+
+def describe_failure(machine: Machine, unit: int, phi: float, params=None) -> str:
+    """Why closed-form unit ``unit`` cannot be assembled at shaft angle ``phi`` (rad), with the
+    distance that does not fit and by how much (mm); "" for other units or when its inputs
+    cannot be computed there either."""
+    P = machine.defaults if params is None else np.asarray(params, dtype=float)
+    conds = [c for c in _conditions(machine, P) if c.unit == unit]
+    if not conds:
+        return ""
+    c = conds[0]
+    r = kinematics(machine, np.array([phi]), params=params, points=c.points, links=c.links,
+                   variables=(), omega=1.0, on_failure="mask")
+    if not r.all_feasible:
+        return ""
+    row = machine.program[[k for k, u in enumerate(machine.kernel_unit_of_row)
+                           if u == unit][0]]
+    if row[0] == K.OP_RRR:
+        a, b = c.points
+        d = float(_distance(r, a, b)[0][0])
+        l1, l2 = P[row[6]], P[row[7]]
+        if d > l1 + l2:
+            return (f"{a} and {b} are {d:.6g} mm apart, more than the links reach"
+                    f" (l1 + l2 = {l1 + l2:.6g} mm): {d - l1 - l2:.3g} mm too short")
+        return (f"{a} and {b} are {d:.6g} mm apart, less than the links can fold to"
+                f" (|l1 - l2| = {abs(l1 - l2):.6g} mm): {abs(l1 - l2) - d:.3g} mm too close")
+    if row[0] == K.OP_RRP:
+        m_lo, m_hi = (float(cc.fn(r)[0][0]) for cc in conds[:2])
+        length = P[row[7]]
+        off = length - min(m_lo, m_hi)
+        return (f"the pin {c.points[0]} is {off:.6g} mm from the guide line, farther than the"
+                f" rod reaches (length {length:.6g} mm): {off - length:.3g} mm too short")
+    d = float(_distance(r, c.points[0], c.points[1])[0][0])
+    e = abs(P[row[5]])
+    return (f"{c.points[1]} is {d:.6g} mm from the pivot {c.points[0]}, less than the slot's"
+            f" offset ({e:.6g} mm): {e - d:.3g} mm too close")

@@ -38,8 +38,8 @@ console = Console()
 err_console = Console(stderr=True)
 
 #: exit codes: 2 a user error (bad file, option or output path), 70 an internal error,
-#: 130 / 143 interrupted by Ctrl-C / SIGTERM
-EXIT_ERROR, EXIT_INTERNAL, EXIT_SIGINT, EXIT_SIGTERM = 2, 70, 130, 143
+#: 130 interrupted by Ctrl-C; 143 / 129 by SIGTERM / SIGHUP (128 + the signal's number)
+EXIT_ERROR, EXIT_INTERNAL, EXIT_SIGINT = 2, 70, 130
 #: the finest shaft-angle step of any command, deg (36,000 positions per turn)
 MIN_STEP_DEG = 0.01
 
@@ -50,8 +50,13 @@ class Format(str, Enum):
 
 
 class Terminated(BaseException):
-    """Raised in the main thread when SIGTERM arrives, so that every ``finally`` and context
-    manager on the way out runs (staging directories and temporary files are removed)."""
+    """Raised in the main thread when SIGTERM or SIGHUP arrives, so that every ``finally`` and
+    context manager on the way out runs (staging directories and temporary files are
+    removed)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
 
 
 def _print_error(text: str) -> None:
@@ -62,13 +67,13 @@ def _print_error(text: str) -> None:
 @contextlib.contextmanager
 def _guard():
     """One place where every command's failures become one clear line and an exit code."""
-    handler_set = False
+    old: dict = {}
     if threading.current_thread() is threading.main_thread():
         def on_term(signum, frame):
-            raise Terminated()
+            raise Terminated(signum)
 
-        old = signal.signal(signal.SIGTERM, on_term)
-        handler_set = True
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            old[sig] = signal.signal(sig, on_term)
     try:
         yield
     except (typer.Exit, typer.Abort):
@@ -79,9 +84,10 @@ def _guard():
     except KeyboardInterrupt:
         _print_error("interrupted (Ctrl-C); nothing half-written was left behind")
         raise typer.Exit(EXIT_SIGINT) from None
-    except Terminated:
-        _print_error("terminated (SIGTERM); nothing half-written was left behind")
-        raise typer.Exit(EXIT_SIGTERM) from None
+    except Terminated as exc:
+        name = signal.Signals(exc.signum).name
+        _print_error(f"terminated ({name}); nothing half-written was left behind")
+        raise typer.Exit(128 + exc.signum) from None
     except MemoryError:
         _print_error("out of memory. Use a coarser --step-deg, or fewer designs at a time")
         raise typer.Exit(EXIT_ERROR) from None
@@ -101,8 +107,8 @@ def _guard():
                      " traceback")
         raise typer.Exit(EXIT_INTERNAL) from None
     finally:
-        if handler_set:
-            signal.signal(signal.SIGTERM, old)
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
 
 
 def command(name: str):
@@ -161,6 +167,8 @@ def _parse_sets(m: Machine, sets: list[str] | None) -> dict[str, float]:
                               f"Write {name}={number}deg (or {number}rad)")
         if suffix is not None and _UNITS[suffix][0] != unit:
             raise OptionError("--set", f"{item!r}: '{name}' is in {unit}, not {suffix}")
+        if name in values:
+            raise OptionError("--set", f"{item!r}: '{name}' is given twice", "Set it once")
         values[name] = value * (_UNITS[suffix][1] if suffix else 1.0)
     return values
 
@@ -214,6 +222,9 @@ def _settings(m: Machine, inputs: list[str] | None) -> dict[str, float]:
             raise OptionError("--input", f"{item!r}: outside the range {lo:g} .. {hi:g} deg"
                               f" declared in [inputs.{name}] of {m.file}",
                               "Give a setting inside it")
+        if name in settings:
+            raise OptionError("--input", f"{item!r}: '{name}' is given twice",
+                              "Give each input once")
         settings[name] = math.radians(deg)
     return settings
 

@@ -373,8 +373,6 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
                          " cranks' planes and of its two bearings")
     kin = res.kin
     names = machine.link_names
-    pivot = next(u.pivot for u in machine.spec.units
-                 if u.type == "crank" and (u.link or u.name) in shaft.links)
     bshape = kin.theta.shape[:-1]
     S = np.zeros(bshape + (2,))  # sum of forces from outside the shaft (not the bearings)
     Mx = np.zeros(bshape)  # their moments about the axis point, N mm

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import brentq
 
+from .errors import AnalysisError
 from .kinematics import kinematics
 from .machine import Machine
 from .thread import thread_path
@@ -50,11 +51,21 @@ def _length(machine: Machine, *names: str) -> float:
     return float(np.hypot(*(machine.defaults[machine.parameter_index(n)] for n in names)))
 
 
+#: the parameters the (alpha, beta) study of the embroidery take-up moves
+_LAYOUT = ("D.x", "D.y", "E.u", "E.v", "M.x", "N.x")
+
+
 def overrides(machine: Machine, alpha_deg: ArrayLike, beta_deg: ArrayLike,
               params=None) -> np.ndarray:
     """Parameter vectors (batch of the broadcast alpha, beta) that set the frame line AD at
     ``alpha_deg`` and DE at ``beta_deg`` from DC, keeping AD, DE and the guides on the eye's
     line (M, N follow D)."""
+    missing = [p for p in _LAYOUT if p not in machine.parameter_names]
+    if missing:
+        raise AnalysisError(machine.file, "is not laid out as the embroidery take-up (it has no"
+                            f" {', '.join(missing)})", "This study works on machines like"
+                            " embroidery-131: frame points D, M, N on the eye's line and the"
+                            " crank point E")
     a, b = np.broadcast_arrays(np.radians(np.asarray(alpha_deg, dtype=float)),
                                np.radians(np.asarray(beta_deg, dtype=float)))
     base = None if params is None else np.asarray(params, dtype=float)

@@ -8,6 +8,7 @@ a :class:`~sewmech.results.KinematicsResult`.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping, Sequence
 from typing import Literal
 
@@ -104,6 +105,14 @@ def check_finite(name: str, values: np.ndarray, unit: str, *, limit: float) -> N
         at = f"[{', '.join(map(str, k))}]" if k else ""
         raise OptionError(name, f"{name}{at} is {float(values[k])!r}: every value must be a"
                           f" finite number within +-{limit:g} {unit}")
+
+
+def _memory_bytes() -> float:
+    """Physical memory of this computer, bytes (inf where it cannot be read)."""
+    try:
+        return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return math.inf
 
 
 def kernel_input(a: np.ndarray) -> np.ndarray:
@@ -263,6 +272,14 @@ class KinematicsPlan:
         n_design = int(np.prod(batch, dtype=np.int64))
         n_phi = self.n_phi
         n_pt, n_l, n_v, n_g, n_ex = self._sizes
+        need = 8 * n_design * n_phi * (6 * n_pt + 3 * n_l + 3 * n_v + 6 * n_ex + 2 * n_g + 5)
+        have = _memory_bytes()
+        if need > 0.8 * have:
+            raise OptionError("params", f"the outputs of {n_design} designs at {n_phi} angles"
+                              f" need {need / 2**30:.1f} GiB, more than this computer's"
+                              f" {have / 2**30:.1f} GiB of memory allow",
+                              "Evaluate the designs in chunks, or select fewer points, links"
+                              " and variables")
         P, V, A = (np.empty((n_design, n_phi, n_pt, 2)) for _ in range(3))
         TH, OM, EP = (np.empty((n_design, n_phi, n_l)) for _ in range(3))
         S, SD, SDD = (np.empty((n_design, n_phi, n_v)) for _ in range(3))
@@ -436,6 +453,12 @@ def _raise_first(machine, phi, store, batch, row, fail_unit, fail_code, loop_res
         same = np.zeros(phi.shape[0], dtype=bool)
         same[order] = (row[d, order] == r) & (fail_code[d, order] != K.FAIL_NONE)
         ranges = angle_ranges(phi_deg, same)
+        if code == K.FAIL_ASSEMBLY:
+            from .assembly import describe_failure  # (assembly builds on this module)
+
+            why = describe_failure(machine, ui, float(phi[i]), params[d])
+            if why:
+                reason = f"cannot be assembled: {why}"
         if code in (K.FAIL_ASSEMBLY, K.FAIL_SINGULAR):
             hint = _branch_hint(machine, ui, hint, phi, params[d])
         if code in (K.FAIL_NEWTON, K.FAIL_SINGULAR) and machine.unit_types[ui] == "loop":

@@ -1258,8 +1258,11 @@ def shipped_machines() -> dict[str, Path]:
 
 
 def load_machine(name_or_path: str | Path) -> Machine:
-    """Load and compile a shipped machine by name (``"jb1-3"``) or a machine file by path."""
-    path = Path(name_or_path)
+    """Load and compile a machine file by path, or a shipped machine by name (``"jb1-3"``).
+
+    The argument is a path first: a file of that name in the working directory (even without
+    ``.toml``) is read instead of the shipped machine of the same name."""
+    path = Path(name_or_path).expanduser()
     shipped = shipped_machines()
     if str(name_or_path) in shipped and not path.exists():
         path = shipped[str(name_or_path)]

@@ -11,7 +11,9 @@ Every command that writes files (``--out DIR``) goes through :func:`output_dir`:
 - Files are written into a staging directory inside DIR and moved into place only when the
   whole job has succeeded; files of the same command's previous run that this run did not
   write again are removed (they are sewmech's own). On any error or interruption (Ctrl-C,
-  SIGTERM) the staging directory is removed, and DIR too if this run created it.
+  SIGTERM, SIGHUP) the staging directory is removed, and DIR too if this run created it.
+  The lock file stays (it is sewmech's own and harmless; removing it could let two runs
+  lock two different files).
 - Files and directories get the modes the umask gives (0644 and 0755 under umask 022).
 """
 
@@ -122,7 +124,7 @@ def preflight(path: str | Path, *, command: str, option: str = "--out") -> None:
     """The checks of :func:`output_dir` that need no writing, for a command to run before its
     long work: ``path`` is a file, holds files sewmech did not write, or is locked by another
     run. Nothing is created; :func:`output_dir` checks again under its lock."""
-    root = Path(path)
+    root = Path(path).expanduser()
     try:
         if not root.exists():
             return
@@ -166,8 +168,8 @@ def _os_error(path: Path, exc: OSError, option: str) -> OutputError:
 
 @contextlib.contextmanager
 def _signals_held():
-    """SIGINT and SIGTERM wait while the staged files are moved into place."""
-    sigs = {signal.SIGINT, signal.SIGTERM}
+    """SIGINT, SIGTERM and SIGHUP wait while the staged files are moved into place."""
+    sigs = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
     try:
         old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs)
     except (ValueError, OSError):  # not the main thread of the interpreter
@@ -193,7 +195,7 @@ def output_dir(path: str | Path, *, command: str, option: str = "--out") -> Iter
         ``path`` is a file, cannot be created or written, holds files that sewmech did not
         write, or another sewmech run holds its lock.
     """
-    root = Path(path)
+    root = Path(path).expanduser()
     created: list[Path] = []
     lock_fd = None
     lock_created = False
@@ -211,7 +213,12 @@ def output_dir(path: str | Path, *, command: str, option: str = "--out") -> Iter
                     break
                 p = p.parent
             for d in reversed(missing):
-                d.mkdir(mode=dir_mode())
+                try:
+                    d.mkdir(mode=dir_mode())
+                except FileExistsError:  # another run made it a moment ago
+                    if not d.is_dir():
+                        raise
+                    continue
                 created.append(d)
             lock_path = root / LOCK
             lock_created = not lock_path.exists()

@@ -940,4 +940,9 @@ def load_machine_spec(path: str | Path) -> MachineSpec:
 def load_load_file(path: str | Path) -> list[LoadSpec]:
     """Read and validate a load file (``[[loads]]`` tables, as in machine files)."""
     raw = _parse_toml(read_toml_text(path, "load file"), str(path))
-    return list(validate_model(LoadFile, raw, str(path)).loads)
+    loads = list(validate_model(LoadFile, raw, str(path)).loads)
+    if not loads:
+        raise MachineFileError(str(path), "", "", "holds no [[loads]] tables", "A load file"
+                               " replaces the machine file's loads; for a run without process"
+                               " loads use --no-loads (or loads=[])")
+    return loads

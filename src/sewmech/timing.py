@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import MachineFileError
 from .extremes import crossings, extremes
 from .kinematics import kinematics
 from .machine import Machine
@@ -209,6 +210,19 @@ def below_level_window(machine: Machine, point: str, level: float, name: str,
 def needle_windows(machine: Machine, params=None) -> tuple[Window, Window]:
     """(needle point in the fabric, needle point below the throat plate)."""
     s = roles(machine)
+    res = kinematics(machine, np.radians(np.arange(0.0, 360.0, 1.0)), params=params,
+                     points=[s.needle_point], links=[], variables=[])
+    y = res.point(s.needle_point).p[:, 1]
+    lo, hi = float(y.min()), float(y.max())
+    for key, level in (("plate_y", s.plate_y), ("fabric_thickness",
+                                                s.plate_y + s.fabric_thickness)):
+        if not lo < level < hi:
+            what = "plate_y" if key == "plate_y" else "plate_y + fabric_thickness"
+            raise MachineFileError(machine.file, "sewing", key, f"the needle point"
+                                   f" '{s.needle_point}' moves between y = {lo:.6g} and"
+                                   f" {hi:.6g} mm, so it never passes {what} = {level:g} mm",
+                                   "Give the throat plate's top (frame y, mm) and the fabric"
+                                   " so that the needle passes through them")
     return (below_level_window(machine, s.needle_point, s.plate_y + s.fabric_thickness,
                                "needle in fabric", params),
             below_level_window(machine, s.needle_point, s.plate_y, "needle below plate", params))
