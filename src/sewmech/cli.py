@@ -88,6 +88,10 @@ def _guard():
         name = signal.Signals(exc.signum).name
         _print_error(f"terminated ({name}); nothing half-written was left behind")
         raise typer.Exit(128 + exc.signum) from None
+    except BrokenPipeError:  # the reader went away (`| head`): stop quietly, as SIGPIPE would
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        raise typer.Exit(141) from None
     except MemoryError:
         _print_error("out of memory. Use a coarser --step-deg, or fewer designs at a time")
         raise typer.Exit(EXIT_ERROR) from None
