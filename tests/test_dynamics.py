@@ -644,11 +644,11 @@ def test_written_block_solvers():
     """The force kernel's written block solvers (sewmech._blocks) are what the generator writes;
     each solves random blocks as numpy's LU does, reports a singular block, and the whole
     JB1-3 solve agrees with the kernel's generic loop."""
-    from sewmech import _blockgen, _blocks
+    from sewmech.engine import _blockgen, _blocks
     from sewmech.dynamics import DynamicsPlan
 
     assert open(_blocks.__file__).read() == _blockgen.source(), (
-        "sewmech/_blocks.py is stale: run python -m sewmech._blockgen")
+        "sewmech/engine/_blocks.py is stale: run python -m sewmech.engine._blockgen")
     rng = np.random.default_rng(7)
     ch, nk = _blocks.CHUNK, 37  # not a multiple of the vector width
     for n in range(1, _blocks.MAX_BLOCK + 1):

@@ -434,7 +434,7 @@ def test_branch_free_atan2_matches_libm():
     """The kernels' atan2 (a rational approximation with selects, so that loops of it
     vectorise) is within 2 ulp of math.atan2 everywhere, the axes, diagonals and signed
     zeros included."""
-    from sewmech._kernels import atan2
+    from sewmech.engine._kernels import atan2
 
     rng = np.random.default_rng(3)
     ang = np.concatenate([rng.uniform(-math.pi, math.pi, 20000),
@@ -459,7 +459,7 @@ def test_one_compiled_kernel_for_read_only_and_writable_inputs():
     """The machine's tables and defaults are read-only, a caller's designs are not: the kernels
     get read-only views either way, so numba compiles each kernel once (a second compile of
     the interpreter costs about 20 s)."""
-    from sewmech import _kernels as K
+    from sewmech.engine import _kernels as K
     from sewmech.dynamics import inverse_dynamics
 
     m = sewmech.load_machine("fourbar-benchmark")

@@ -2,15 +2,82 @@
 
 Units everywhere inside: mm, kg, s, N, rad. Degrees appear only at the edges (files, CLI,
 plots) and are named so (``phi_deg``).
+
+The package is built in layers, each importing only the ones below it (docs/architecture.md):
+
+- ``sewmech.engine``: machine files, compilation, kernels, kinematics, dynamics;
+- ``sewmech.sewing``: timing, feed, thread, transmission, embroidery;
+- ``sewmech.design``: balancing, tolerances, optimisation, sweeps;
+- ``sewmech.app``: the command line, the report, plots, file writers.
+
+Every module also has a short public name, ``sewmech.<module>`` (``sewmech.dynamics`` is
+``sewmech.engine.dynamics``), so that code written against the names of the README does not
+depend on the layout.
 """
 
-from .errors import AssemblyError, ConvergenceError, MachineFileError, SewmechError
-from .kinematics import KinematicsPlan, kinematics, rpm_to_rad_s
-from .machine import Machine, compile_machine, load_machine, machine_from_toml, shipped_machines
-from .results import KinematicsResult, LinkMotion, PointMotion, VariableMotion
-from .spec import MachineSpec, load_machine_spec, parse_machine
+from __future__ import annotations
+
+import importlib
+import importlib.abc
+import importlib.util
+import sys
+
+from .engine.errors import AssemblyError, ConvergenceError, MachineFileError, SewmechError
+from .engine.kinematics import KinematicsPlan, kinematics, rpm_to_rad_s
+from .engine.machine import (
+    Machine,
+    compile_machine,
+    load_machine,
+    machine_from_toml,
+    shipped_machines,
+)
+from .engine.results import KinematicsResult, LinkMotion, PointMotion, VariableMotion
+from .engine.spec import MachineSpec, load_machine_spec, parse_machine
 
 __version__ = "0.1.0"
+
+#: the short public name of every module -> the layer it lives in
+MODULES = {
+    **{m: "engine" for m in ("errors", "spec", "cams", "mass", "machine", "results",
+                             "kinematics", "dynamics", "extremes", "assembly")},
+    **{m: "sewing" for m in ("timing", "feed", "thread", "transmission",
+                             "embroidery")},
+    **{m: "app" for m in ("cli", "report", "report_dynamics", "plot", "io", "outdir")},
+}
+
+
+class _ShortNames(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """Imports ``sewmech.<module>`` as the module of its layer (the same module object)."""
+
+    def find_spec(self, fullname, path=None, target=None):
+        package, _, name = fullname.rpartition(".")
+        if package != __name__ or name not in MODULES:
+            return None
+        return importlib.util.spec_from_loader(fullname, self)
+
+    def create_module(self, spec):
+        name = spec.name.rpartition(".")[2]
+        return importlib.import_module(f"{__name__}.{MODULES[name]}.{name}")
+
+    def exec_module(self, module):
+        pass  # the layer's module is already executed
+
+
+sys.meta_path.append(_ShortNames())
+# the modules imported above are registered now: a later `import sewmech.kinematics` must not
+# rebind `sewmech.kinematics`, the function, to the module
+for _name in ("errors", "spec", "machine", "results", "kinematics"):
+    sys.modules.setdefault(f"{__name__}.{_name}", sys.modules[f"{__name__}.engine.{_name}"])
+    if _name != "kinematics":
+        globals()[_name] = sys.modules[f"{__name__}.engine.{_name}"]
+del _name
+
+
+def __getattr__(name: str):
+    """``sewmech.<module>`` as an attribute, imported on first use."""
+    if name in MODULES:
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = [
     "AssemblyError",

@@ -24,12 +24,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import feed as FD
-from . import timing as T
+from ..sewing import feed as FD
+from ..sewing import timing as T
 from .io import atomic_write
-from .kinematics import kinematics
-from .extremes import require_reference
-from .machine import Machine
+from ..engine.kinematics import kinematics
+from ..engine.extremes import require_reference
+from ..engine.machine import Machine
 from .outdir import output_dir
 
 MM_TO_M = 1e-3
@@ -409,7 +409,7 @@ def _thread_section(figs: _Figures, machine: Machine):
     """Thread balance: supply, demand and its parts, overfeed, with its own checks."""
     import matplotlib.pyplot as plt
 
-    from . import thread as TH
+    from ..sewing import thread as TH
 
     b = TH.thread_balance(machine)
     checks = TH.check_thread(machine, b)
@@ -458,7 +458,7 @@ def _consumption_figure(figs: _Figures, machine: Machine):
     """Thread per stitch against stitch length and fabric thickness, with the industry formula."""
     import matplotlib.pyplot as plt
 
-    from . import thread as TH
+    from ..sewing import thread as TH
 
     d = machine.spec.thread.thread_diameter
     length = np.linspace(1.0, 4.0, 31)
@@ -488,7 +488,7 @@ def _adjust_figure(figs: _Figures, machine: Machine):
     """The adjustable take-up: margin over (thickness, setting) and the recommended setting."""
     import matplotlib.pyplot as plt
 
-    from . import thread as TH
+    from ..sewing import thread as TH
 
     adj = machine.spec.thread.adjust
     r = TH.adjust_take_up(machine, adj.parameter, np.linspace(adj.min, adj.max, 57))

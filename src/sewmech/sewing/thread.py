@@ -31,10 +31,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._events import crossing_rows as _crossing_rows
-from .errors import AnalysisError, OptionError
-from .kinematics import kinematics
-from .machine import Machine
+from ..engine._events import crossing_rows as _crossing_rows
+from ..engine.errors import AnalysisError, OptionError
+from ..engine.kinematics import kinematics
+from ..engine.machine import Machine
 
 
 def path_length(centres: ArrayLike, rho: ArrayLike, *, on_overlap: str = "raise") -> np.ndarray:

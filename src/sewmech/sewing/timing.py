@@ -18,11 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import MachineFileError
-from .extremes import crossings, extremes
-from .kinematics import kinematics
-from .machine import Machine
-from .spec import SewingSpec
+from ..engine.errors import MachineFileError
+from ..engine.extremes import crossings, extremes
+from ..engine.kinematics import kinematics
+from ..engine.machine import Machine
+from ..engine.spec import SewingSpec
 
 SHUTTLE_SWING_DEG = (206.0, 210.0)  # DOMAIN.md 1.1
 LOOP_LIFT_MM = (2.0, 2.5)  # DOMAIN.md 3.1

@@ -30,7 +30,7 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from .errors import OutputError
+from ..engine.errors import OutputError
 
 MANIFEST = ".sewmech-manifest.json"
 LOCK = ".sewmech.lock"

@@ -1,4 +1,4 @@
-"""Block solvers of the force kernel, written by :mod:`sewmech._blockgen` (do not edit).
+"""Block solvers of the force kernel, written by :mod:`sewmech.engine._blockgen` (do not edit).
 
 ``block_qr_N(W, off, B, X, start, nk, worst)`` solves, at positions 0 <= kk < nk, one N x N
 block of the force equations by Householder QR (stable without pivoting, so that every position

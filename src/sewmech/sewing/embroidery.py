@@ -24,9 +24,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import brentq
 
-from .errors import AnalysisError
-from .kinematics import kinematics
-from .machine import Machine
+from ..engine.errors import AnalysisError
+from ..engine.kinematics import kinematics
+from ..engine.machine import Machine
 from .thread import thread_path
 
 #: the paper's six (beta, alpha) pairs, degrees

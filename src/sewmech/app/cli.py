@@ -26,8 +26,8 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from .errors import AnalysisError, OptionError, SewmechError
-from .machine import Machine, load_machine, shipped_machines
+from ..engine.errors import AnalysisError, OptionError, SewmechError
+from ..engine.machine import Machine, load_machine, shipped_machines
 
 DEFAULT_MACHINE = "jb1-3"
 
@@ -201,7 +201,7 @@ def _phi(step_deg: float, phi_deg: list[float] | None) -> np.ndarray:
 
 
 def _rpm(rpm: float | None) -> float | None:
-    from .kinematics import check_speed
+    from ..engine.kinematics import check_speed
 
     return None if rpm is None else check_speed("--rpm", rpm)
 
@@ -267,11 +267,11 @@ def check_cmd(
 ):
     """Validate a machine file, prove that it assembles over the whole turn (at every setting
     limit) and check its angle convention."""
-    from .assembly import prove_assembly
-    from .dynamics import force_system
-    from .errors import format_ranges
-    from .extremes import require_reference
-    from .kinematics import kinematics
+    from ..engine.assembly import prove_assembly
+    from ..engine.dynamics import force_system
+    from ..engine.errors import format_ranges
+    from ..engine.extremes import require_reference
+    from ..engine.kinematics import kinematics
 
     m = _load(file, sets)
     phi = _phi_grid(step_deg)
@@ -323,7 +323,7 @@ def check_cmd(
     if len(proofs) > 1:
         text += " at the default setting and at " + ", ".join(lb for lb, _ in proofs[1:])
     if proofs[0][1].loop_steps:
-        from .assembly import LOOP_STEP_DEG
+        from ..engine.assembly import LOOP_STEP_DEG
 
         text += (f"; loop units ({', '.join(proofs[0][1].loop_units)}) continued in"
                  f" {LOOP_STEP_DEG:g} deg steps without a branch jump")
@@ -420,7 +420,7 @@ def kinematics_cmd(
 ):
     """Positions, velocities and accelerations of every point, link and joint variable."""
     from .io import kinematics_to_dict, write_kinematics_csv, write_kinematics_json
-    from .kinematics import kinematics
+    from ..engine.kinematics import kinematics
     from .outdir import output_dir
 
     m = _load(machine, sets)
@@ -464,10 +464,10 @@ def dynamics_cmd(
 ):
     """Inverse dynamics: driving torque, pair forces, shaking force and moment, energies,
     upper-shaft bearing reactions."""
-    from .dynamics import inverse_dynamics
+    from ..engine.dynamics import inverse_dynamics
     from .io import dynamics_to_dict, write_dynamics_csv
     from .outdir import output_dir
-    from .spec import load_load_file
+    from ..engine.spec import load_load_file
 
     m = _load(machine, sets)
     settings = _settings(m, inputs)
@@ -584,7 +584,7 @@ def feed_cmd(
     sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
 ):
     """Stitch length, lift and timing of the feed dog; scale-plate marks; feed-cam phase."""
-    from . import feed as FD
+    from ..sewing import feed as FD
 
     _bounded("--step-mm", step_mm, 0.01, 10.0, "mm", "0.5")
     m = _load(machine, sets)
@@ -636,7 +636,7 @@ def embroidery_cmd(
     sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
 ):
     """Thread drawn L(phi) = l_max - l by the embroidery take-up for one (alpha, beta)."""
-    from . import embroidery as EM
+    from ..sewing import embroidery as EM
 
     _bounded("--alpha-deg", alpha_deg, -360.0, 360.0, "deg", "10")
     _bounded("--beta-deg", beta_deg, -360.0, 360.0, "deg", "35")
@@ -704,7 +704,7 @@ def report_cmd(
 
     from .outdir import preflight
 
-    from .timing import roles
+    from ..sewing.timing import roles
 
     _phi_grid(step_deg, min_step=0.1)  # validates the step
     m = _load(machine, sets)

@@ -24,13 +24,13 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import brentq
 
-from ._events import at_rows as _at_rows
-from ._events import crossing_rows as _crossing_rows
-from ._events import extreme_rows as _extreme_rows
-from .errors import OptionError
-from .kinematics import kinematics
-from .machine import Machine
-from .spec import SewingSpec
+from ..engine._events import at_rows as _at_rows
+from ..engine._events import crossing_rows as _crossing_rows
+from ..engine._events import extreme_rows as _extreme_rows
+from ..engine.errors import OptionError
+from ..engine.kinematics import kinematics
+from ..engine.machine import Machine
+from ..engine.spec import SewingSpec
 
 FEED_DOG_RISE_MM = (1.2, 1.5)  # DOMAIN.md 1.1: Podolsk household machine, by fabric thickness
 MAX_STITCH_MM = (3.6, 4.2)  # DOMAIN.md 1.1: Singer 31-15 (3.6) .. measured class-15 clone (4.2)

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .dynamics import DynamicsResult, _first_point, inverse_dynamics, pair_geometry
-from .kinematics import kinematics
-from .machine import Machine
+from ..engine.dynamics import DynamicsResult, _first_point, inverse_dynamics, pair_geometry
+from ..engine.kinematics import kinematics
+from ..engine.machine import Machine
 
 
 @dataclass(frozen=True)

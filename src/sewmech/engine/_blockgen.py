@@ -12,7 +12,7 @@ positions of one entry are contiguous, entry e starts at e * CHUNK), so the comp
 entries never overlap and needs no run-time overlap checks; and the indices are unsigned, so
 numba emits no negative-index wrap-around, which would hide the access pattern.
 
-Run ``python -m sewmech._blockgen`` after changing this file; a test checks that the written
+Run ``python -m sewmech.engine._blockgen`` after changing this file; a test checks that the written
 module is up to date.
 """
 
@@ -25,7 +25,7 @@ MAX_BLOCK = 6
 #: positions per chunk of the force kernel, the pitch of its scratch arrays
 CHUNK = 64
 
-_HEAD = f'''"""Block solvers of the force kernel, written by :mod:`sewmech._blockgen` (do not edit).
+_HEAD = f'''"""Block solvers of the force kernel, written by :mod:`sewmech.engine._blockgen` (do not edit).
 
 ``block_qr_N(W, off, B, X, start, nk, worst)`` solves, at positions 0 <= kk < nk, one N x N
 block of the force equations by Householder QR (stable without pivoting, so that every position

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .outdir import file_mode
-from .results import KinematicsResult
+from ..engine.results import KinematicsResult
 
 
 @contextlib.contextmanager
