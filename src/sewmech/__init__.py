@@ -39,8 +39,8 @@ __version__ = "0.1.0"
 #: the short public name of every module -> the layer it lives in
 MODULES = {
     **{m: "engine" for m in ("errors", "spec", "cams", "mass", "machine", "results",
-                             "kinematics", "dynamics", "extremes", "assembly")},
-    **{m: "sewing" for m in ("timing", "feed", "thread", "transmission",
+                             "kinematics", "dynamics", "extremes", "margins", "assembly")},
+    **{m: "sewing" for m in ("timing", "checks", "feed", "thread", "transmission",
                              "embroidery")},
     **{m: "app" for m in ("cli", "report", "report_dynamics", "plot", "io", "outdir")},
 }

@@ -419,8 +419,8 @@ def kinematics_cmd(
     sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
 ):
     """Positions, velocities and accelerations of every point, link and joint variable."""
-    from .io import kinematics_to_dict, write_kinematics_csv, write_kinematics_json
     from ..engine.kinematics import kinematics
+    from .io import kinematics_to_dict, write_kinematics_csv, write_kinematics_json
     from .outdir import output_dir
 
     m = _load(machine, sets)
@@ -465,9 +465,9 @@ def dynamics_cmd(
     """Inverse dynamics: driving torque, pair forces, shaking force and moment, energies,
     upper-shaft bearing reactions."""
     from ..engine.dynamics import inverse_dynamics
+    from ..engine.spec import load_load_file
     from .io import dynamics_to_dict, write_dynamics_csv
     from .outdir import output_dir
-    from ..engine.spec import load_load_file
 
     m = _load(machine, sets)
     settings = _settings(m, inputs)
@@ -700,11 +700,9 @@ def report_cmd(
     import pandas as pd
     from rich.progress import Progress
 
-    from .report import write_report
-
-    from .outdir import preflight
-
     from ..sewing.timing import roles
+    from .outdir import preflight
+    from .report import write_report
 
     _phi_grid(step_deg, min_step=0.1)  # validates the step
     m = _load(machine, sets)

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .outdir import file_mode
 from ..engine.results import KinematicsResult
+from .outdir import file_mode
 
 
 @contextlib.contextmanager

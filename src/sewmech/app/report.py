@@ -24,12 +24,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..engine.extremes import require_reference
+from ..engine.kinematics import kinematics
+from ..engine.machine import Machine
 from ..sewing import feed as FD
 from ..sewing import timing as T
+from ..sewing.checks import check_timing
 from .io import atomic_write
-from ..engine.kinematics import kinematics
-from ..engine.extremes import require_reference
-from ..engine.machine import Machine
 from .outdir import output_dir
 
 MM_TO_M = 1e-3
@@ -109,7 +110,7 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
     res = kinematics(machine, np.radians(phi_deg))
     step("kinematics")
 
-    checks = T.check_timing(machine)
+    checks = check_timing(machine)
     ns = T.needle_stroke(machine)
     w_in, w_below = T.needle_windows(machine)
     ll = T.loop_lift(machine) if s.shuttle_point else None

@@ -11,11 +11,11 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from ..sewing import feed as FD
 from ..engine.dynamics import in_windows, inverse_dynamics, speed_fluctuation
-from .io import pair_forces_frame
 from ..engine.machine import Machine
+from ..sewing import feed as FD
 from ..sewing.transmission import needle_force, pressure_angles, regulator_torques
+from .io import pair_forces_frame
 
 #: shaft torque for the needle-force view, N mm [estimate: a household machine's motor of about
 #: 70 W at 1000 r/min of the shaft after the belt gives about 0.67 N m; 0.5 N m is a margin]

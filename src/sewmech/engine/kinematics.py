@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike
 from . import _kernels as K
 from .errors import AssemblyError, ConvergenceError, OptionError, ParameterError, SewmechError
 from .machine import PARAM_LIMIT, Machine, compile_machine, domain_message, parameter_location
+from .margins import describe
 from .results import KinematicsResult, mask_runs
 from .spec import MachineSpec
 
@@ -454,9 +455,12 @@ def _raise_first(machine, phi, store, batch, row, fail_unit, fail_code, loop_res
         same[order] = (row[d, order] == r) & (fail_code[d, order] != K.FAIL_NONE)
         ranges = angle_ranges(phi_deg, same)
         if code == K.FAIL_ASSEMBLY:
-            from .assembly import describe_failure  # (assembly builds on this module)
+            def at_failure(c, x=float(phi[i]), p=params[d]):
+                r = kinematics(machine, np.array([x]), params=p, points=c.points,
+                               links=c.links, variables=(), omega=1.0, on_failure="mask")
+                return r if r.all_feasible else None
 
-            why = describe_failure(machine, ui, float(phi[i]), params[d])
+            why = describe(machine, ui, params[d], at_failure)
             if why:
                 reason = f"cannot be assembled: {why}"
         if code in (K.FAIL_ASSEMBLY, K.FAIL_SINGULAR):

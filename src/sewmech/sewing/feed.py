@@ -31,6 +31,7 @@ from ..engine.errors import OptionError
 from ..engine.kinematics import kinematics
 from ..engine.machine import Machine
 from ..engine.spec import SewingSpec
+from .timing import Check, needle_windows
 
 FEED_DOG_RISE_MM = (1.2, 1.5)  # DOMAIN.md 1.1: Podolsk household machine, by fabric thickness
 MAX_STITCH_MM = (3.6, 4.2)  # DOMAIN.md 1.1: Singer 31-15 (3.6) .. measured class-15 clone (4.2)
@@ -331,8 +332,6 @@ def _overlap_deg(a0, a1, b0, b1) -> float:
 
 def check_feed(machine: Machine, params=None) -> list:
     """The feed checks (DOMAIN.md 1.1 and 3.2) as :class:`sewmech.timing.Check` rows."""
-    from .timing import Check, needle_windows
-
     s = _roles(machine)
     lo, hi = regulator_range_deg(machine)
     zero = machine.spec.inputs[s.regulator].default_deg

@@ -35,6 +35,8 @@ from ..engine._events import crossing_rows as _crossing_rows
 from ..engine.errors import AnalysisError, OptionError
 from ..engine.kinematics import kinematics
 from ..engine.machine import Machine
+from . import timing as T
+from .timing import Check
 
 
 def path_length(centres: ArrayLike, rho: ArrayLike, *, on_overlap: str = "raise") -> np.ndarray:
@@ -249,8 +251,6 @@ def thread_balance(machine: Machine, *, stitch_mm: float = 2.5, fabric_mm: float
     the shuttle timing, and the loop drawn round a bobbin case of ``bobbin_case_radius`` about
     the shuttle axis until the shuttle has turned ``cast_off_deg`` past seizure.
     """
-    from . import timing as T
-
     t = _thread_spec(machine)
     s = T.roles(machine)
     if t.bobbin_case_radius is None:
@@ -320,8 +320,6 @@ def thread_balance(machine: Machine, *, stitch_mm: float = 2.5, fabric_mm: float
 
 def check_thread(machine: Machine, balance: ThreadBalance | None = None) -> list:
     """The thread-balance checks of DOMAIN.md 2.3 as :class:`sewmech.timing.Check` rows."""
-    from .timing import Check
-
     b = thread_balance(machine) if balance is None else balance
     out = []
     v = b.min_overfeed_while_loop_grows
