@@ -586,7 +586,7 @@ def test_fourbar_against_exudyn(gravity):
 
 
 def test_one_sided_contacts_are_reported(tmp_path):
-    from sewmech.report import _Figures
+    from sewmech.app.figures import Figures
     from sewmech.report_dynamics import dynamics_section
 
     m = load_machine("jb1-3")
@@ -594,7 +594,7 @@ def test_one_sided_contacts_are_reported(tmp_path):
     assert sided == {"lift.cam", "lift.roller.slot"}
     r = inverse_dynamics(m, np.radians(np.arange(0.0, 360.0, 1.0)),
                          inputs={"regulator": math.radians(30.0)})
-    key = dynamics_section(_Figures(tmp_path, m.name), m)
+    key = dynamics_section(Figures(tmp_path, m.name), m)
     for name in sorted(sided):
         row = key[key.quantity.str.contains(f"one-sided contact {name} ")]
         assert len(row) == 1

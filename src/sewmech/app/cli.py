@@ -515,20 +515,26 @@ def _dynamics_figures(m, out, settings, rpm, load_specs, gravity) -> int:
     matplotlib.use("Agg")
     from rich.progress import Progress
 
+    from .figures import Figures, figure_pool
     from .io import atomic_write
-    from .report import _Figures
     from .report_dynamics import dynamics_section
 
-    figs = _Figures(out, m.name)
-    with Progress(console=console, transient=True) as progress:
-        progress.add_task("dynamics figures", total=None)
-        # the command's settings (the file's defaults unless --input), as its tables
-        inputs = {n: math.radians(i.default_deg) for n, i in m.spec.inputs.items()}
-        key = dynamics_section(figs, m, inputs={**inputs, **settings}, rpm=rpm,
-                               loads=load_specs, gravity=gravity)
-    with atomic_write(out / f"{m.name}-dynamics-key-figures.csv") as fh:
-        key.to_csv(fh, index=False, float_format="%.10g")
-    return len(figs.blocks)
+    pool = figure_pool()
+    try:
+        figs = Figures(out, m.name, pool)
+        with Progress(console=console, transient=True) as progress:
+            progress.add_task("dynamics figures", total=None)
+            # the command's settings (the file's defaults unless --input), as its tables
+            inputs = {n: math.radians(i.default_deg) for n, i in m.spec.inputs.items()}
+            key = dynamics_section(figs, m, inputs={**inputs, **settings}, rpm=rpm,
+                                   loads=load_specs, gravity=gravity)
+            figs.blocks  # every figure written
+        with atomic_write(out / f"{m.name}-dynamics-key-figures.csv") as fh:
+            key.to_csv(fh, index=False, float_format="%.10g")
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+    return figs.figure_count
 
 
 def _dynamics_summary(res, data) -> Table:

@@ -14,9 +14,7 @@ sections join as those analyses land.
 
 from __future__ import annotations
 
-import base64
 import html
-import io
 import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -30,73 +28,39 @@ from ..engine.machine import Machine
 from ..sewing import feed as FD
 from ..sewing import timing as T
 from ..sewing.checks import check_timing
-from .io import atomic_write
+from .figures import Figures, table_html, figure_pool
 from .outdir import output_dir
 
 MM_TO_M = 1e-3
 
 
-class _Figures:
-    """Collects figures: saves PNG + SVG + CSV into the staging directory, keeps HTML blocks."""
-
-    def __init__(self, root: Path, machine: str):
-        self.root = root
-        self.machine = machine
-        self.blocks: list[str] = []
-
-    def add(self, fig, name: str, title: str, caption: str, data: pd.DataFrame,
-            table: pd.DataFrame | None = None):
-        import matplotlib.pyplot as plt
-
-        stem = f"{self.machine}-{name}"
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=120)
-        svg = io.BytesIO()
-        fig.savefig(svg, format="svg")
-        plt.close(fig)
-        for ext, payload in (("png", buf.getvalue()), ("svg", svg.getvalue())):
-            with atomic_write(self.root / f"{stem}.{ext}", "wb", encoding=None) as fh:
-                fh.write(payload)
-        with atomic_write(self.root / f"{stem}.csv") as fh:
-            data.to_csv(fh, index=False, float_format="%.10g")
-        b64 = base64.b64encode(buf.getvalue()).decode("ascii")
-        self.blocks.append(
-            f'<figure id="{name}"><h3>{html.escape(title)}</h3>'
-            f'<img alt="{html.escape(title)}" src="data:image/png;base64,{b64}">'
-            f"<figcaption>{html.escape(caption)} Files: "
-            f'<a href="{stem}.png">PNG</a>, <a href="{stem}.svg">SVG</a>, '
-            f'<a href="{stem}.csv">data (CSV)</a>.</figcaption>'
-            + (_table_html(table) if table is not None else "") + "</figure>")
-
-
-def _table_html(df: pd.DataFrame, classes: str = "") -> str:
-    """A table for the page; a value that is not defined (NaN: no feed at the zero mark, no
-    take-up setting that passes) reads "none", never "NaN"."""
-    return df.to_html(index=False, classes=classes, border=0, float_format=lambda x: f"{x:.6g}",
-                      escape=True, na_rep="none")
-
-
 def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0,
                  advance: Callable[[str], None] | None = None,
-                 variants: Sequence[Machine] = ()) -> Path:
+                 variants: Sequence[Machine] = (), workers: int | None = None) -> Path:
     """Compute everything and write the report; returns the path of ``index.html``.
 
     step_deg: shaft-angle step of the diagrams, deg. advance: called with a step name after
     each step (progress display). variants: machines compared side by side with this one.
     Requires the machine's ``[sewing]`` roles. ``out_dir`` is written through
     :func:`sewmech.outdir.output_dir`: it must be new, empty or written by sewmech, and it
-    changes only when the whole report has been built.
+    changes only when the whole report has been built. ``workers``: processes that draw the
+    figures meanwhile (default: one per CPU core; 0: draw here).
     """
     T.roles(machine)  # a machine the report cannot read fails before the output is touched
     reference = require_reference(machine)  # and one whose angle convention is false
     with output_dir(out_dir, command="report") as root:
-        _build_report(machine, root, step_deg, step=advance or (lambda name: None),
-                      variants=variants, reference=reference.text)
+        pool = figure_pool(workers)
+        try:
+            _build_report(machine, root, step_deg, step=advance or (lambda name: None),
+                          variants=variants, reference=reference.text, pool=pool)
+        finally:
+            if pool is not None:
+                pool.shutdown(wait=True, cancel_futures=True)
     return Path(out_dir) / "index.html"
 
 
 def _build_report(machine: Machine, root: Path, step_deg: float, *, step, variants,
-                  reference: str) -> None:
+                  reference: str, pool) -> None:
     """Every section of the report, written into the directory ``root``."""
     import matplotlib
 
@@ -117,7 +81,7 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
     sw = T.shuttle_swing(machine) if s.shuttle_link else None
     step("timing checks")
 
-    figs = _Figures(root, machine.name)
+    figs = Figures(root, machine.name, pool)
     ref = f"phi = {conv.reference_phi_deg:g} deg: {conv.reference_event}"
 
     # ---- motion diagrams ---------------------------------------------------------------
@@ -245,11 +209,11 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
     if machine.spec.masses:
         from .report_dynamics import dynamics_section
 
-        intro = len(figs.blocks)
+        intro = len(figs)
         key = dynamics_section(figs, machine, variants)
         key.to_csv(root / f"{machine.name}-dynamics-key-figures.csv", index=False,
                    float_format="%.10g")
-        figs.blocks.insert(intro, _dynamics_intro(machine, key))
+        figs.insert_html(intro, _dynamics_intro(machine, key))
         step("dynamics")
     if variants:
         _comparison(figs, [machine] + list(variants))
@@ -306,7 +270,7 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
     step("page")
 
 
-def _feed_section(figs: _Figures, machine: Machine, step) -> dict:
+def _feed_section(figs: Figures, machine: Machine, step) -> dict:
     """Dog trajectories, stitch curve with scale marks, sensitivity grid (figures + tables)."""
     import matplotlib.pyplot as plt
 
@@ -406,7 +370,7 @@ def _feed_section(figs: _Figures, machine: Machine, step) -> dict:
                                                            "feed-sensitivity-table": table}}
 
 
-def _thread_section(figs: _Figures, machine: Machine):
+def _thread_section(figs: Figures, machine: Machine):
     """Thread balance: supply, demand and its parts, overfeed, with its own checks."""
     import matplotlib.pyplot as plt
 
@@ -455,7 +419,7 @@ def _thread_section(figs: _Figures, machine: Machine):
     _consumption_figure(figs, machine)
 
 
-def _consumption_figure(figs: _Figures, machine: Machine):
+def _consumption_figure(figs: Figures, machine: Machine):
     """Thread per stitch against stitch length and fabric thickness, with the industry formula."""
     import matplotlib.pyplot as plt
 
@@ -485,7 +449,7 @@ def _consumption_figure(figs: _Figures, machine: Machine):
              " inch of seam; the two differ by the thread-diameter term.", pd.DataFrame(rows))
 
 
-def _adjust_figure(figs: _Figures, machine: Machine):
+def _adjust_figure(figs: Figures, machine: Machine):
     """The adjustable take-up: margin over (thickness, setting) and the recommended setting."""
     import matplotlib.pyplot as plt
 
@@ -524,7 +488,7 @@ def _dynamics_intro(machine: Machine, key: pd.DataFrame) -> str:
     return (f'<h2 id="dynamics">Dynamics</h2><p>Inverse dynamics of the whole machine at'
             f" {machine.rpm:g} rpm, gravity on, at the longest forward stitch (the JB dynamics"
             f" report's hardest case). Process loads: {html.escape(loads)}. Link masses:"
-            " see the machine file's [masses] tables.</p>" + _table_html(key.round(5))
+            " see the machine file's [masses] tables.</p>" + table_html(key.round(5))
             + f'<p>Data: <a href="{machine.name}-dynamics-key-figures.csv">key figures'
             " (CSV)</a>.</p>")
 
@@ -553,7 +517,7 @@ def _key_figures(m: Machine) -> dict:
     return out
 
 
-def _comparison(figs: _Figures, machines: Sequence[Machine]):
+def _comparison(figs: Figures, machines: Sequence[Machine]):
     """Key figures, dog paths and stitch curves of machine variants side by side."""
     import matplotlib.pyplot as plt
 
@@ -632,7 +596,7 @@ def _page(machine, ref, chk, tim, par, blocks, file_text, file_name, extra=()) -
     n_fail = int((chk["result"] != "pass").sum()) if len(chk) else 0
     verdict = (f'<p class="pass">All {len(chk)} checks pass.</p>' if n_fail == 0 else
                f'<p class="fail">{n_fail} of {len(chk)} checks fail.</p>')
-    chk_html = _table_html(chk, "checks").replace("<td>pass</td>", '<td class="pass">pass</td>')
+    chk_html = table_html(chk, "checks").replace("<td>pass</td>", '<td class="pass">pass</td>')
     chk_html = chk_html.replace("<td>FAIL</td>", '<td class="fail">FAIL</td>')
     e = html.escape
     return f"""<!DOCTYPE html>
@@ -644,7 +608,7 @@ def _page(machine, ref, chk, tim, par, blocks, file_text, file_name, extra=()) -
 {machine.rpm:g} rpm. Lengths in mm. Machine file: <a href="{e(file_name)}">{e(file_name)}</a>.</p>
 {_changes_html(machine)}<h2>Checks</h2>{verdict}{chk_html}
 <p>Data: <a href="{e(info.name)}-checks.csv">checks (CSV)</a>.</p>
-<h2>Timing</h2>{_table_html(tim)}
+<h2>Timing</h2>{table_html(tim)}
 <p>Data: <a href="{e(info.name)}-timing-events.csv">timing events (CSV)</a>.</p>
 <h2>Figures</h2>
 {''.join(blocks)}
@@ -653,7 +617,7 @@ def _page(machine, ref, chk, tim, par, blocks, file_text, file_name, extra=()) -
 <p>Every value of the machine file as a named parameter (angles shown in degrees). Sources and
 estimates are recorded beside each value in the file below.
 <a href="{e(info.name)}-parameters.csv">parameters (CSV)</a>.</p>
-{_table_html(par)}
+{table_html(par)}
 <details><summary>Machine file {e(file_name)}</summary><pre>{e(file_text)}</pre></details>
 <p class="sub">Written by sewmech.</p>
 </body></html>

@@ -28,7 +28,7 @@ PENETRATION_RESISTANCE_N = 8.0
 def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *,
                      inputs: dict[str, float] | None = None, rpm: float | None = None,
                      loads=None, gravity: bool = True) -> pd.DataFrame:
-    """Add the dynamics figures to ``figs`` (a report ``_Figures``); return the key figures.
+    """Add the dynamics figures to ``figs`` (:class:`~sewmech.app.figures.Figures`); return the key figures.
 
     inputs: setting inputs, rad (default: the stitch regulator at its longest forward stitch);
     rpm: shaft speed (default: the file's); loads: process loads (default: the file's);

@@ -1,0 +1,148 @@
+"""The figures of a report: each saved as PNG and SVG with its data as CSV, and kept as an HTML
+block with the PNG embedded.
+
+Drawing a figure (its layout, then two renderers) costs most of a report's time, so it is done
+by worker processes while the report goes on computing: a finished figure is pickled to a
+worker, which lays it out once, writes the PNG and the SVG and sends the PNG back for the page.
+The page reads the blocks in the order the figures were added. Without workers (``workers=0``)
+the same happens in this process.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import multiprocessing
+import os
+import pickle
+from concurrent.futures import Future, ProcessPoolExecutor
+from pathlib import Path
+
+import matplotlib
+import pandas as pd
+
+from .io import atomic_write
+
+#: the PNG resolution of every figure, dots per inch
+PNG_DPI = 120
+
+
+def render(fig, root: Path, stem: str) -> bytes:
+    """Write ``fig`` as ``root/stem.png`` and ``.svg`` (atomically); return the PNG bytes. The
+    layout is computed once, for the PNG, and kept for the SVG."""
+    png = io.BytesIO()
+    # zlib level 1: the same pixels, written in a fraction of the time (files 10-20 % larger)
+    fig.savefig(png, format="png", dpi=PNG_DPI, pil_kwargs={"compress_level": 1})
+    fig.set_layout_engine("none")  # the positions stay where the PNG's layout put them
+    svg = io.BytesIO()
+    with matplotlib.rc_context({"svg.fonttype": "none"}):  # text as text, not glyph outlines
+        fig.savefig(svg, format="svg")
+    for ext, payload in (("png", png.getvalue()), ("svg", svg.getvalue())):
+        with atomic_write(Path(root) / f"{stem}.{ext}", "wb", encoding=None) as fh:
+            fh.write(payload)
+    return png.getvalue()
+
+
+def _render_pickled(payload: bytes, root: str, stem: str) -> bytes:
+    """A worker's job: the figure arrives pickled."""
+    import matplotlib.pyplot as plt
+
+    fig = pickle.loads(payload)
+    try:
+        return render(fig, Path(root), stem)
+    finally:
+        plt.close(fig)
+
+
+def _worker_start():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot  # noqa: F401  (loaded once per worker, not per figure)
+
+
+def figure_pool(workers: int | None = None) -> ProcessPoolExecutor | None:
+    """Worker processes for drawing figures: by default one per CPU core (the report's own
+    computing is done by the time most figures wait to be drawn); None with ``workers=0`` or
+    where processes cannot be forked.
+
+    The workers are forked from this process (no script is imported again, so a report can be
+    written from any script or notebook); they only unpickle and draw figures, and never touch
+    the compiled kernels or their threads."""
+    n = (os.cpu_count() or 1) if workers is None else int(workers)
+    if n <= 0 or "fork" not in multiprocessing.get_all_start_methods():
+        return None
+    ctx = multiprocessing.get_context("fork")
+    return ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_worker_start)
+
+
+class _Pending:
+    def __init__(self, future: Future, head: str, tail: str):
+        self.future, self.head, self.tail = future, head, tail
+
+    def html(self) -> str:
+        b64 = base64.b64encode(self.future.result()).decode("ascii")
+        return self.head + f'src="data:image/png;base64,{b64}">' + self.tail
+
+
+class Figures:
+    """Collects a report's figures: writes each one's PNG, SVG and CSV into ``root`` and keeps
+    its HTML block (``blocks``, in the order added; other HTML may be inserted between them).
+
+    ``pool``: worker processes from :func:`figure_pool` (None: draw here)."""
+
+    def __init__(self, root: Path, machine: str, pool: ProcessPoolExecutor | None = None):
+        self.root = Path(root)
+        self.machine = machine
+        self.pool = pool
+        self._items: list = []
+
+    def add(self, fig, name: str, title: str, caption: str, data: pd.DataFrame,
+            table: pd.DataFrame | None = None) -> None:
+        import matplotlib.pyplot as plt
+
+        stem = f"{self.machine}-{name}"
+        with atomic_write(self.root / f"{stem}.csv") as fh:
+            data.to_csv(fh, index=False, float_format="%.10g")
+        head = (f'<figure id="{name}"><h3>{html.escape(title)}</h3>'
+                f'<img alt="{html.escape(title)}" ')
+        tail = (f"<figcaption>{html.escape(caption)} Files: "
+                f'<a href="{stem}.png">PNG</a>, <a href="{stem}.svg">SVG</a>, '
+                f'<a href="{stem}.csv">data (CSV)</a>.</figcaption>'
+                + (table_html(table) if table is not None else "") + "</figure>")
+        if self.pool is None:
+            try:
+                png = render(fig, self.root, stem)
+            finally:
+                plt.close(fig)
+            future: Future = Future()
+            future.set_result(png)
+        else:
+            payload = pickle.dumps(fig)
+            plt.close(fig)
+            future = self.pool.submit(_render_pickled, payload, str(self.root), stem)
+        self._items.append(_Pending(future, head, tail))
+
+    def insert_html(self, index: int, block: str) -> None:
+        """Put an HTML block (no figure) at position ``index`` of the blocks."""
+        self._items.insert(index, block)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    @property
+    def blocks(self) -> list[str]:
+        """The HTML blocks, each figure's once it is drawn (waits for the workers)."""
+        return [x.html() if isinstance(x, _Pending) else x for x in self._items]
+
+    @property
+    def figure_count(self) -> int:
+        return sum(isinstance(x, _Pending) for x in self._items)
+
+
+def table_html(df: pd.DataFrame, classes: str = "") -> str:
+    """A table for the page; a value that is not defined (NaN: no feed at the zero mark, no
+    take-up setting that passes) reads "none", never "NaN"."""
+    return df.to_html(index=False, classes=classes, border=0, float_format=lambda x: f"{x:.6g}",
+                      escape=True, na_rep="none")
