@@ -2,8 +2,9 @@
 
 The derivative of a channel with respect to the shaft angle is the kinematics' own analytic rate
 evaluated at omega = 1 rad/s (then d/dt = d/dphi): position -> velocity, angle -> angular
-velocity, slider displacement -> its rate. Sign changes of that derivative on a grid bracket
-every stationary point; Brent's method then refines each bracket.
+velocity, slider displacement -> its rate. Sign changes of that derivative on the grid of the
+design's shared evaluation (:mod:`sewmech.engine.evaluation`) bracket every stationary point;
+Newton's method on the exact kinematics, kept inside the bracket, refines each.
 """
 
 from __future__ import annotations
@@ -12,9 +13,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
-
 from .errors import MachineFileError
+from .evaluation import evaluation
 from .kinematics import kinematics
 from .machine import Machine
 from .results import CHANNEL_KINDS
@@ -68,21 +68,6 @@ def _derivative_channel(name: str) -> str:
     return f"{CHANNEL_KINDS[kind][2]}_{rest}"
 
 
-def _roots_on_grid(values, grid, f, xtol):
-    """Yield (root, i, j) at each sign change of ``values`` over the periodic ``grid`` (rad):
-    grid[i] itself where values[i] == 0, otherwise Brent's root of f between grid[i] and
-    grid[j] (the next point, wrapping to grid[0] + 2 pi)."""
-    n = len(grid)
-    for i in range(n):
-        j = (i + 1) % n
-        x0 = grid[i]
-        x1 = grid[j] if j else grid[0] + 2.0 * math.pi
-        if values[i] == 0.0:
-            yield x0, i, j
-        elif values[i] * values[j] < 0.0:
-            yield brentq(f, x0, x1, xtol=xtol, rtol=4 * np.finfo(float).eps, maxiter=200), i, j
-
-
 def extremes(
     machine: Machine,
     channel: str,
@@ -105,7 +90,7 @@ def extremes(
     n_grid : int
         Grid of the bracketing scan; extrema closer than 2 pi / n_grid may merge.
     phi0 : float
-        Start of the revolution scanned, rad.
+        Start of the revolution scanned, rad (the extrema's angles are in [phi0, phi0 + 2 pi)).
     xtol : float
         Absolute tolerance on the crank angle, rad (default 1e-12; the guarantee is 1e-9).
 
@@ -113,28 +98,29 @@ def extremes(
     -------
     ExtremesResult
         Extrema sorted by crank angle; positions where the mechanism fails raise.
+
+    The design's shared :func:`~sewmech.engine.evaluation.evaluation` is read: the zeros of
+    the channel's derivative are bracketed on its grid and refined on the exact kinematics.
     """
-    if params is not None and np.ndim(params) != 1:
-        raise ValueError("extremes() takes one design: params must have shape (n_parameters,)")
     deriv = _derivative_channel(channel)
-    # with omega = 1 rad/s and epsilon = 0 every time derivative is a derivative in phi
-    kw = dict(params=params, inputs=inputs, omega=1.0, epsilon=0.0)
-    grid = phi0 + np.linspace(0.0, 2.0 * math.pi, n_grid, endpoint=False)
-    res = kinematics(machine, grid, **kw)
-    _, unit = res.channel(channel)
-    slope, _ = res.channel(deriv)
+    ev = evaluation(machine, params, inputs, n_grid)
+    _, unit = ev.grid.channel(channel)
+    found = []
+    for root in ev.roots(deriv, 0.0, phi0=phi0, xtol=xtol):
+        r = ev.at([root.phi], **_selection(channel))
+        found.append(Extremum("max" if root.direction < 0 else "min", float(root.phi),
+                              float(r.channel(channel)[0][0])))
+    return ExtremesResult(channel, unit, tuple(found))
 
-    def f(x):
-        r = kinematics(machine, np.array([x]), **kw)
-        return float(r.channel(deriv)[0][0])
 
-    found: list[Extremum] = []
-    s = slope
-    for root, i, j in _roots_on_grid(s, grid, f, xtol):
-        kind = "max" if s[i] > 0 or (s[i] == 0 and s[j] < 0) else "min"
-        r = kinematics(machine, np.array([root]), **kw)
-        found.append(Extremum(kind, float(root), float(r.channel(channel)[0][0])))
-    return ExtremesResult(channel, unit, tuple(sorted(found, key=lambda e: e.phi)))
+def _selection(channel: str) -> dict:
+    """The outputs a channel needs: an exact evaluation solves only the units behind them."""
+    kind, _, rest = channel.partition("_")
+    if kind in ("p", "v", "a"):
+        return dict(points=[rest.rpartition("_")[0]], links=[], variables=[])
+    if kind in ("theta", "omega", "epsilon"):
+        return dict(points=[], links=[rest], variables=[])
+    return dict(points=[], links=[], variables=[rest])
 
 
 def dead_centres(machine: Machine, unit: str, **kw) -> ExtremesResult:
@@ -184,23 +170,13 @@ def crossings(
 ) -> tuple[Crossing, ...]:
     """Shaft angles in [phi0, phi0 + 2 pi) where ``channel`` equals ``level`` (its unit).
 
-    Sign changes of channel - level on a grid bracket each crossing; Brent's method refines it
-    to ``xtol`` rad. Angle channels are compared as returned (in (-pi, pi]); use a point or
-    variable channel for levels near the wrap.
+    Sign changes of channel - level on the design's shared evaluation bracket each crossing;
+    it is refined on the exact kinematics to ``xtol`` rad. Angle channels are compared as
+    returned (in (-pi, pi]); use a point or variable channel for levels near the wrap.
     """
-    if params is not None and np.ndim(params) != 1:
-        raise ValueError("crossings() takes one design: params must have shape (n_parameters,)")
-    kw = dict(params=params, inputs=inputs)
-    grid = phi0 + np.linspace(0.0, 2.0 * math.pi, n_grid, endpoint=False)
-    g = kinematics(machine, grid, **kw).channel(channel)[0] - level
-
-    def f(x):
-        return float(kinematics(machine, np.array([x]), **kw).channel(channel)[0][0]) - level
-
-    found = []
-    for root, i, j in _roots_on_grid(g, grid, f, xtol):
-        found.append(Crossing(float(root), 1 if g[j] > g[i] else -1))
-    return tuple(found)
+    ev = evaluation(machine, params, inputs, n_grid)
+    return tuple(Crossing(r.phi, r.direction)
+                 for r in ev.roots(channel, level, phi0=phi0, xtol=xtol))
 
 
 @dataclass(frozen=True)

@@ -153,6 +153,9 @@ class KinematicsPlan:
     origin), rows of (u, v) mm in the link frame) adds points that are not in the machine file,
     e.g. the links' centres of mass: after each call ``extra_motion`` holds their position,
     velocity and acceleration, batch + (n_phi, n_extra, 2) each (mm, mm/s, mm/s^2).
+    ``start_phi`` (rad): where the loop units' continuation starts from their initial values
+    (default: the file's ``assembly_phi_deg``); given a known solution at that angle as the
+    initial values, a nearby angle is reached in one step (:mod:`sewmech.engine.evaluation`).
     """
 
     def __init__(
@@ -171,6 +174,7 @@ class KinematicsPlan:
         tol: float = 1e-10,
         max_iter: int = 25,
         extra_points: tuple[np.ndarray, np.ndarray] | None = None,
+        start_phi: float | None = None,
     ):
         if on_failure not in ("raise", "mask"):
             raise OptionError("on_failure", f"must be 'raise' or 'mask', got {on_failure!r}")
@@ -194,7 +198,8 @@ class KinematicsPlan:
             if not lo <= value <= hi:  # (a NaN fails too)
                 raise OptionError(name, f"must be in {lo:g} .. {hi:g}, got {value!r}")
         if machine.has_loops:
-            march, store, where = _march(phi, machine.assembly_phi, math.radians(max_step_deg))
+            start = machine.assembly_phi if start_phi is None else float(start_phi)
+            march, store, where = _march(phi, start, math.radians(max_step_deg))
             march_omega, march_eps = omega_arr[where], eps_arr[where]
         else:
             march, store = phi, np.arange(n_phi, dtype=np.int64)

@@ -335,6 +335,11 @@ class Machine:
         return {}
 
     @cached_property
+    def _evaluations(self) -> dict:
+        """The shared evaluations of designs (:func:`sewmech.engine.evaluation.evaluation`)."""
+        return {}
+
+    @cached_property
     def masses(self) -> dict:
         """Mass properties (:class:`sewmech.mass.MassProperties`) of every link that has a
         ``[masses.LINK]`` table, in the link's frame (mm, kg, kg mm^2)."""

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..engine.errors import MachineFileError
+from ..engine.evaluation import evaluation
 from ..engine.extremes import crossings, extremes
 from ..engine.kinematics import kinematics
 from ..engine.machine import Machine
@@ -52,7 +53,8 @@ def _wrap_deg(x: float) -> float:
 
 
 def _y(machine, point, phi, params):
-    return float(kinematics(machine, np.array([phi]), params=params).point(point).p[0, 1])
+    r = evaluation(machine, params).at([phi], points=[point], links=[], variables=[])
+    return float(r.point(point).p[0, 1])
 
 
 @dataclass(frozen=True)
@@ -104,12 +106,14 @@ def loop_lift(machine: Machine, params=None) -> LoopLift:
     link = _need(s.shuttle_link, "shuttle_link", machine)
     ns = needle_stroke(machine, params)
     bdc = math.radians(ns.bottom_phi_deg)
-    r_bdc = kinematics(machine, np.array([bdc]), params=params)
+    ev = evaluation(machine, params)
+    r_bdc = ev.at([bdc], points=[s.needle_point], links=[], variables=[])
     x_needle = float(r_bdc.point(s.needle_point).p[0, 0])
     axis = _shuttle_axis(machine)
     best = None
     for c in crossings(machine, f"p_{sp}_x", x_needle, params=params, phi0=bdc):
-        r = kinematics(machine, np.array([c.phi]), params=params)
+        r = ev.at([c.phi], points=[sp, axis, s.needle_point, s.needle_eye], links=[link],
+                  variables=[])
         if r.point(sp).p[0, 1] > r.point(axis).p[0, 1]:
             best = (c.phi, r)
             break
@@ -154,9 +158,14 @@ def shuttle_swing(machine: Machine, params=None) -> Swing:
     link = _need(roles(machine).shuttle_link, "shuttle_link", machine)
     ex = extremes(machine, f"theta_{link}", params=params)
     lo, hi = ex.minimum, ex.maximum
-    # the swing is measured along the motion, so that it does not depend on the angle wrap
+    # the swing is measured along the motion (the grid's angles between the two reversals),
+    # so that it does not depend on the angle wrap
     a, b = sorted((lo.phi, hi.phi))
-    th = np.unwrap(kinematics(machine, np.linspace(a, b, 721), params=params).link(link).theta)
+    g = evaluation(machine, params).grid
+    inside = (g.phi > a) & (g.phi < b)
+    th = np.unwrap(np.concatenate([[lo.value if a == lo.phi else hi.value],
+                                   g.link(link).theta[inside],
+                                   [hi.value if b == hi.phi else lo.value]]))
     return Swing(math.degrees(lo.value), lo.phi_deg % 360.0, math.degrees(hi.value),
                  hi.phi_deg % 360.0, abs(math.degrees(th[-1] - th[0])))
 
@@ -211,10 +220,8 @@ def below_level_window(machine: Machine, point: str, level: float, name: str,
 def needle_windows(machine: Machine, params=None) -> tuple[Window, Window]:
     """(needle point in the fabric, needle point below the throat plate)."""
     s = roles(machine)
-    res = kinematics(machine, np.radians(np.arange(0.0, 360.0, 1.0)), params=params,
-                     points=[s.needle_point], links=[], variables=[])
-    y = res.point(s.needle_point).p[:, 1]
-    lo, hi = float(y.min()), float(y.max())
+    ns = needle_stroke(machine, params)
+    lo, hi = ns.bottom_y, ns.top_y
     for key, level in (("plate_y", s.plate_y), ("fabric_thickness",
                                                 s.plate_y + s.fabric_thickness)):
         if not lo < level < hi:

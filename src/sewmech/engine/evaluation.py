@@ -1,0 +1,186 @@
+"""One setting of a machine, evaluated once and read by every event, extreme and check.
+
+A design (its parameters, setting inputs included) is evaluated on a fine grid of shaft angles
+at omega = 1 rad/s, where every rate is a derivative in phi (velocity = dp/dphi, acceleration
+= d2p/dphi2). Extremes and crossings of any channel are bracketed on that grid and refined on
+the exact kinematics by Newton's method inside the bracket (the channel's next derivative comes
+with each evaluation, so two or three evaluations reach 1e-12 rad), falling back to bisection
+whenever a Newton step would leave the bracket.
+
+An exact evaluation between grid points (:meth:`Evaluation.at`) continues the loop units from
+the grid's solution just below the angle, one step, instead of from the assembly angle: the
+continuation follows the same branch and costs one Newton step per loop.
+
+:func:`evaluation` keeps the last few evaluations of each machine, so that the timing, the feed
+and the report, asking for the same setting one after the other, share one. Units: mm, rad.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from .kinematics import KinematicsPlan, kinematics
+from .machine import Machine
+from .results import CHANNEL_KINDS, KinematicsResult
+
+#: shaft angles of the shared grid per turn (0.5 deg)
+N_GRID = 720
+#: evaluations kept per machine (one per setting: a report reads a handful)
+KEEP = 16
+
+
+@dataclass(frozen=True)
+class Root:
+    """A located event: shaft angle (rad) and the sign of the channel's slope there."""
+
+    phi: float
+    direction: int
+
+
+class Evaluation:
+    """The motion of one design of a machine over a turn, shared by its readers.
+
+    Attributes
+    ----------
+    machine : Machine
+    params : ndarray, shape (n_parameters,)
+        The design, internal units (mm, rad), setting inputs included.
+    grid : KinematicsResult
+        Every point, link and joint variable at ``N_GRID`` angles from 0 at omega = 1 rad/s
+        (one compiled call, on first use).
+    """
+
+    def __init__(self, machine: Machine, params: np.ndarray, n_grid: int = N_GRID):
+        self.machine = machine
+        self.params = np.array(params, dtype=float)
+        self.params.setflags(write=False)
+        self.n_grid = int(n_grid)
+        self.h = 2.0 * math.pi / self.n_grid
+        self.phi = np.arange(self.n_grid) * self.h
+
+    @cached_property
+    def grid(self) -> KinematicsResult:
+        return kinematics(self.machine, self.phi, params=self.params, omega=1.0)
+
+    @cached_property
+    def _inits(self) -> tuple[np.ndarray, np.ndarray]:
+        """Parameter index of each loop unknown's initial value, and its value at every grid
+        angle (n_grid, n_unknowns): the known solutions to continue from."""
+        m = self.machine
+        if not m.has_loops:
+            return np.empty(0, dtype=np.int64), np.empty((self.n_grid, 0))
+        g = self.grid
+        cols = []
+        for kind, idx, _, _ in m.unknowns:
+            cols.append(g.theta[:, idx] if kind == 0 else g.q[:, idx])
+        return m.unknowns[:, 3].astype(np.int64), np.stack(cols, axis=1)
+
+    def at(self, phi, **selection) -> KinematicsResult:
+        """The exact motion at shaft angles ``phi`` (rad, any), at omega = 1 rad/s: one compiled
+        call; loop units continue from the grid solution at the grid angle just below the first
+        angle. ``selection``: ``points``, ``links``, ``variables`` as for kinematics()."""
+        phi = np.array(phi, dtype=float, ndmin=1)
+        P = self.params
+        start = None
+        if self.machine.has_loops and phi.size:
+            k = int(np.floor(float(np.mod(phi[0], 2.0 * math.pi)) / self.h)) % self.n_grid
+            idx, values = self._inits
+            P = self.params.copy()
+            P[idx] = values[k]
+            start = float(self.phi[k])
+        plan = KinematicsPlan(self.machine, phi, omega=1.0, start_phi=start,
+                              max_step_deg=math.degrees(self.h), **selection)
+        return plan(P)
+
+    # ---- events ------------------------------------------------------------------------------
+    def _refine(self, fn, a: float, b: float, fa: float, fb: float, xtol: float) -> float:
+        """The root of ``fn`` (x -> (f, f')) in [a, b] where f changes sign: Newton's method,
+        kept inside the bracket (a bisection step wherever Newton would leave it)."""
+        if fa == 0.0:
+            return a
+        if fb == 0.0:
+            return b
+        x = a - fa * (b - a) / (fb - fa)  # the chord's root
+        for _ in range(60):
+            f, df = fn(x)
+            if f == 0.0:
+                return x
+            if (f < 0.0) == (fa < 0.0):
+                a, fa = x, f
+            else:
+                b = x
+            step = f / df if df != 0.0 and math.isfinite(df) else math.inf
+            nxt = x - step
+            if not a <= nxt <= b:  # (a root on the bracket's end is taken as it is)
+                nxt = 0.5 * (a + b)
+            if abs(nxt - x) <= xtol or b - a <= xtol:
+                return nxt
+            x = nxt
+        return x
+
+    @cached_property
+    def _roots(self) -> dict:
+        return {}
+
+    def roots(self, channel: str, level: float = 0.0, *, phi0: float = 0.0,
+              xtol: float = 1e-12) -> list[Root]:
+        """Where ``channel`` equals ``level`` (its unit), in [phi0, phi0 + 2 pi): bracketed on
+        the grid, refined on the exact kinematics (each once: asked again, the same list)."""
+        key = (channel, float(level), float(xtol))
+        found = self._roots.get(key)
+        if found is None:
+            found = self._roots[key] = self._locate(channel, float(level), xtol)
+        return sorted((Root(float(phi0 + np.mod(r.phi - phi0, 2.0 * math.pi)), r.direction)
+                       for r in found), key=lambda r: r.phi)
+
+    def _locate(self, channel: str, level: float, xtol: float) -> list[Root]:
+        g, unit = self.grid.channel(channel)
+        kind, _, rest = channel.partition("_")
+        deriv = CHANNEL_KINDS[kind][2]
+        slope = self.grid.channel(f"{deriv}_{rest}")[0] if deriv else None
+        f = g - level
+        n = self.n_grid
+        out = []
+        for i in np.flatnonzero((f == 0.0) | (f * np.roll(f, -1) < 0.0)):
+            j = (i + 1) % n
+            a = float(self.phi[i])
+            b = a + self.h
+            if f[i] == 0.0:
+                x = a
+            elif slope is None:
+                from scipy.optimize import brentq
+
+                x = brentq(lambda t: float(self.at([t]).channel(channel)[0][0]) - level, a, b,
+                           xtol=xtol)
+            else:
+                def fn(t, ch=channel, dch=f"{deriv}_{rest}"):
+                    r = self.at([t])
+                    return float(r.channel(ch)[0][0]) - level, float(r.channel(dch)[0][0])
+
+                x = self._refine(fn, a, b, float(f[i]), float(f[j]), xtol)
+            out.append(Root(float(x), 1 if f[j] > f[i] else -1))
+        return out
+
+
+def evaluation(machine: Machine, params=None, inputs=None, n_grid: int = N_GRID) -> Evaluation:
+    """The :class:`Evaluation` of one design (``params``: one parameter vector, default the
+    file's; ``inputs``: setting inputs, rad), shared: asking again for the same design returns
+    the same evaluation (the last ``KEEP`` designs of each machine are kept)."""
+    if params is not None and np.ndim(params) != 1:
+        raise ValueError("an evaluation is of one design: params must have shape"
+                         f" (n_parameters,), got {np.shape(params)}")
+    P = machine.parameters(inputs=inputs, base=params) if (params is not None or inputs) \
+        else machine.defaults
+    cache = machine._evaluations
+    key = (np.asarray(P, dtype=float).tobytes(), int(n_grid))
+    ev = cache.pop(key, None)
+    if ev is None:
+        ev = Evaluation(machine, P, n_grid)
+        while len(cache) >= KEEP:
+            cache.pop(next(iter(cache)))
+    cache[key] = ev  # the newest last
+    return ev
