@@ -126,6 +126,11 @@ class Evaluation:
     def _roots(self) -> dict:
         return {}
 
+    @cached_property
+    def memo(self) -> dict:
+        """What the analyses built on this design keep of it (extremes, curves), by key."""
+        return {}
+
     def roots(self, channel: str, level: float = 0.0, *, phi0: float = 0.0,
               xtol: float = 1e-12) -> list[Root]:
         """Where ``channel`` equals ``level`` (its unit), in [phi0, phi0 + 2 pi): bracketed on

@@ -104,13 +104,16 @@ def extremes(
     """
     deriv = _derivative_channel(channel)
     ev = evaluation(machine, params, inputs, n_grid)
-    _, unit = ev.grid.channel(channel)
-    found = []
-    for root in ev.roots(deriv, 0.0, phi0=phi0, xtol=xtol):
-        r = ev.at([root.phi], **_selection(channel))
-        found.append(Extremum("max" if root.direction < 0 else "min", float(root.phi),
-                              float(r.channel(channel)[0][0])))
-    return ExtremesResult(channel, unit, tuple(found))
+    key = ("extremes", channel, float(phi0), float(xtol))
+    if key not in ev.memo:
+        _, unit = ev.grid.channel(channel)
+        found = []
+        for root in ev.roots(deriv, 0.0, phi0=phi0, xtol=xtol):
+            r = ev.at([root.phi], **_selection(channel))
+            found.append(Extremum("max" if root.direction < 0 else "min", float(root.phi),
+                                  float(r.channel(channel)[0][0])))
+        ev.memo[key] = ExtremesResult(channel, unit, tuple(found))
+    return ev.memo[key]
 
 
 def _selection(channel: str) -> dict:

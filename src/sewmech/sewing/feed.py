@@ -28,6 +28,7 @@ from ..engine._events import at_rows as _at_rows
 from ..engine._events import crossing_rows as _crossing_rows
 from ..engine._events import extreme_rows as _extreme_rows
 from ..engine.errors import OptionError
+from ..engine.evaluation import evaluation
 from ..engine.kinematics import kinematics
 from ..engine.machine import Machine
 from ..engine.spec import SewingSpec
@@ -204,9 +205,14 @@ def stitch_length(machine: Machine, regulator_deg: float, *, params=None) -> flo
 
 
 def stitch_curve(machine: Machine, n: int = 61, *, params=None) -> FeedCycles:
-    """Feed figures at ``n`` settings evenly over the regulator's travel."""
-    lo, hi = regulator_range_deg(machine)
-    return feed_cycles(machine, np.linspace(lo, hi, n), params=params)
+    """Feed figures at ``n`` settings evenly over the regulator's travel (computed once per
+    design: the report's feed section and its comparison read the same curve)."""
+    memo = evaluation(machine, params).memo
+    key = ("stitch_curve", int(n))
+    if key not in memo:
+        lo, hi = regulator_range_deg(machine)
+        memo[key] = feed_cycles(machine, np.linspace(lo, hi, n), params=params)
+    return memo[key]
 
 
 def zero_mark(machine: Machine, *, params=None) -> float:
