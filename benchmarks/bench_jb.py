@@ -29,14 +29,13 @@ import os
 import platform
 from pathlib import Path
 
-import numba
 import numpy as np
-
-import sewmech
+from _timing import best  # noqa: E402 (benchmarks/ is the script's directory)
 from sewmech.feed import feed_cycles
 from sewmech.thread import thread_balance
 
-from _timing import best  # noqa: E402 (benchmarks/ is the script's directory)
+import sewmech
+from sewmech.engine._threads import n_threads
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results" / "jb.json"
@@ -79,7 +78,7 @@ def main():
          None),
     ]
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cpus,"
-          f" numba threads {numba.get_num_threads()}")
+          f" kernel threads {n_threads()}")
     print(f"{'job':48s} {'best':>10s} {'median':>10s}  target")
     out = {}
     for name, b, med, unit, target in rows:

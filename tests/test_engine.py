@@ -332,14 +332,18 @@ def test_threaded_kernel_equals_serial(rng, monkeypatch, loop):
         params = m.parameters({"B.u": 15 * f[:, 0], "dyad.length1": 40 * f[:, 1],
                                "dyad.length2": 35 * f[:, 2], "D.x": 38 * f[:, 3]})
     calls = []
-    for name in ("evaluate_program", "evaluate_program_parallel"):
-        orig = getattr(kin.K, name)
-        monkeypatch.setattr(kin.K, name, lambda *a, _o=orig, _n=name: (calls.append(_n), _o(*a)))
+    orig = kin.run_chunks
+    monkeypatch.setattr(kin, "run_chunks", lambda *a, **k: (calls.append("threads"),
+                                                          orig(*a, **k))[1])
     monkeypatch.setattr(kin, "_PARALLEL_MIN_WORK", 10**12)
     serial = sewmech.kinematics(m, PHI, params=params, on_failure="mask")
+    assert calls == []
     monkeypatch.setattr(kin, "_PARALLEL_MIN_WORK", 0)
+    from sewmech.engine import _threads
+
+    monkeypatch.setattr(_threads.config, "NUMBA_NUM_THREADS", 2)  # chunks on two threads
     threaded = sewmech.kinematics(m, PHI, params=params, on_failure="mask")
-    assert calls == ["evaluate_program", "evaluate_program_parallel"]
+    assert calls == ["threads"]
     if not loop:
         assert 0 < (~serial.feasible).sum() < serial.feasible.size
     for name in ("p", "v", "a", "theta", "omega", "epsilon", "q", "feasible", "failure_unit",

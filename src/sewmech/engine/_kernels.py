@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ._blocks import CHUNK, MAX_BLOCK, block_qr
 
@@ -63,7 +63,7 @@ _TOGGLE_REL = 1e-12
 _PIO2_LO = 6.123233995736765886130e-17  # pi / 2 - float(pi / 2)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def atan2(y, x):
     """math.atan2 without branches, so that a loop of them vectorises (rad, within 2 ulp of
     libm's atan2; atan2(0, -0.0) gives pi, atan2(0, 0) gives 0).
@@ -169,7 +169,7 @@ def rigid_point(px, py, vx, vy, ax, ay, c, s, om, ep, u, v):
     )
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def rrr_dyad(p1x, p1y, v1x, v1y, a1x, a1y, p2x, p2y, v2x, v2y, a2x, a2y, l1, l2, branch):
     """Two links l1 (from point 1) and l2 (from point 2) meeting at a new joint C.
 
@@ -525,9 +525,9 @@ def _solve_group(g, grp, unk, terms, cams_i, arcs_i, params, d, p, v, a, th, om,
     resid = np.inf
     it = 0
     while True:
-        _set_unknowns(g, grp, unk, q, th, s, 0, om, ep, sd, sdd)
+        _set_unknowns(g, grp, unk, q, th, s, np.int64(0), om, ep, sd, sdd)
         if _assemble(g, grp, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd,
-                     0, F, J, res) != 0:
+                     np.int64(0), F, J, res) != 0:
             info[0] = np.inf
             info[1] = it
             return FAIL_NEWTON
@@ -563,22 +563,24 @@ def _solve_group(g, grp, unk, terms, cams_i, arcs_i, params, d, p, v, a, th, om,
     for i in range(n):
         for j in range(n):
             Jw[i, j] = J[i, j]
-    _assemble(g, grp, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd, 1,
+    _assemble(g, grp, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd,
+              np.int64(1),
               F, J, res)
     for i in range(n):
         dq[i] = -F[i]
     if _gauss_solve(Jw, dq, n) < 1e-13:
         return FAIL_SINGULAR
-    _set_unknowns(g, grp, unk, dq, th, s, 1, om, ep, sd, sdd)
+    _set_unknowns(g, grp, unk, dq, th, s, np.int64(1), om, ep, sd, sdd)
     # accelerations: J qdd = -(d2F/dt2 without the unknown accelerations)
-    _assemble(g, grp, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd, 2,
+    _assemble(g, grp, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd,
+              np.int64(2),
               F, Jw, res)
     for i in range(n):
         dq[i] = -F[i]
         for j in range(n):
             Jw[i, j] = J[i, j]
     _gauss_solve(Jw, dq, n)
-    _set_unknowns(g, grp, unk, dq, th, s, 2, om, ep, sd, sdd)
+    _set_unknowns(g, grp, unk, dq, th, s, np.int64(2), om, ep, sd, sdd)
     return FAIL_NONE
 
 
@@ -592,7 +594,7 @@ BLOCK = 32
 _U = np.uint64  # unsigned lane indices: numba then emits no negative-index wrap-around
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _nan_row(d, row, P, V, A, TH, OM, EP, S, SD, SDD, GP, GV, GA):
     """A failed output row: NaN in every output of design d at row."""
     P[d, row] = np.nan
@@ -1020,6 +1022,7 @@ _DOC = """Evaluate the program for every design (axis 0 of params) along the mar
     mc, ms are cos and sin of the march angles (computed once by the caller, see
     :class:`sewmech.kinematics.KinematicsPlan`). march_store[k] is the output row for march step
     k, or -1 for an intermediate continuation step. need_th[link] says whether that link's angle is returned or read by a later unit.
+    Designs d0 <= d < d1 are evaluated.
     Output arrays are (n_design, n_out, n_selected, ...) for the selected points, links and
     variables (pt_sel, lk_sel, var_sel); fail_unit is -1 where all units assembled, and a failed
     row is NaN throughout. Extra points (ex_tab rows: link, origin point or -1 for the frame
@@ -1028,41 +1031,22 @@ _DOC = """Evaluate the program for every design (axis 0 of params) along the mar
     """
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def evaluate_program(units, params, p_lo, p_hi, march_phi, mc, ms, march_store, march_omega,
-                     march_eps, grp, unk, terms, cams_i, arcs_i, n_points, n_links, n_vars, tol,
-                     max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD,
-                     fail_unit, fail_code, loop_res, loop_worst, ex_tab, ex_uv, GP, GV, GA):
-    # np.int64(0), not 0: a literal would make numba compile _eval_designs a second time
-    return _eval_designs(np.int64(0), params.shape[0], units, params, p_lo, p_hi, march_phi,
-                         mc, ms, march_store, march_omega, march_eps, grp, unk, terms, cams_i,
-                         arcs_i, n_points, n_links, n_vars, tol, max_iter, need_th, pt_sel,
-                         lk_sel, var_sel, P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code,
-                         loop_res, loop_worst, ex_tab, ex_uv, GP, GV, GA)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
+def evaluate_program(d0, d1, units, params, p_lo, p_hi, march_phi, mc, ms, march_store,
+                     march_omega, march_eps, grp, unk, terms, cams_i, arcs_i, n_points, n_links,
+                     n_vars, tol, max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM,
+                     EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst, ex_tab, ex_uv,
+                     GP, GV, GA):
+    return _eval_designs(d0, d1, units, params, p_lo, p_hi, march_phi, mc, ms, march_store,
+                         march_omega, march_eps, grp, unk, terms, cams_i, arcs_i, n_points,
+                         n_links, n_vars, tol, max_iter, need_th, pt_sel, lk_sel, var_sel, P, V,
+                         A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res, loop_worst,
+                         ex_tab, ex_uv, GP, GV, GA)
 
 
-@njit(cache=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def evaluate_program_parallel(units, params, p_lo, p_hi, march_phi, mc, ms, march_store,
-                              march_omega, march_eps, grp, unk, terms, cams_i, arcs_i, n_points,
-                              n_links, n_vars, tol, max_iter, need_th, pt_sel, lk_sel, var_sel,
-                              P, V, A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res,
-                              loop_worst, ex_tab, ex_uv, GP, GV, GA, n_chunks):
-    n = params.shape[0]
-    n_failed = 0
-    for c in prange(n_chunks):
-        n_failed += _eval_designs(c * n // n_chunks, (c + 1) * n // n_chunks, units, params,
-                                  p_lo, p_hi, march_phi, mc, ms, march_store, march_omega,
-                                  march_eps, grp, unk, terms, cams_i, arcs_i, n_points, n_links,
-                                  n_vars, tol, max_iter, need_th, pt_sel, lk_sel, var_sel, P, V,
-                                  A, TH, OM, EP, S, SD, SDD, fail_unit, fail_code, loop_res,
-                                  loop_worst, ex_tab, ex_uv, GP, GV, GA)
-    return n_failed
-
-
-evaluate_program.__doc__ = _DOC.format(which="One design after the other (small batches).")
-evaluate_program_parallel.__doc__ = _DOC.format(
-    which="Designs are split into n_chunks contiguous chunks run on the CPU cores (numba prange);"
-    " worth it for large batches.")
+evaluate_program.__doc__ = _DOC.format(
+    which="It releases the GIL: big batches run as chunks of designs on threads"
+    " (:func:`sewmech.engine._threads.run_chunks`), which write disjoint rows.")
 
 
 # ---- inverse dynamics: the Newton-Euler system of every position -------------------------------
@@ -1407,13 +1391,14 @@ def _force_scratch(n_slots, n_eq):
             np.empty(n_eq, dtype=np.int64))
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def force_solve(pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA, mass,
-                inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off, rperm, cperm,
-                cpl_ptr, cpl_row, cpl_col, pslot, n_slots, LF, LPOW, X, MINPIV, max_written):
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
+def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
+                mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off, rperm,
+                cperm, cpl_ptr, cpl_row, cpl_col, pslot, n_slots, LF, LPOW, X, MINPIV,
+                max_written):
     W, B, XV, t1, t2, t3, t4, worst, rpos, cpos = _force_scratch(n_slots, X.shape[2])
     n_low = 0
-    for d in range(X.shape[0]):
+    for d in range(d0, d1):
         n_low += _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH,
                                GP, GA, mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on,
                                blk_ptr, blk_off, rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot,
@@ -1422,22 +1407,6 @@ def force_solve(pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP,
     return n_low
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, parallel=True)
-def force_solve_parallel(pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
-                         mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off,
-                         rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot, n_slots, LF, LPOW, X,
-                         MINPIV, max_written):
-    n_low = 0
-    for d in prange(X.shape[0]):
-        W, B, XV, t1, t2, t3, t4, worst, rpos, cpos = _force_scratch(n_slots, X.shape[2])
-        # np.int64: prange's index is unsigned, which would compile _force_design twice
-        n_low += _force_design(np.int64(d), pairs, pair_angle, cam_rows, terms, params, P, V,
-                               EP, Q, TH, GP, GA, mass, inertia, gravity, ld_int, ld_f, ld_tw,
-                               ld_on, blk_ptr, blk_off, rperm, cperm, cpl_ptr, cpl_row, cpl_col,
-                               pslot, LF, LPOW, X, MINPIV, W, B, XV, t1, t2, t3, t4, worst, rpos,
-                               cpos, max_written)
-    return n_low
+force_solve.__doc__ = _FORCE_DOC.format(
+    which="Designs d0 <= d < d1; it releases the GIL, so big batches run as chunks on threads.")
 
-
-force_solve.__doc__ = _FORCE_DOC.format(which="One design after the other.")
-force_solve_parallel.__doc__ = _FORCE_DOC.format(which="Designs shared among the threads.")

@@ -31,6 +31,7 @@ from numpy.typing import ArrayLike
 
 from . import _kernels as K
 from ._blocks import MAX_BLOCK
+from ._threads import run_chunks
 from .errors import AnalysisError, OptionError, SewmechError
 from .kinematics import KinematicsPlan, check_speed, kernel_input, kernel_params
 from .machine import Machine, Pair
@@ -740,8 +741,12 @@ class DynamicsPlan:
         LF = np.empty((n_d, n_phi, self._loads[0].shape[0], 2))
         LPOW, MINPIV = np.empty((n_d, n_phi)), np.empty((n_d, n_phi))
         X = np.empty((n_d, n_phi, n_eq))
-        solve = (K.force_solve_parallel if n_d >= 4 and n_d * n_phi >= 20000 else
-                 K.force_solve)
+        if n_d >= 4 and n_d * n_phi >= 20000:  # big batches: chunks of designs on threads
+            def solve(*args, n_d=n_d):
+                return run_chunks(K.force_solve, n_d, args)
+        else:
+            def solve(*args, n_d=n_d):
+                return K.force_solve(0, n_d, *args)
         # inputs read-only (one array type per argument: numba compiles the kernel once)
         head = tuple(kernel_input(x) for x in (st.table, st.angles, st.cam_rows, machine.terms))
         tail = (a["P"], a["V"], a["EP"], a["S"], a["TH"], a["GP"], a["GA"],

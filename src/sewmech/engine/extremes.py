@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
 from .errors import MachineFileError
 from .evaluation import evaluation
 from .kinematics import kinematics

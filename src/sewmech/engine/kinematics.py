@@ -12,11 +12,11 @@ import os
 from collections.abc import Mapping, Sequence
 from typing import Literal
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _kernels as K
+from ._threads import run_chunks
 from .errors import AssemblyError, ConvergenceError, OptionError, ParameterError, SewmechError
 from .machine import PARAM_LIMIT, Machine, compile_machine, domain_message, parameter_location
 from .margins import describe
@@ -342,12 +342,10 @@ class KinematicsPlan:
         n_design = flat.shape[0]
         args = self._head + (flat,) + self._tail + out
         if n_design >= 4 and n_design * self._n_march >= _PARALLEL_MIN_WORK:
-            # the threaded kernel pays some tens of microseconds to start; worth it for big
-            # batches. A few contiguous chunks per thread balance the load (4 per thread best)
-            n_failed = K.evaluate_program_parallel(*args,
-                                                   min(n_design, 4 * numba.get_num_threads()))
+            # threads pay some tens of microseconds to start; worth it for big batches
+            n_failed = run_chunks(K.evaluate_program, n_design, args)
         else:
-            n_failed = K.evaluate_program(*args)
+            n_failed = K.evaluate_program(0, n_design, *args)
         if not n_failed:
             if self._dirty:  # the last call's failures are still marked
                 feasible.fill(True)
