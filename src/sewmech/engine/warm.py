@@ -1,0 +1,40 @@
+"""Compile the kernels once, ahead of the first command: ``python -m sewmech.engine.warm``.
+
+numba compiles the interpreter and the force solver on their first call and keeps the machine
+code on disk (beside the sources); compiling takes 20-25 s on a 2-core machine, which a user
+would otherwise meet on their first command. ``make install`` (and so ``make demo`` and ``make
+test``) runs this right after installing, so every command finds the kernels compiled. Running
+it again costs about a second (it only loads them).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+
+def warm() -> float:
+    """Call every compiled kernel once with the argument types sewmech uses; returns seconds."""
+    import numpy as np
+
+    from .dynamics import inverse_dynamics, pair_geometry
+    from .kinematics import kinematics
+    from .machine import load_machine
+
+    t = time.perf_counter()
+    m = load_machine("jb1-3")  # closed-form units, loop units and cams: every code path
+    phi = np.radians(np.arange(0.0, 360.0, 30.0))
+    kin = kinematics(m, phi)  # the interpreter
+    inverse_dynamics(m, phi)  # the force solver with its block solvers
+    pair_geometry(m, kin)  # force directions of the pairs
+    return time.perf_counter() - t
+
+
+def main() -> int:
+    seconds = warm()
+    print(f"sewmech: kernels compiled and cached ({seconds:.1f} s)", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
