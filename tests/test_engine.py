@@ -478,3 +478,18 @@ def test_one_compiled_kernel_for_read_only_and_writable_inputs():
     inverse_dynamics(m, phi, params=mine, masses={})
     assert len(K.evaluate_program.signatures) == n_kin
     assert len(K.force_solve.signatures) == n_force
+
+
+def test_one_off_calls_share_a_plan_but_not_their_arrays():
+    """kinematics() keeps the plan of a call like an earlier one, yet every result owns its
+    arrays: a later call never changes an earlier result."""
+    m = fourbar()
+    first = sewmech.kinematics(m, PHI)
+    kept = first.p.copy()
+    other = sewmech.kinematics(m, PHI, params=m.parameters({"dyad.length1": 41.0}))
+    again = sewmech.kinematics(m, PHI)
+    assert np.array_equal(first.p, kept) and np.array_equal(again.p, kept)
+    assert not np.array_equal(other.p, kept)
+    assert len(m._plans) == 1  # one prepared plan served all three
+    sewmech.kinematics(m, PHI[:10])
+    assert len(m._plans) == 2

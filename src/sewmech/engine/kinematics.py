@@ -271,9 +271,10 @@ class KinematicsPlan:
                 P0[..., i] = extra[..., i]
         return P0
 
-    def _buffers(self, batch: tuple[int, ...]):
-        """Output arrays and the result that views them, for a batch shape (kept for reuse)."""
-        if self._live is not None and self._live[0] == batch:
+    def _buffers(self, batch: tuple[int, ...], keep: bool = True):
+        """Output arrays and the result that views them, for a batch shape (kept for reuse
+        unless ``keep`` is False)."""
+        if keep and self._live is not None and self._live[0] == batch:
             return self._live[1], self._live[2]
         n_design = int(np.prod(batch, dtype=np.int64))
         n_phi = self.n_phi
@@ -317,9 +318,10 @@ class KinematicsPlan:
         named = dict(zip(("P", "V", "A", "TH", "OM", "EP", "S", "SD", "SDD"), out[:9]),
                      GP=extra[0], GV=extra[1], GA=extra[2], feasible=feasible)
         buffers = (out, feasible, failure_unit, named)
-        self.extra_motion = tuple(x.reshape(batch + (n_phi, n_ex, 2)) for x in extra)
-        self._live = (batch, buffers, result)
-        self._dirty = True  # feasible and failure_unit are not filled yet
+        if keep:
+            self.extra_motion = tuple(x.reshape(batch + (n_phi, n_ex, 2)) for x in extra)
+            self._live = (batch, buffers, result)
+            self._dirty = True  # feasible and failure_unit are not filled yet
         return buffers, result
 
     def __call__(self, params: ArrayLike | None = None, *,
@@ -331,11 +333,15 @@ class KinematicsPlan:
         """
         return self.run(self.designs(params, inputs))
 
-    def run(self, P0: np.ndarray) -> KinematicsResult:
-        """Evaluate the designs ``P0`` (batch + (n_parameters,)) from :meth:`designs`."""
+    def run(self, P0: np.ndarray, *, fresh: bool = False) -> KinematicsResult:
+        """Evaluate the designs ``P0`` (batch + (n_parameters,)) from :meth:`designs`.
+        ``fresh``: into new arrays, which no later call overwrites (what :func:`kinematics`
+        returns)."""
         batch = P0.shape[:-1]
         flat = kernel_params(P0)
-        (out, feasible, failure_unit, _), result = self._buffers(batch)
+        (out, feasible, failure_unit, _), result = self._buffers(batch, keep=not fresh)
+        if fresh:
+            self._dirty = True  # the new arrays are not filled yet
         loop_res = out[11]
         if loop_res.size:
             loop_res.fill(np.nan)  # NaN where a loop unit was not solved
@@ -427,11 +433,36 @@ def kinematics(
     --------
     KinematicsPlan : the same call prepared once, for loops over many designs.
     """
-    plan = KinematicsPlan(machine, phi, rpm=rpm, omega=omega, epsilon=epsilon,
-                          on_failure=on_failure, points=points, links=links,
-                          variables=variables, max_step_deg=max_step_deg, tol=tol,
-                          max_iter=max_iter)
-    return plan(params, inputs=inputs)
+    # the plan of a call like an earlier one is kept with the machine (its checks, march and
+    # selection are done once); each call still returns arrays of its own
+    phi_arr = np.asarray(phi, dtype=float)
+    key = (phi_arr.shape, phi_arr.tobytes(), rpm, _key(omega), _key(epsilon), on_failure,
+           _key(points), _key(links), _key(variables), max_step_deg, tol, max_iter)
+    plans = machine._plans
+    plan = plans.pop(key, None)
+    if plan is None:
+        plan = KinematicsPlan(machine, phi_arr, rpm=rpm, omega=omega, epsilon=epsilon,
+                              on_failure=on_failure, points=points, links=links,
+                              variables=variables, max_step_deg=max_step_deg, tol=tol,
+                              max_iter=max_iter)
+        while len(plans) >= _KEEP_PLANS:
+            plans.pop(next(iter(plans)))
+    plans[key] = plan
+    return plan.run(plan.designs(params, inputs), fresh=True)
+
+
+#: one-off calls whose plans each machine keeps
+_KEEP_PLANS = 16
+
+
+def _key(x):
+    """A hashable stand-in for an argument of kinematics()."""
+    if x is None or isinstance(x, (int, float, str)):
+        return x
+    if isinstance(x, np.ndarray) or np.ndim(x):
+        a = np.asarray(x)
+        return (a.shape, a.dtype.str, a.tobytes()) if a.dtype != object else tuple(a.tolist())
+    return ("scalar", float(x)) if np.isscalar(x) else tuple(x)
 
 
 def _raise_first(machine, phi, store, batch, row, fail_unit, fail_code, loop_res, loop_worst,

@@ -335,6 +335,11 @@ class Machine:
         return {}
 
     @cached_property
+    def _plans(self) -> dict:
+        """The prepared plans of recent one-off kinematics() calls."""
+        return {}
+
+    @cached_property
     def _evaluations(self) -> dict:
         """The shared evaluations of designs (:func:`sewmech.engine.evaluation.evaluation`)."""
         return {}
