@@ -30,11 +30,14 @@ PNG_DPI = 120
 
 def render(fig, root: Path, stem: str) -> bytes:
     """Write ``fig`` as ``root/stem.png`` and ``.svg`` (atomically); return the PNG bytes. The
-    layout is computed once, for the PNG, and kept for the SVG."""
+    layout is computed once and kept for both formats (each format is then drawn once)."""
+    engine = fig.get_layout_engine()
+    if engine is not None:  # lay the figure out once; both formats keep its positions
+        engine.execute(fig)
+        fig.set_layout_engine(None)
     png = io.BytesIO()
     # zlib level 1: the same pixels, written in a fraction of the time (files 10-20 % larger)
     fig.savefig(png, format="png", dpi=PNG_DPI, pil_kwargs={"compress_level": 1})
-    fig.set_layout_engine("none")  # the positions stay where the PNG's layout put them
     svg = io.BytesIO()
     with matplotlib.rc_context({"svg.fonttype": "none"}):  # text as text, not glyph outlines
         fig.savefig(svg, format="svg")
@@ -60,6 +63,10 @@ def _worker_start():
 
     matplotlib.use("Agg")
     import matplotlib.pyplot  # noqa: F401  (loaded once per worker, not per figure)
+
+    from ..engine import _threads
+
+    _threads.set_threads(1)  # the workers share the cores already: no kernel threads in them
 
 
 def figure_pool(workers: int | None = None) -> ProcessPoolExecutor | None:

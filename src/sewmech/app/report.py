@@ -14,8 +14,10 @@ sections join as those analyses land.
 
 from __future__ import annotations
 
+import collections
 import html
 import math
+import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -28,7 +30,7 @@ from ..engine.machine import Machine
 from ..sewing import feed as FD
 from ..sewing import timing as T
 from ..sewing.checks import check_timing
-from .figures import Figures, table_html, figure_pool
+from .figures import Figures, figure_pool, table_html
 from .outdir import output_dir
 
 MM_TO_M = 1e-3
@@ -68,6 +70,12 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
     import matplotlib.pyplot as plt
 
     s = T.roles(machine)
+    has_feed = s.feed_dog is not None and s.regulator is not None
+    # the sections that stand alone start now, in the workers if there are any
+    names = (["feed"] if has_feed else []) + (["dynamics"] if machine.spec.masses else []) + (
+        ["thread"] if machine.spec.thread is not None and machine.spec.thread.bobbin_case_radius
+        else []) + (["comparison"] if variants else [])
+    sections = _Sections(pool, machine, root, variants, names)
     conv = machine.spec.convention
     n = int(round(360.0 / step_deg))
     phi_deg = np.arange(n + 1) * step_deg  # closed cycle for the plots
@@ -81,7 +89,7 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
     sw = T.shuttle_swing(machine) if s.shuttle_link else None
     step("timing checks")
 
-    figs = Figures(root, machine.name, pool)
+    figs = Figures(root, machine.name)
     ref = f"phi = {conv.reference_phi_deg:g} deg: {conv.reference_event}"
 
     # ---- motion diagrams ---------------------------------------------------------------
@@ -136,7 +144,6 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
                  pd.DataFrame({"phi_deg": phi_deg, "x_mm": p[:, 0], "y_mm": p[:, 1]}))
 
     # ---- timing diagram ------------------------------------------------------------------
-    has_feed = s.feed_dog is not None and s.regulator is not None
     if has_feed:
         reg_max = FD.regulator_range_deg(machine)[1]
         fres = kinematics(machine, np.radians(phi_deg), points=[s.feed_dog],
@@ -202,22 +209,20 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
              " and dog above the plate; dashed: the shuttle point meets the needle.",
              pd.DataFrame(tdata))
     step("figures")
-    feed_tables = _feed_section(figs, machine, step) if has_feed else {}
-    if machine.spec.thread is not None and machine.spec.thread.bobbin_case_radius:
-        _thread_section(figs, machine)
-        step("thread")
-    if machine.spec.masses:
-        from .report_dynamics import dynamics_section
-
-        intro = len(figs)
-        key = dynamics_section(figs, machine, variants)
-        key.to_csv(root / f"{machine.name}-dynamics-key-figures.csv", index=False,
-                   float_format="%.10g")
-        figs.insert_html(intro, _dynamics_intro(machine, key))
-        step("dynamics")
-    if variants:
-        _comparison(figs, [machine] + list(variants))
-        step("comparison")
+    blocks = figs.blocks
+    feed_tables = {}
+    for name, (section_blocks, result) in sections.results():
+        if name == "feed":
+            feed_tables = result
+            for done in ("feed trajectories", "stitch curve", "sensitivity"):
+                step(done)
+        elif name == "dynamics":
+            result.to_csv(root / f"{machine.name}-dynamics-key-figures.csv", index=False,
+                          float_format="%.10g")
+            blocks.append(_dynamics_intro(machine, result))
+        blocks += section_blocks
+        if name != "feed":
+            step(name)
 
     # ---- tables --------------------------------------------------------------------------
     chk = pd.DataFrame([{"check": c.name, "value": c.value, "unit": c.unit,
@@ -264,10 +269,80 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
 
     for name, df in feed_tables.get("csv", {}).items():
         df.to_csv(root / f"{machine.name}-{name}.csv", index=False, float_format="%.10g")
-    page = _page(machine, f"{ref} ({reference})", chk, tim, par, figs.blocks, text, src.name,
+    page = _page(machine, f"{ref} ({reference})", chk, tim, par, blocks, text, src.name,
                  feed_tables.get("html", []))
     (root / "index.html").write_text(page, encoding="utf-8")
     step("page")
+
+
+#: what the sections that run in worker processes read (set before the workers are forked)
+_SHARED: dict = {}
+
+
+def _run_section(name: str):
+    """One section of the report with its figures (drawn where it runs); returns its HTML
+    blocks and what the page needs of it (the feed's tables, the dynamics' key figures)."""
+    machine, root, variants = _SHARED["machine"], _SHARED["root"], _SHARED["variants"]
+    figs = Figures(root, machine.name)
+    result = None
+    if name == "feed":
+        result = _feed_section(figs, machine, lambda done: None)
+    elif name == "thread":
+        _thread_section(figs, machine)
+    elif name == "dynamics":
+        from .report_dynamics import dynamics_section
+
+        result = dynamics_section(figs, machine, variants)
+    else:
+        _comparison(figs, [machine] + list(variants))
+    return figs.blocks, result
+
+
+class _Sections:
+    """The report's sections that need nothing of the others (feed, dynamics, thread, the
+    comparison), started at once in the worker processes: each worker takes the next one when
+    it is done, and this process, once its own part is drawn, takes what is left from the
+    back of the queue, so that no core waits while a section waits. :meth:`results` gives
+    them in page order."""
+
+    def __init__(self, pool, machine, root, variants, names):
+        _SHARED.update(machine=machine, root=root, variants=variants)
+        self.names = names
+        self.pool = pool
+        self.futures: dict = {}
+        self.lock = threading.Lock()
+        # the longest first, so that the last ones to finish are short
+        self.queue = collections.deque(sorted(
+            names, key=["dynamics", "feed", "thread", "comparison"].index))
+        if pool is not None:
+            for _ in range(min(pool._max_workers, len(self.queue))):
+                self._next()
+
+    def _next(self, done=None):
+        with self.lock:
+            if not self.queue or (done is not None and done.cancelled()):
+                return
+            name = self.queue.popleft()
+            try:
+                future = self.futures[name] = self.pool.submit(_run_section, name)
+            except RuntimeError:  # the pool is shut down (an error or a signal): stop here
+                self.queue.clear()
+                return
+        future.add_done_callback(self._next)
+
+    def results(self):
+        try:
+            here = {}
+            while True:
+                with self.lock:
+                    if not self.queue:
+                        break
+                    name = self.queue.pop()
+                here[name] = _run_section(name)
+            for name in self.names:
+                yield name, here[name] if name in here else self.futures[name].result()
+        finally:
+            _SHARED.clear()
 
 
 def _feed_section(figs: Figures, machine: Machine, step) -> dict:

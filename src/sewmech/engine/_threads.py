@@ -14,10 +14,19 @@ from concurrent.futures import ThreadPoolExecutor
 from numba import config
 
 _POOL: ThreadPoolExecutor | None = None
+_THREADS: int | None = None
 
 
 def n_threads() -> int:
-    return max(1, int(config.NUMBA_NUM_THREADS))
+    """Threads for big batches: :func:`set_threads`, else ``NUMBA_NUM_THREADS``."""
+    return _THREADS if _THREADS is not None else max(1, int(config.NUMBA_NUM_THREADS))
+
+
+def set_threads(n: int | None) -> None:
+    """Use ``n`` threads for big batches in this process (None: ``NUMBA_NUM_THREADS``); a
+    process that shares the cores with others (a report's workers) uses one."""
+    global _THREADS
+    _THREADS = None if n is None else max(1, int(n))
 
 
 def run_chunks(kernel, n_design: int, args: tuple, *, chunks_per_thread: int = 4) -> int:
