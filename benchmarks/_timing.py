@@ -16,15 +16,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 
-def best(fn, repeat: int = 7) -> tuple[float, float]:
-    """(best, median) wall time of ``fn()`` in seconds over ``repeat`` calls after one warm-up
-    call (numba compile or cache load)."""
+def best(fn, repeat: int = 7, number: int = 1) -> tuple[float, float]:
+    """(best, median) time per call of ``fn()`` in seconds over ``repeat`` repeats of ``number``
+    calls each, after one warm-up call (numba compile or cache load). For one contender alone;
+    contenders compared with each other go through :func:`interleave`."""
     fn()
     times = []
     for _ in range(repeat):
         t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
+        for _ in range(number):
+            fn()
+        times.append((time.perf_counter() - t0) / number)
     return min(times), float(np.median(times))
 
 
@@ -49,11 +51,21 @@ class Timings:
         return min(r), max(r)
 
 
+@dataclass(frozen=True)
+class Own:
+    """What a contender returns to report a time it measured itself (seconds per call), e.g. a
+    solver's own clock that leaves out its model building."""
+
+    seconds: float
+
+
 def interleave(contenders: dict[str, Callable[[], object]], *, rounds: int = 7,
-               number: int = 1, warmup: bool = True) -> Timings:
+               number: int | dict[str, int] = 1, warmup: bool = True) -> Timings:
     """Time every contender in each of ``rounds`` rounds, one after the other within a round
     (the order turns from round to round). A contender's time in a round is the mean of
-    ``number`` calls, so that short calls are timed over many repeats."""
+    ``number`` calls (one count for all, or a count per contender), so that short calls are
+    timed over many repeats; a contender that returns
+    :class:`Own` is timed by its own clock."""
     if warmup:
         for fn in contenders.values():
             fn()
@@ -63,10 +75,15 @@ def interleave(contenders: dict[str, Callable[[], object]], *, rounds: int = 7,
         order = names[k % len(names):] + names[:k % len(names)]
         for name in order:
             fn = contenders[name]
+            calls = number[name] if isinstance(number, dict) else number
+            own = []
             t0 = time.perf_counter()
-            for _ in range(number):
-                fn()
-            out.rounds[name].append((time.perf_counter() - t0) / number)
+            for _ in range(calls):
+                r = fn()
+                if isinstance(r, Own):
+                    own.append(r.seconds)
+            wall = (time.perf_counter() - t0) / calls
+            out.rounds[name].append(sum(own) / len(own) if own else wall)
     return out
 
 
