@@ -31,6 +31,10 @@ PNG_DPI = 120
 def render(fig, root: Path, stem: str) -> bytes:
     """Write ``fig`` as ``root/stem.png`` and ``.svg`` (atomically); return the PNG bytes. The
     layout is computed once and kept for both formats (each format is then drawn once)."""
+    # lay out at the PNG's resolution: the PNG then draws with the layout's renderer and finds
+    # its text extents measured (about 6 % less drawing; positions are fractions of the figure,
+    # so the SVG is laid out the same)
+    fig.set_dpi(PNG_DPI)
     engine = fig.get_layout_engine()
     if engine is not None:  # lay the figure out once; both formats keep its positions
         engine.execute(fig)
