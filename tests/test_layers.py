@@ -121,3 +121,24 @@ def test_the_checker_sees_an_upward_import(tmp_path):
     found = _imports("sewmech.engine.bad", bad)
     assert ("sewmech.app.cli", 2) in found and _layer("sewmech.app.cli") > _layer(
         "sewmech.engine.bad")
+
+
+def test_starting_a_command_imports_no_plotting_tables_or_optimisers():
+    """Every command imports sewmech's numeric layers and its command line; the heavy libraries
+    (matplotlib, pandas, scipy.optimize: about 0.8 s together) come only with the functions
+    that use them."""
+    import subprocess
+    import sys
+
+    code = ("import importlib, pkgutil, sys, sewmech\n"
+            "for layer in ('engine', 'sewing', 'design'):\n"
+            "    pkg = importlib.import_module('sewmech.' + layer)\n"
+            "    for m in pkgutil.iter_modules(pkg.__path__):\n"
+            "        if m.name != '_blockgen':  # (a script that writes _blocks.py)\n"
+            "            importlib.import_module(f'sewmech.{layer}.{m.name}')\n"
+            "import sewmech.app.cli\n"
+            "print(sorted(m for m in ('matplotlib', 'pandas', 'scipy.optimize')"
+            " if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    assert out == "[]"

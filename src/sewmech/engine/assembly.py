@@ -26,7 +26,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import brentq
 
 from . import _kernels as K
 from .kinematics import check_design, kinematics
@@ -123,6 +122,8 @@ def prove_assembly(machine: Machine, *, params=None, inputs=None,
     -------
     AssemblyProof
     """
+    from scipy.optimize import brentq  # (here, not at the top: a third of a second to import)
+
     turns = machine.period_turns or 1  # a crank at ratio 1/2 repeats after two turns
     h = 2.0 * math.pi / int(round(360.0 / step_deg))
     n = int(round(360.0 / step_deg)) * turns

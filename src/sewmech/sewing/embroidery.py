@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.optimize import brentq
 
 from ..engine.errors import AnalysisError
 from ..engine.kinematics import kinematics
@@ -108,6 +107,8 @@ def design(machine: Machine, *, ab: float = 17.5, k1: float = 0.93, k2: float = 
     if k.size == 0:
         raise ValueError("no frame angle turns DC by half a turn between the design positions")
     # of the solutions, the one with the frame line nearest +x (the paper's small alpha)
+    from scipy.optimize import brentq
+
     roots = [brentq(dc_turn, grid[i], grid[i + 1], xtol=1e-12) for i in k]
     alpha = min(roots, key=abs)
     p = machine.parameters({"D.x": ad * math.cos(alpha), "D.y": ad * math.sin(alpha)},

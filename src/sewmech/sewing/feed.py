@@ -22,7 +22,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.optimize import brentq
 
 from ..engine._events import at_rows as _at_rows
 from ..engine._events import crossing_rows as _crossing_rows
@@ -225,6 +224,8 @@ def zero_mark(machine: Machine, *, params=None) -> float:
         raise ValueError(f"machine '{machine.name}': the stitch length does not change sign over"
                          f" the regulator travel {lo:g}..{hi:g} deg")
     a, b = c.regulator_deg[k[0]], c.regulator_deg[k[0] + 1]
+    from scipy.optimize import brentq
+
     return brentq(lambda g: stitch_length(machine, g, params=params), a, b, xtol=1e-9)
 
 
