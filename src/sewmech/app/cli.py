@@ -27,7 +27,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..engine.errors import AnalysisError, OptionError, SewmechError
-from ..engine.machine import Machine, load_machine, shipped_machines
+from ..engine.machine import Machine, file_value, load_machine, shipped_machines
 
 DEFAULT_MACHINE = "jb1-3"
 
@@ -137,11 +137,14 @@ def _load(machine: str, sets: list[str] | None = None) -> Machine:
     return m.with_parameters(values, origin="--set") if values else m
 
 
-_UNITS = {"mm": ("mm", 1.0), "deg": ("rad", math.pi / 180.0), "rad": ("rad", 1.0)}
+#: the units --set reads: suffix -> (internal unit, factor to it); counterweights in g, kg and
+#: g cm (static moment)
+_UNITS = {"mm": ("mm", 1.0), "deg": ("rad", math.pi / 180.0), "rad": ("rad", 1.0),
+          "kg": ("kg", 1.0), "g": ("kg", 1e-3), "gcm": ("kg mm", 1e-2)}
 
 
 def _parse_sets(m: Machine, sets: list[str] | None) -> dict[str, float]:
-    """--set NAME=VALUE[mm|deg|rad] -> {name: value in internal units}."""
+    """--set NAME=VALUE[mm|deg|rad|g|kg|gcm] -> {name: value in internal units}."""
     values: dict[str, float] = {}
     designs = {f"{c}.{k}": ("mm" if k in ("width", "stroke") else "rad")
                for c in m.cam_designs for k in ("width", "stroke", "dwell", "orientation")}
@@ -158,7 +161,8 @@ def _parse_sets(m: Machine, sets: list[str] | None) -> dict[str, float]:
             except KeyError as exc:
                 raise OptionError("--set", exc.args[0], f"`sewmech check {m.name} --parameters`"
                                   " lists them") from None
-        suffix = next((u for u in _UNITS if text.endswith(u)), None)
+        suffix = next((u for u in sorted(_UNITS, key=len, reverse=True) if text.endswith(u)),
+                      None)
         number = text[: -len(suffix)] if suffix else text
         try:
             value = float(number)
@@ -169,6 +173,11 @@ def _parse_sets(m: Machine, sets: list[str] | None) -> dict[str, float]:
         if unit == "rad" and suffix is None:
             raise OptionError("--set", f"{item!r}: '{name}' is an angle; give its unit",
                               f"Write {name}={number}deg (or {number}rad)")
+        if unit in ("kg", "kg mm") and suffix is None:
+            example = f"{number}g" if unit == "kg" else f"{number}gcm"
+            raise OptionError("--set", f"{item!r}: '{name}' is a counterweight's"
+                              f" {'mass' if unit == 'kg' else 'static moment'}; give its unit",
+                              f"Write {name}={example}")
         if suffix is not None and _UNITS[suffix][0] != unit:
             raise OptionError("--set", f"{item!r}: '{name}' is in {unit}, not {suffix}")
         if name in values:
@@ -240,8 +249,9 @@ def _bounded(option: str, value: float, lo: float, hi: float, unit: str, example
     return value
 
 
-SET_HELP = ("change a parameter of the machine file, e.g. needle_bar.length=44 (mm) or"
-            " needle_crank.phase=5deg; names as `check --parameters` lists them; repeatable")
+SET_HELP = ("change a parameter of the machine file, e.g. needle_bar.length=44 (mm),"
+            " needle_crank.phase=5deg or a counterweight's cw.mass=25g, cw.static_moment=64gcm;"
+            " names as `check --parameters` lists them; repeatable")
 
 
 @command("machines")
@@ -358,8 +368,8 @@ def _print_parameters(m: Machine) -> None:
     for name, value, unit in zip(m.parameter_names, m.defaults, m.parameter_units):
         loc = m.parameter_location(name)
         where = f"[{loc[0]}] {loc[1]}" if loc else "(built from the cam's constant_width)"
-        shown = f"{math.degrees(value):.6g}" if unit == "rad" else f"{value:.6g}"
-        rows.append((name, shown, "deg" if unit == "rad" else unit, where))
+        x, shown_unit = file_value(value, unit)
+        rows.append((name, f"{x:.6g}", shown_unit, where))
     w = [max(len(r[k]) for r in rows) for k in range(3)]
     console.print(f"{m.name}: parameters (names for --set and Machine.parameters; values as in"
                   " the file)", highlight=False)

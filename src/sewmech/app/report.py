@@ -26,7 +26,7 @@ import pandas as pd
 
 from ..engine.extremes import require_reference
 from ..engine.kinematics import kinematics
-from ..engine.machine import Machine
+from ..engine.machine import Machine, file_value
 from ..sewing import feed as FD
 from ..sewing import timing as T
 from ..sewing.checks import check_timing
@@ -255,11 +255,9 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
     tim = pd.DataFrame(timing_rows, columns=["event", "value", "unit"])
     tim.to_csv(root / f"{machine.name}-timing-events.csv", index=False,
                float_format="%.10g")
+    shown = [file_value(v, u) for v, u in zip(machine.defaults, machine.parameter_units)]
     par = pd.DataFrame({"parameter": machine.parameter_names,
-                        "value": [_display(v, u) for v, u in
-                                  zip(machine.defaults, machine.parameter_units)],
-                        "unit": [("deg" if u == "rad" else u)
-                                 for u in machine.parameter_units]})
+                        "value": [x for x, _ in shown], "unit": [u for _, u in shown]})
     par.to_csv(root / f"{machine.name}-parameters.csv", index=False, float_format="%.10g")
     src = Path(machine.file)
     text = src.read_text(encoding="utf-8") if src.is_file() else ""
@@ -628,10 +626,6 @@ def _comparison(figs: Figures, machines: Sequence[Machine]):
              " and the stitch-length curves.", pd.DataFrame(data), table=table)
 
 
-def _display(value: float, unit: str) -> float:
-    return math.degrees(value) if unit == "rad" else float(value)
-
-
 def _shade(ax, x, mask, color, label):
     ax.fill_between(x, 0, 1, where=mask, transform=ax.get_xaxis_transform(), color=color,
                     alpha=0.10, lw=0, label=label)
@@ -660,7 +654,7 @@ def _changes_html(machine) -> str:
             if name not in machine.parameter_names else \
             machine.parameter_units[machine.parameter_index(name)]
         shown = f"{math.degrees(value):.6g} deg" if unit in ("rad", "deg") else \
-            f"{value:.6g} {unit}".rstrip(" 1")
+            "{:.6g} {}".format(*file_value(value, unit)).rstrip(" 1")
         items.append(f"<li><code>{html.escape(name)}</code> = {html.escape(shown)}</li>")
     return ('<p class="fail">This report is of a variant: these values differ from the machine'
             f' file (set with --set):</p><ul>{"".join(items)}</ul>')

@@ -32,6 +32,7 @@ from numpy.typing import ArrayLike
 from . import _kernels as K
 from ._blocks import MAX_BLOCK
 from ._threads import run_chunks
+from .counterweights import CounterweightMotion, counterweight_values
 from .errors import AnalysisError, OptionError, SewmechError
 from .kinematics import KinematicsPlan, check_speed, kernel_input, kernel_params
 from .machine import Machine, Pair
@@ -164,7 +165,12 @@ class DynamicsResult:
     params : ndarray, batch + (n_parameters,)
         The designs' parameter vectors.
     com_p, com_v, com_a : ndarray, batch + (n_phi, n_links, 2)
-        Centre of mass of each link: mm, mm/s, mm/s^2.
+        Centre of mass of each link (its ``[masses]`` without counterweights): mm, mm/s,
+        mm/s^2.
+    counterweights : CounterweightMotion or None
+        The machine's ``[counterweights]`` (point masses on links, per design): their masses
+        and motion; the forces, the shaking, the energies and the bearing reactions include
+        them.
     """
 
     machine: Machine = field(repr=False)
@@ -182,6 +188,7 @@ class DynamicsResult:
     params: np.ndarray = field(repr=False)
     mass_props: dict = field(default_factory=dict, repr=False)
     load_links: tuple[int, ...] = ()
+    counterweights: CounterweightMotion | None = field(default=None, repr=False)
 
     # ---- pairs
     @cached_property
@@ -280,8 +287,12 @@ class DynamicsResult:
     @cached_property
     def shaking_force(self) -> np.ndarray:
         """Shaking force, N, batch + (n_phi, 2): the resultant of the links' inertia forces,
-        -sum m a_G, which the frame (and through it the table) feels."""
-        return -np.einsum("...l,...lc->...c", self._m, self.com_a) * 1e-3
+        -sum m a_G (counterweights included), which the frame (and through it the table)
+        feels."""
+        out = -np.einsum("...l,...lc->...c", self._m, self.com_a) * 1e-3
+        if self.counterweights is not None:
+            out += self.counterweights.inertia_force()
+        return out
 
     @cached_property
     def shaking_moment(self) -> np.ndarray:
@@ -289,8 +300,11 @@ class DynamicsResult:
         r_G x m a_G), the motor's reaction on its mount included."""
         g, a = self.com_p, self.com_a
         cross = g[..., 0] * a[..., 1] - g[..., 1] * a[..., 0]
-        return -(np.einsum("...l,...l->...", self._m, cross)
-                 + np.einsum("...l,...l->...", self._I, self.kin.epsilon)) * 1e-3
+        out = -(np.einsum("...l,...l->...", self._m, cross)
+                + np.einsum("...l,...l->...", self._I, self.kin.epsilon)) * 1e-3
+        if self.counterweights is not None:
+            out += self.counterweights.moment_of_inertia_forces()
+        return out
 
     # ---- energy
     @cached_property
@@ -305,29 +319,41 @@ class DynamicsResult:
     def kinetic_energy(self) -> np.ndarray:
         """Kinetic energy of the machine, N mm (= mJ), batch + (n_phi,)."""
         v2 = np.sum(self.com_v ** 2, axis=-1)
-        return 0.5e-3 * (np.sum(self._m * v2, axis=-1)
-                         + np.sum(self._I * self.kin.omega ** 2, axis=-1))
+        out = 0.5e-3 * (np.sum(self._m * v2, axis=-1)
+                        + np.sum(self._I * self.kin.omega ** 2, axis=-1))
+        if self.counterweights is not None:
+            out += self.counterweights.kinetic_energy()
+        return out
 
     @cached_property
     def kinetic_energy_rate(self) -> np.ndarray:
         """dT/dt from the motion alone (sum m v.a + I omega alpha), N mm/s."""
         va = np.sum(self.com_v * self.com_a, axis=-1)
-        return 1e-3 * (np.sum(self._m * va, axis=-1)
-                       + np.sum(self._I * self.kin.omega * self.kin.epsilon, axis=-1))
+        out = 1e-3 * (np.sum(self._m * va, axis=-1)
+                      + np.sum(self._I * self.kin.omega * self.kin.epsilon, axis=-1))
+        if self.counterweights is not None:
+            out += self.counterweights.kinetic_energy_rate()
+        return out
 
     @cached_property
     def potential_energy(self) -> np.ndarray:
         """Potential energy of gravity, N mm, above y = 0 of the frame (zero without gravity)."""
         if not self.gravity:
             return np.zeros_like(self.kinetic_energy)
-        return GRAVITY * np.sum(self._m * self.com_p[..., 1], axis=-1)
+        out = GRAVITY * np.sum(self._m * self.com_p[..., 1], axis=-1)
+        if self.counterweights is not None:
+            out += GRAVITY * self.counterweights.weight_height()
+        return out
 
     @cached_property
     def potential_energy_rate(self) -> np.ndarray:
         """dV/dt, N mm/s."""
         if not self.gravity:
             return np.zeros_like(self.kinetic_energy)
-        return GRAVITY * np.sum(self._m * self.com_v[..., 1], axis=-1)
+        out = GRAVITY * np.sum(self._m * self.com_v[..., 1], axis=-1)
+        if self.counterweights is not None:
+            out += GRAVITY * self.counterweights.weight_rate()
+        return out
 
     @property
     def external_power(self) -> np.ndarray:
@@ -422,6 +448,17 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
         if res.gravity:
             S[..., 1] -= m * GRAVITY
             Mx += zc * m * GRAVITY
+    cw = res.counterweights
+    for k in range(0 if cw is None else len(cw.names)):
+        if names[cw.links[k]] not in shaft.links:
+            continue
+        m, z, a = cw.mass[..., k, None], cw.z[k], cw.a[..., k, :]  # a point mass at plane z
+        mass_S += 1e-3 * m[..., None] * a
+        dHx += -1e-3 * z * m * a[..., 1]  # dH/dt = r x m a, about the axis point
+        dHy += 1e-3 * z * m * a[..., 0]
+        if res.gravity:
+            S[..., 1] -= m * GRAVITY
+            Mx += z * m * GRAVITY
     # bearings: B_f + B_r + S = sum m a ; z x B terms + M = dH/dt
     need = mass_S - S
     zf, zr = shaft.bearings["front"], shaft.bearings["rear"]
@@ -692,10 +729,19 @@ class DynamicsPlan:
             machine.check_loads(list(self.loads))
         n_links = len(machine.link_names)
         links = np.arange(n_links, dtype=np.int64)
+        rows, local = [np.stack([links, lm.origins], axis=1)], [np.stack([lm.com_u, lm.com_v],
+                                                                          axis=1)]
+        # counterweights: the motion of the points (0, 0), (1, 0), (0, 1) of each one's link
+        # frame, from which every point mass on it follows linearly (see _counterweights)
+        self.counterweights = machine.counterweights
+        self._cw_links = sorted({c.link_index for c in self.counterweights})
+        for li in self._cw_links:
+            origin = next(c.origin for c in self.counterweights if c.link_index == li)
+            rows.append(np.array([[li, machine.point_index(origin)]] * 3, dtype=np.int64))
+            local.append(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]))
         self.kin_plan = KinematicsPlan(
             machine, phi, rpm=rpm, omega=omega, epsilon=epsilon,
-            extra_points=(np.stack([links, lm.origins], axis=1),
-                          np.stack([lm.com_u, lm.com_v], axis=1)))
+            extra_points=(np.concatenate(rows), np.concatenate(local)))
         self._loads = _load_tables(machine, self.loads, np.degrees(self.kin_plan.phi))
         self._load_links = tuple(int(i) for i in self._loads[0][:, 0])
         self._live: tuple | None = None
@@ -717,9 +763,11 @@ class DynamicsPlan:
         live = self._live
         if live is None or live[0] is not a:  # a new batch shape: new arrays and result
             live = self._live = self._prepare(kin, a)
-        _, solve, head, tail, res = live
+        _, solve, head, tail, res, cw = live
         if solve(*head, kernel_params(P), *tail, self._max_written):  # some pivots ~ zero
             self._raise_singular(kin, a["feasible"], tail[-1])
+        if cw is not None:
+            self._counterweights(P, solve, head, tail, cw)
         if kp.any_failed:  # some positions could not be assembled (on_failure="mask")
             feasible = a["feasible"]
             for x in tail[-4:]:  # LF, LPOW, X, MINPIV
@@ -759,14 +807,94 @@ class DynamicsPlan:
         def shape(x):
             return x.reshape(batch + x.shape[1:])
 
-        gp, gv, ga = kp.extra_motion
+        n_links = len(machine.link_names)
+        gp, gv, ga = (x[..., :n_links, :] for x in kp.extra_motion)
+        cw = motion = None
+        if self.counterweights:
+            cw, motion = self._prepare_counterweights(a, tail, batch, n_eq)
         res = DynamicsResult(
             machine=machine, kin=kin, pairs=machine.pairs, unknowns=shape(X),
             gravity=self.gravity, load_names=tuple(ld.name for ld in self.loads),
             load_force=shape(LF), load_power=shape(LPOW), mass=lm, com_p=gp, com_v=gv,
             com_a=ga, params=np.empty(batch + (machine.defaults.size,)),
-            mass_props=self.mass_props, load_links=self._load_links)
-        return a, solve, head, tail, res
+            mass_props=self.mass_props, load_links=self._load_links, counterweights=motion)
+        return a, solve, head, tail, res, cw
+
+    # ---- counterweights -----------------------------------------------------------------------
+    # The forces are linear in the loads a point mass m at r = (u, v) of link L's frame puts on
+    # L: its inertia force and weight (linear in m and m r) and their moment about the frame's
+    # origin (linear in m r, and m |r|^2 times the link's angular acceleration). So with X_0,
+    # X_u, X_v the machine's answer to 1 kg at (0, 0), (1, 0), (0, 1) of that frame alone (no
+    # loads, no other mass; gravity as asked) and X_I its answer to 1 kg mm^2 of moment of
+    # inertia on L alone, the mass adds
+    #     m X_0 + m u (X_u - X_0 - X_I) + m v (X_v - X_0 - X_I) + m (u^2 + v^2) X_I.
+    # Four solves per link with counterweights give it for every design, whatever its
+    # counterweights.
+    def _prepare_counterweights(self, a, tail, batch, n_eq):
+        """Arrays of the counterweight solves and the result's CounterweightMotion."""
+        n_links = len(self.machine.link_names)
+        n_d, n_phi = a["GP"].shape[:2]
+        n_cw = len(self.counterweights)
+        units = [np.zeros(n_links) for _ in self._cw_links]
+        for e, li in zip(units, self._cw_links):
+            e[li] = 1.0
+        units = [kernel_input(e) for e in units]
+        nothing = kernel_input(np.zeros(n_links))
+        empty = _load_tables(self.machine, [], np.degrees(self.kin_plan.phi))
+        scratch = dict(
+            GP=np.zeros((n_d, n_phi, n_links, 2)), GA=np.zeros((n_d, n_phi, n_links, 2)),
+            unit=units, nothing=nothing,
+            loads=tuple(kernel_input(x) for x in empty),
+            LF=np.empty((n_d, n_phi, 0, 2)), LPOW=np.empty((n_d, n_phi)),
+            MINPIV=np.empty((n_d, n_phi)),
+            X=np.empty((len(self._cw_links), 4, n_d, n_phi, n_eq)),
+            cp=np.empty((n_d, n_phi, n_cw, 2)), cv=np.empty((n_d, n_phi, n_cw, 2)),
+            ca=np.empty((n_d, n_phi, n_cw, 2)), mass=np.empty((n_d, n_cw)))
+        shape = batch
+        motion = CounterweightMotion(
+            names=tuple(c.name for c in self.counterweights),
+            links=np.array([c.link_index for c in self.counterweights], dtype=np.int64),
+            z=np.array([c.z for c in self.counterweights]),
+            mass=scratch["mass"].reshape(shape + (n_cw,)),
+            p=scratch["cp"].reshape(shape + (n_phi, n_cw, 2)),
+            v=scratch["cv"].reshape(shape + (n_phi, n_cw, 2)),
+            a=scratch["ca"].reshape(shape + (n_phi, n_cw, 2)))
+        return scratch, motion
+
+    def _counterweights(self, P, solve, head, tail, cw) -> None:
+        """Add the counterweights of designs ``P`` to the unknowns ``tail``'s X holds, and
+        fill their motion."""
+        n_links = len(self.machine.link_names)
+        a = self.kin_plan.kernel_arrays()
+        n_d = a["GP"].shape[0]
+        # (P, V, EP, S, TH) as in the main solve; the masses, loads and outputs are the basis'
+        state, rest = tail[:5], tail[14:-4]  # the block structure and n_slots
+        m, u, v = counterweight_values(self.counterweights, P.reshape(n_d, -1))
+        cw["mass"][...] = m
+        X = tail[-2]
+        for j, li in enumerate(self._cw_links):
+            base = n_links + 3 * j  # the three frame points of this link among the extras
+            for b in range(4):  # 1 kg at each point; then 1 kg mm^2 (at any point: a couple)
+                cw["GP"][:, :, li] = a["GP"][:, :, base + min(b, 2)]
+                cw["GA"][:, :, li] = a["GA"][:, :, base + min(b, 2)]
+                mass, inertia = (cw["unit"][j], cw["nothing"]) if b < 3 else \
+                    (cw["nothing"], cw["unit"][j])
+                solve(*head, kernel_params(P), *state, cw["GP"], cw["GA"], mass, inertia,
+                      tail[9], *cw["loads"], *rest, cw["LF"], cw["LPOW"], cw["X"][j, b],
+                      cw["MINPIV"], self._max_written)
+            X0, Xu, Xv, XI = cw["X"][j]
+            Xu -= X0 + XI
+            Xv -= X0 + XI
+            for k, c in enumerate(self.counterweights):
+                if c.link_index != li:
+                    continue
+                mk, mu, mv, mr2 = (x[:, k, None, None] for x in (m, m * u, m * v,
+                                                                  m * (u * u + v * v)))
+                X += mk * X0 + mu * Xu + mv * Xv + mr2 * XI
+                for out, key in ((cw["cp"], "GP"), (cw["cv"], "GV"), (cw["ca"], "GA")):
+                    g = a[key][:, :, base:base + 3]
+                    out[:, :, k] = (g[:, :, 0] + u[:, k, None, None] * (g[:, :, 1] - g[:, :, 0])
+                                    + v[:, k, None, None] * (g[:, :, 2] - g[:, :, 0]))
 
     def _raise_singular(self, kin: KinematicsResult, feasible: np.ndarray,
                         minpiv: np.ndarray) -> None:

@@ -22,6 +22,8 @@ from numpy.typing import ArrayLike
 
 from . import _kernels as K
 from .cams import CONSTANT_WIDTH_KEYS, constant_width_arcs
+from .counterweights import PARAMETERS as CW_PARAMETERS
+from .counterweights import Counterweight
 from .errors import MachineFileError, ParameterError, name_index
 from .mass import from_spec as mass_from_spec
 from .spec import (
@@ -120,6 +122,9 @@ class Machine:
         Where each parameter's value sits in the machine file (a path of keys), or None when
         it cannot be set on its own (the arcs of a ``constant_width`` cam: set its design
         values); :meth:`with_parameters` and :meth:`parameter_location` read it.
+    counterweights : tuple[Counterweight, ...]
+        The ``[counterweights]`` of the file (:mod:`sewmech.engine.counterweights`), each with
+        its three parameters.
     """
 
     spec: MachineSpec
@@ -150,6 +155,7 @@ class Machine:
     parameter_lo: np.ndarray = field(default=None, repr=False)
     parameter_hi: np.ndarray = field(default=None, repr=False)
     changes: dict[str, float] = field(default_factory=dict, repr=False)
+    counterweights: tuple[Counterweight, ...] = field(default=(), repr=False)
 
     # ---- names -----------------------------------------------------------------------------
     @property
@@ -409,6 +415,17 @@ class Machine:
         return out
 
 
+#: internal unit -> (the unit machine files and the command line show it in, factor): angles
+#: in degrees, counterweight masses in g and static moments in g cm; mm and 1 are shown as is
+FILE_UNITS = {"rad": ("deg", 180.0 / math.pi), "kg": ("g", 1e3), "kg mm": ("g cm", 1e2)}
+
+
+def file_value(value: float, unit: str) -> tuple[float, str]:
+    """A parameter value (internal ``unit``) in the unit files and people use."""
+    shown, factor = FILE_UNITS.get(unit, (unit, 1.0))
+    return value * factor, shown
+
+
 #: the largest magnitude of any parameter, internal units (mm, rad, 1): 1 km, and far from
 #: overflow in the squares and products of the kernels
 PARAM_LIMIT = 1e6
@@ -458,7 +475,7 @@ def with_parameters(machine: Machine, values: Mapping[str, float], *,
                 raise ParameterError(name, (), v, "is an arc of a constant-width cam and cannot"
                                      " be set on its own", f"Set {cam.split('.')[0]}.width,"
                                      " .stroke, .dwell or .orientation instead")
-            x = math.degrees(v) if machine.parameter_units[i] == "rad" else v
+            x = v * FILE_UNITS.get(machine.parameter_units[i], ("", 1.0))[1]
         node = raw
         for part in path[:-1]:
             node = node[part]
@@ -507,6 +524,8 @@ def domain_message(name: str, value: float, unit: str, lo: float, hi: float, *,
     def show(x):
         if deg:
             return f"{math.degrees(x):.6g} deg"
+        if unit in ("kg", "kg mm"):  # counterweights: always g and g cm
+            return "{:.6g} {}".format(*file_value(x, unit))
         return f"{x:.6g} {unit}" if unit != "1" else f"{x:.6g}"
 
     if not math.isfinite(value):
@@ -516,6 +535,9 @@ def domain_message(name: str, value: float, unit: str, lo: float, hi: float, *,
         return (f"is {show(value)}: outside the range {show(lo)} .. {show(hi)} declared in"
                 f" [inputs.{name[6:]}]", "Give a setting inside it, or widen min_deg/max_deg"
                 " in the machine file")
+    if lo == 0.0 and value < 0.0:
+        return (f"is {show(value)}: a counterweight's mass or static moment cannot be negative",
+                "Give 0 (no counterweight) or more; turn it by its angle or position instead")
     if lo == MIN_LENGTH:
         return (f"is {show(value)}: a length must be positive (at least {MIN_LENGTH:g} mm) and"
                 f" at most {PARAM_LIMIT:g} mm", "Give a length inside that range")
@@ -530,7 +552,7 @@ def parameter_location(spec: MachineSpec, path: tuple) -> tuple[str, str]:
         ui = path[1]
         table = f'units[{ui}] "{spec.units[ui].name}"'
         rest = path[2:]
-    elif head in ("points", "inputs", "cams"):
+    elif head in ("points", "inputs", "cams", "counterweights"):
         table = f"{head}.{path[1]}"
         rest = path[2:]
     else:
@@ -810,6 +832,7 @@ class _Compiler:
                 raise self.err("thread.adjust", "parameter",
                                f"unknown parameter '{adj.parameter}'.{hint}")
         self.dynamics_checks()
+        counterweights = self.compile_counterweights()
         names = [u.name for u in spec.units]
         dup = {n for n in names if names.count(n) > 1}
         if dup:
@@ -861,7 +884,53 @@ class _Compiler:
             parameter_owner=tuple(self.powner),
             parameter_lo=lo,
             parameter_hi=hi,
+            counterweights=counterweights,
         )
+
+    def compile_counterweights(self) -> tuple[Counterweight, ...]:
+        """``[counterweights]``: each on a moving link, in its mass frame, with three
+        parameters (see :mod:`sewmech.engine.counterweights`)."""
+        out = []
+        shaft = self.spec.shaft
+        for name, cw in self.spec.counterweights.items():
+            table = f"counterweights.{name}"
+            if cw.link == FRAME or cw.link not in self.links:
+                close = difflib.get_close_matches(cw.link, self.links[1:], n=3)
+                hint = f" Did you mean {', '.join(close)}?" if close else ""
+                raise self.err(table, "link", f"'{cw.link}' is not a moving link of this"
+                               f" machine.{hint}")
+            origin = self.mass_origins.get(cw.link) or next(
+                (p for p in self.points if cw.link in self.point_links[p]), None)
+            if origin is None:
+                raise self.err(table, "link", f"link '{cw.link}' has no points: a counterweight"
+                               " needs its frame (put a point unit on the link)")
+            if shaft is not None and cw.link in shaft.links and cw.z_mm is None:
+                raise self.err(table, "z_mm", f"'{cw.link}' turns with the upper shaft: the"
+                               " bearing reactions need the counterweight's axial plane",
+                               "Give z_mm (the same axis as [shaft])")
+            src = ("counterweights", name)
+            (n0, u0), (n1, u1), (n2, u2) = CW_PARAMETERS[cw.by_moment]
+            taken = [f"{name}.{n}" for n in (n0, n1, n2) if f"{name}.{n}" in self.pnames]
+            if taken:
+                raise self.err(table, "", f"its parameter '{taken[0]}' is already a parameter of"
+                               " this machine (a unit or point of the same name)",
+                               "Give the counterweight a name of its own")
+            if cw.by_moment:
+                idx = (self.param(f"{name}.{n0}", cw.static_moment_gcm / 100.0, u0,
+                                  src + ("static_moment_gcm",), bounds=(0.0, PARAM_LIMIT)),
+                       self.param(f"{name}.{n1}", math.radians(cw.angle_deg), u1,
+                                  src + ("angle_deg",)),
+                       self.param(f"{name}.{n2}", cw.radius_mm, u2, src + ("radius_mm",),
+                                  positive=True))
+            else:
+                idx = (self.param(f"{name}.{n0}", cw.mass_g / 1000.0, u0, src + ("mass_g",),
+                                  bounds=(0.0, PARAM_LIMIT)),
+                       self.param(f"{name}.{n1}", cw.at_mm[0], u1, src + ("at_mm", 0)),
+                       self.param(f"{name}.{n2}", cw.at_mm[1], u2, src + ("at_mm", 1)))
+            z = float("nan") if cw.z_mm is None else float(cw.z_mm)
+            out.append(Counterweight(name, cw.link, self.links.index(cw.link), origin, z,
+                                     cw.by_moment, idx))
+        return tuple(out)
 
     def dynamics_checks(self):
         """Pairs of the force analysis, mass-frame origins, loads and the shaft table."""

@@ -620,6 +620,45 @@ class MassSpec(_Spec):
         return self
 
 
+class CounterweightSpec(_Spec):
+    """``[counterweights.NAME]``: a point mass added to a moving link (a counterweight, or the
+    extra one the balancing chooses), in the frame of the link's ``[masses]`` table (its origin
+    point, u along the link, v to its left; the link's first point when it has no table).
+
+    Two ways to give it: ``mass_g`` at ``at_mm = [u, v]``, or its static moment
+    ``static_moment_gcm`` (S = m * r, g cm) at ``angle_deg`` (from u, counter-clockwise) and
+    ``radius_mm`` (r). ``z_mm``: its axial plane, needed on a link that turns with the upper
+    shaft (``[shaft] links``) for the bearing reactions. The file's ``[masses]`` stay as they
+    are; a counterweight is an addition, and each of its values is a parameter
+    (``NAME.mass``, ``NAME.u``, ``NAME.v`` or ``NAME.static_moment``, ``NAME.angle``,
+    ``NAME.radius``) that ``--set``, sweeps and the balancing change.
+    """
+
+    link: Name
+    mass_g: NonNegFloat | None = None
+    at_mm: LocalPoint | None = None
+    static_moment_gcm: NonNegFloat | None = None
+    angle_deg: Float | None = None
+    radius_mm: PosFloat | None = None
+    z_mm: Float | None = None
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _one_way(self):
+        by_mass = (self.mass_g, self.at_mm)
+        by_moment = (self.static_moment_gcm, self.angle_deg, self.radius_mm)
+        if all(x is not None for x in by_mass) and all(x is None for x in by_moment):
+            return self
+        if all(x is not None for x in by_moment) and all(x is None for x in by_mass):
+            return self
+        raise ValueError("give either mass_g and at_mm = [u, v], or static_moment_gcm,"
+                         " angle_deg and radius_mm (one way, complete)")
+
+    @property
+    def by_moment(self) -> bool:
+        return self.static_moment_gcm is not None
+
+
 class LoadSpec(_Spec):
     """``[[loads]]``: a process force on a point of a link while the shaft angle is inside one
     of its windows (degrees in the machine's convention; a window may wrap through 360).
@@ -696,6 +735,7 @@ class MachineSpec(_Spec):
     masses: dict[Name, MassSpec] = Field(default_factory=dict)
     loads: list[LoadSpec] = Field(default_factory=list)
     shaft: ShaftSpec | None = None
+    counterweights: dict[Name, CounterweightSpec] = Field(default_factory=dict)
 
     @field_validator("points")
     @classmethod
