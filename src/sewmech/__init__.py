@@ -39,9 +39,11 @@ __version__ = "0.1.0"
 #: the short public name of every module -> the layer it lives in
 MODULES = {
     **{m: "engine" for m in ("errors", "spec", "cams", "mass", "machine", "results",
-                             "kinematics", "dynamics", "extremes", "margins", "assembly")},
+                             "kinematics", "dynamics", "extremes", "margins", "assembly",
+                             "counterweights")},
     **{m: "sewing" for m in ("timing", "checks", "feed", "thread", "transmission",
                              "embroidery")},
+    **{m: "design" for m in ("balancing",)},
     **{m: "app" for m in ("cli", "report", "report_dynamics", "plot", "io", "outdir")},
 }
 

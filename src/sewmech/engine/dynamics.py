@@ -867,34 +867,41 @@ class DynamicsPlan:
         n_links = len(self.machine.link_names)
         a = self.kin_plan.kernel_arrays()
         n_d = a["GP"].shape[0]
-        # (P, V, EP, S, TH) as in the main solve; the masses, loads and outputs are the basis'
-        state, rest = tail[:5], tail[14:-4]  # the block structure and n_slots
         m, u, v = counterweight_values(self.counterweights, P.reshape(n_d, -1))
         cw["mass"][...] = m
         X = tail[-2]
         for j, li in enumerate(self._cw_links):
             base = n_links + 3 * j  # the three frame points of this link among the extras
-            for b in range(4):  # 1 kg at each point; then 1 kg mm^2 (at any point: a couple)
-                cw["GP"][:, :, li] = a["GP"][:, :, base + min(b, 2)]
-                cw["GA"][:, :, li] = a["GA"][:, :, base + min(b, 2)]
-                mass, inertia = (cw["unit"][j], cw["nothing"]) if b < 3 else \
-                    (cw["nothing"], cw["unit"][j])
-                solve(*head, kernel_params(P), *state, cw["GP"], cw["GA"], mass, inertia,
-                      tail[9], *cw["loads"], *rest, cw["LF"], cw["LPOW"], cw["X"][j, b],
-                      cw["MINPIV"], self._max_written)
+            on = [k for k, c in enumerate(self.counterweights) if c.link_index == li]
+            if m[:, on].any():  # (a link whose counterweights all weigh 0 adds nothing)
+                self._counterweight_solves(P, solve, head, tail, cw, j, li, base)
             X0, Xu, Xv, XI = cw["X"][j]
-            Xu -= X0 + XI
-            Xv -= X0 + XI
-            for k, c in enumerate(self.counterweights):
-                if c.link_index != li:
-                    continue
-                mk, mu, mv, mr2 = (x[:, k, None, None] for x in (m, m * u, m * v,
-                                                                  m * (u * u + v * v)))
-                X += mk * X0 + mu * Xu + mv * Xv + mr2 * XI
+            for k in on:
+                if m[:, k].any():
+                    mk, mu, mv, mr2 = (x[:, k, None, None] for x in (m, m * u, m * v,
+                                                                      m * (u * u + v * v)))
+                    X += mk * X0 + mu * Xu + mv * Xv + mr2 * XI
                 for out, key in ((cw["cp"], "GP"), (cw["cv"], "GV"), (cw["ca"], "GA")):
                     g = a[key][:, :, base:base + 3]
                     out[:, :, k] = (g[:, :, 0] + u[:, k, None, None] * (g[:, :, 1] - g[:, :, 0])
                                     + v[:, k, None, None] * (g[:, :, 2] - g[:, :, 0]))
+
+    def _counterweight_solves(self, P, solve, head, tail, cw, j, li, base) -> None:
+        """The machine's answers to 1 kg at (0, 0), (1, 0), (0, 1) of link ``li``'s frame and
+        to 1 kg mm^2 on it, as X_0, X_u - X_0 - X_I, X_v - X_0 - X_I, X_I in cw["X"][j]."""
+        a = self.kin_plan.kernel_arrays()
+        state, rest = tail[:5], tail[14:-4]  # (P, V, EP, S, TH); the block structure, n_slots
+        for b in range(4):  # 1 kg at each point; then 1 kg mm^2 (at any point: a couple)
+            cw["GP"][:, :, li] = a["GP"][:, :, base + min(b, 2)]
+            cw["GA"][:, :, li] = a["GA"][:, :, base + min(b, 2)]
+            mass, inertia = (cw["unit"][j], cw["nothing"]) if b < 3 else \
+                (cw["nothing"], cw["unit"][j])
+            solve(*head, kernel_params(P), *state, cw["GP"], cw["GA"], mass, inertia, tail[9],
+                  *cw["loads"], *rest, cw["LF"], cw["LPOW"], cw["X"][j, b], cw["MINPIV"],
+                  self._max_written)
+        X0, Xu, Xv, XI = cw["X"][j]
+        Xu -= X0 + XI
+        Xv -= X0 + XI
 
     def _raise_singular(self, kin: KinematicsResult, feasible: np.ndarray,
                         minpiv: np.ndarray) -> None:

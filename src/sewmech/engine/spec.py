@@ -628,7 +628,8 @@ class CounterweightSpec(_Spec):
     Two ways to give it: ``mass_g`` at ``at_mm = [u, v]``, or its static moment
     ``static_moment_gcm`` (S = m * r, g cm) at ``angle_deg`` (from u, counter-clockwise) and
     ``radius_mm`` (r). ``z_mm``: its axial plane, needed on a link that turns with the upper
-    shaft (``[shaft] links``) for the bearing reactions. The file's ``[masses]`` stay as they
+    shaft (``[shaft] links``) for the bearing reactions; ``max_static_moment_gcm``: the most
+    the space allows, a limit for the balancing. The file's ``[masses]`` stay as they
     are; a counterweight is an addition, and each of its values is a parameter
     (``NAME.mass``, ``NAME.u``, ``NAME.v`` or ``NAME.static_moment``, ``NAME.angle``,
     ``NAME.radius``) that ``--set``, sweeps and the balancing change.
@@ -641,6 +642,7 @@ class CounterweightSpec(_Spec):
     angle_deg: Float | None = None
     radius_mm: PosFloat | None = None
     z_mm: Float | None = None
+    max_static_moment_gcm: PosFloat | None = None
     note: str = ""
 
     @model_validator(mode="after")

@@ -1,0 +1,970 @@
+"""Balancing: choosing counterweights from their effect on the shaking, the bearings, the torque.
+
+The balancing paper in our sources (class 1820 bar-tack semi-automatic) chooses the static moment
+of a counterweight on the main shaft so that the peaks of the two components of the machine's
+resultant inertia force are equal, Delta-Q = | max|Qx| - max|Qy| | = 0; the JB dynamics report
+adds whole-machine balancing (several counterweights at once) and the upper shaft's bearing
+reactions as the objective. Here every such criterion is computed for any set of counterweights
+and solved exactly.
+
+Why it is fast and exact: the counterweights do not change the motion, and every force of the
+machine is linear in the loads a point mass puts on its link (see :mod:`sewmech.dynamics`). For a
+counterweight of fixed radius r whose static moment S turns freely (components x = S cos(beta),
+y = S sin(beta), kg mm), every quantity is
+
+    Q = Q_0 + sum_c [ x_c A_c + y_c B_c + S_c (C_c / r_c + r_c D_c) ],
+
+with A, B, C, D its responses to unit m u, m v, m and m r^2: one batch of 1 + 4 n designs
+through the dynamics gives them all (:class:`BalanceBasis`). The S terms vanish for the inertia
+force of a counterweight on a crank turning at constant speed, which makes the classic problems
+linear: least squares for an RMS, cutting planes (a linear programme per step, whose value
+bounds the optimum from below) for a peak, a range or a weighted sum, and a root for Delta-Q.
+Where they do not vanish (weights in the bearing reactions, a coupler's counterweight, the
+shaking moment of a rocker's) the problem is smooth in each counterweight's (S, beta) and SLSQP
+solves it from several starts. Every answer is evaluated again on the whole machine.
+
+Units: static moments kg mm inside (g cm in results: 1 kg mm = 100 g cm), forces N, moments and
+torques N mm inside (N m in results), angles rad inside (deg in results).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..engine.counterweights import GCM_PER_KGMM, Counterweight, counterweight_values, describe
+from ..engine.dynamics import DynamicsPlan
+from ..engine.errors import AnalysisError, OptionError
+from ..engine.machine import Machine
+
+#: the criteria :func:`balance` can minimise
+CRITERIA = ("delta-q", "peak", "rms", "moment", "bearings", "torque", "weighted")
+
+#: the figures every result reports, before and after (keys of :meth:`BalanceBasis.criteria`)
+FIGURES = ("delta_q_N", "peak_force_N", "rms_force_N", "peak_moment_Nm", "bearing_front_peak_N",
+           "bearing_rear_peak_N", "bearing_front_rms_N", "bearing_rear_rms_N",
+           "torque_fluctuation_Nm")
+
+# the four probes of a counterweight: (radius mm, angle rad), 1 kg each; their (m, m u, m v,
+# m r^2) rows are independent, so the responses to the four follow from one solve
+_PROBES = ((1.0, 0.0), (1.0, 0.5 * math.pi), (1.0, math.pi), (2.0, 0.0))
+_G = np.array([[1.0, r * math.cos(a), r * math.sin(a), r * r] for r, a in _PROBES])
+
+
+@dataclass(frozen=True, eq=False)
+class BalanceBasis:
+    """The balancing quantities of a machine as functions of chosen counterweights' static
+    moments, at one speed over one turn.
+
+    Attributes
+    ----------
+    machine : Machine
+    counterweights : tuple[Counterweight, ...]
+        The chosen counterweights (their static moments and angles are the variables; their
+        radii stay).
+    radius : ndarray (n,)
+        Each one's radius, mm.
+    s_max : ndarray (n,)
+        Each one's largest static moment (``max_static_moment_gcm``), kg mm; inf: no limit.
+    phi : ndarray (n_phi,)
+        Shaft angles, rad.
+    rpm : float
+    moment_point : (float, float)
+        The point the shaking moment is taken about, mm (default: the upper shaft's axis).
+    base : dict
+        The quantities with the chosen counterweights taken off: ``F`` shaking force (n_phi, 2)
+        N, ``M`` shaking moment about ``moment_point`` (n_phi,) N mm, ``T`` driving torque
+        (n_phi,) N mm and, with a ``[shaft]`` table, ``Bf`` and ``Br`` the front and rear
+        bearing reactions (n_phi, 2) N.
+    resp : dict
+        Each quantity's responses (n, 4, ...) to unit m, m u, m v and m r^2 of each
+        counterweight.
+    plan : DynamicsPlan
+        The dynamics the basis came from, for evaluating designs on the whole machine.
+    """
+
+    machine: Machine
+    counterweights: tuple[Counterweight, ...]
+    radius: np.ndarray
+    s_max: np.ndarray
+    phi: np.ndarray
+    rpm: float
+    moment_point: tuple[float, float]
+    base: dict
+    resp: dict
+    plan: DynamicsPlan = field(repr=False)
+    start: np.ndarray = field(repr=False)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(c.name for c in self.counterweights)
+
+    @property
+    def has_bearings(self) -> bool:
+        return "Bf" in self.base
+
+    # ---- evaluation ---------------------------------------------------------------------------
+    def quantities(self, xy: ArrayLike) -> dict:
+        """The quantities for static moments ``xy`` (batch + (n, 2): S cos(beta), S sin(beta),
+        kg mm): each batch + its shape in :attr:`base`."""
+        xy = np.asarray(xy, dtype=float)
+        x, y = xy[..., 0], xy[..., 1]
+        s = np.hypot(x, y)
+        coef = np.stack([s / self.radius, x, y, s * self.radius], axis=-1)  # batch + (n, 4)
+        out = {}
+        for key, b in self.base.items():
+            r = self.resp[key]  # (n, 4) + shape
+            out[key] = b + np.tensordot(coef, r, axes=([-2, -1], [0, 1]))
+        return out
+
+    def criteria(self, xy: ArrayLike) -> dict:
+        """Every balancing figure (:data:`FIGURES`) for static moments ``xy`` (batch + (n, 2)),
+        each of shape batch (None for the bearings of a machine without ``[shaft]``)."""
+        return figures(self.quantities(xy))
+
+    def design(self, xy: ArrayLike) -> dict[str, float]:
+        """The parameter values (internal units) that give the counterweights static moments
+        ``xy`` (n, 2) at their radii: for :meth:`Machine.with_parameters` or
+        :meth:`Machine.parameters`."""
+        xy = np.asarray(xy, dtype=float)
+        out = {}
+        for c, r, (x, y) in zip(self.counterweights, self.radius, xy):
+            S, beta = math.hypot(x, y), math.atan2(y, x)
+            if c.by_moment:
+                out[f"{c.name}.static_moment"], out[f"{c.name}.angle"] = S, beta
+            else:
+                out[f"{c.name}.mass"] = S / r
+                out[f"{c.name}.u"], out[f"{c.name}.v"] = r * math.cos(beta), r * math.sin(beta)
+        return out
+
+    def evaluate(self, xy: ArrayLike) -> dict:
+        """The quantities of static moments ``xy`` (batch + (n, 2)) computed on the whole
+        machine (its dynamics with those counterweights, one batch call), not from the basis."""
+        xy = np.asarray(xy, dtype=float)
+        flat = xy.reshape(-1, *xy.shape[-2:])
+        designs = [self.design(one) for one in flat]
+        P = self.machine.parameters({k: np.array([d[k] for d in designs]) for k in designs[0]})
+        q = _quantities(self.plan(P), self.moment_point, self.has_bearings)
+        return {k: v.reshape(xy.shape[:-2] + v.shape[1:]) for k, v in q.items()}
+
+    def describe(self, xy: ArrayLike) -> dict[str, dict]:
+        """Each counterweight of static moments ``xy`` (n, 2) as people read it (static moment
+        g cm, angle deg, mass g, radius and u, v mm)."""
+        out = {}
+        for c, r, (x, y) in zip(self.counterweights, self.radius, np.asarray(xy, dtype=float)):
+            S = math.hypot(x, y)
+            beta = math.atan2(y, x)
+            out[c.name] = describe(c, S / r, r * math.cos(beta), r * math.sin(beta))
+        return out
+
+
+def figures(q: Mapping[str, np.ndarray]) -> dict:
+    """The balancing figures (:data:`FIGURES`, N and N m) of quantities ``q`` (the keys of
+    :attr:`BalanceBasis.base`, each batch + (n_phi, ...))."""
+    F = q["F"]
+    mag = np.hypot(F[..., 0], F[..., 1])
+    out = {
+        "delta_q_N": np.abs(np.abs(F[..., 0]).max(axis=-1) - np.abs(F[..., 1]).max(axis=-1)),
+        "peak_force_N": mag.max(axis=-1),
+        "rms_force_N": np.sqrt(np.mean(mag ** 2, axis=-1)),
+        "peak_moment_Nm": 1e-3 * np.abs(q["M"]).max(axis=-1),
+        "torque_fluctuation_Nm": 1e-3 * (q["T"].max(axis=-1) - q["T"].min(axis=-1)),
+    }
+    for side, key in (("front", "Bf"), ("rear", "Br")):
+        if key in q:
+            b = np.hypot(q[key][..., 0], q[key][..., 1])
+            out[f"bearing_{side}_peak_N"] = b.max(axis=-1)
+            out[f"bearing_{side}_rms_N"] = np.sqrt(np.mean(b ** 2, axis=-1))
+        else:
+            out[f"bearing_{side}_peak_N"] = out[f"bearing_{side}_rms_N"] = None
+    return {k: out[k] for k in FIGURES}
+
+
+def _quantities(res, point: tuple[float, float], bearings: bool) -> dict:
+    """The balancing quantities of a dynamics result (see :attr:`BalanceBasis.base`)."""
+    F = res.shaking_force
+    x0, y0 = point
+    out = {"F": F, "M": res.shaking_moment - (x0 * F[..., 1] - y0 * F[..., 0]),
+           "T": res.input_torque}
+    if bearings:
+        out["Bf"], out["Br"] = res.bearings.front, res.bearings.rear
+    return out
+
+
+def shaft_axis(machine: Machine) -> tuple[float, float]:
+    """The upper shaft's axis point (x, y), mm: the pivot of the cranks the shaft turns at
+    ratio 1 (the ``[shaft]`` cranks' pivot when there is a ``[shaft]`` table)."""
+    spec = machine.spec
+    names = set(spec.shaft.links) if spec.shaft is not None else None
+    for u in spec.units:
+        if u.type == "crank" and u.input == "shaft" and u.ratio == 1.0 and (
+                names is None or (u.link or u.name) in names):
+            p = spec.points[u.pivot]
+            return float(p.x), float(p.y)
+    return 0.0, 0.0
+
+
+def balance_basis(machine: Machine, counterweights: Sequence[str] | None = None, *,
+                  rpm: float | None = None, step_deg: float = 1.0,
+                  moment_point: tuple[float, float] | None = None,
+                  gravity: bool = True) -> BalanceBasis:
+    """The balancing quantities of ``machine`` as functions of the static moments of its
+    counterweights ``counterweights`` (names; default: all of the file's), at ``rpm``
+    (default: the file's) on a grid of ``step_deg`` over one turn; the shaking moment about
+    ``moment_point`` (x, y mm; default: the upper shaft's axis). The other counterweights stay
+    as the file has them."""
+    chosen = _chosen(machine, counterweights)
+    n_phi = round(360.0 / step_deg)
+    if not (0.1 <= step_deg <= 30.0) or abs(n_phi * step_deg - 360.0) > 1e-9:
+        raise OptionError("step_deg", f"must divide 360 and be in 0.1 .. 30 deg, got {step_deg}",
+                          "Give e.g. 1 or 5")
+    phi = np.arange(n_phi) * math.radians(step_deg)
+    point = shaft_axis(machine) if moment_point is None else tuple(map(float, moment_point))
+    plan = DynamicsPlan(machine, phi, rpm=rpm, gravity=gravity)
+    bearings = machine.spec.shaft is not None
+    n = len(chosen)
+    # designs: the chosen counterweights off, then each one's four probes (1 kg at radius r and
+    # angle a; the others off)
+    rows = [_set(machine, chosen, {})]
+    for c in chosen:
+        for r, a in _PROBES:
+            rows.append(_set(machine, chosen, {c.name: (1.0, r, a)}))
+    res = plan(np.stack(rows))
+    q = _quantities(res, point, bearings)
+    base = {k: v[0].copy() for k, v in q.items()}
+    resp = {}
+    Ginv = np.linalg.inv(_G)
+    for k, v in q.items():
+        probes = (v[1:] - v[0]).reshape((n, 4) + v.shape[1:])
+        resp[k] = np.einsum("ij,cj...->ci...", Ginv, probes)  # (n, [m, mu, mv, mr2], ...)
+    radius, s_max, start = _radii(machine, chosen)
+    if rpm is None:
+        rpm = machine.rpm
+    return BalanceBasis(machine, chosen, radius, s_max, phi, float(rpm), point, base, resp,
+                        plan, start)
+
+
+def _chosen(machine: Machine, names: Sequence[str] | None) -> tuple[Counterweight, ...]:
+    have = {c.name: c for c in machine.counterweights}
+    if not have:
+        raise OptionError("--counterweight", f"machine '{machine.name}' has no counterweights",
+                          "Add a [counterweights.NAME] table (docs/balancing.md) on the link to"
+                          " balance, with the static moment it has now (0 for a new one)")
+    if not names:
+        return tuple(machine.counterweights)
+    out = []
+    for name in names:
+        if name not in have:
+            raise OptionError("--counterweight", f"'{name}' is not a counterweight of"
+                              f" '{machine.name}'", f"Its counterweights: {', '.join(have)}")
+        if have[name] in out:
+            raise OptionError("--counterweight", f"'{name}' is given twice", "Name it once")
+        out.append(have[name])
+    return tuple(out)
+
+
+def _radii(machine: Machine, chosen) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Radius (mm), largest static moment (kg mm) and present static moment (x, y kg mm) of
+    each chosen counterweight, from the file."""
+    m, u, v = counterweight_values(chosen, machine.defaults)
+    radius = np.hypot(u, v)
+    for c, r in zip(chosen, radius):
+        if not r > 0.0:
+            raise OptionError("--counterweight", f"'{c.name}' sits on its link's frame origin"
+                              " (radius 0): its static moment cannot be chosen",
+                              f"Give [counterweights.{c.name}] a radius where it can sit")
+    s_max = np.array([np.inf if machine.spec.counterweights[c.name].max_static_moment_gcm is None
+                      else machine.spec.counterweights[c.name].max_static_moment_gcm
+                      / GCM_PER_KGMM for c in chosen])
+    return radius, s_max, np.stack([m * u, m * v], axis=-1)
+
+
+def _set(machine: Machine, chosen, values: Mapping[str, tuple[float, float, float]]
+         ) -> np.ndarray:
+    """A parameter vector with the chosen counterweights off except ``values`` (name ->
+    (mass kg, radius mm, angle rad))."""
+    P = np.array(machine.defaults)
+    for c in chosen:
+        m, r, a = values.get(c.name, (0.0, None, None))
+        i, j, k = c.params
+        if r is None:  # off, where it is
+            P[i] = 0.0
+            continue
+        if c.by_moment:
+            P[i], P[j], P[k] = m * r, a, r
+        else:
+            P[i], P[j], P[k] = m, r * math.cos(a), r * math.sin(a)
+    return P
+
+
+# ---- solving --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class BalanceResult:
+    """What :func:`balance` chose and what it does.
+
+    criterion : the criterion minimised; status : ``"optimal"``, ``"bounded"`` (a counterweight
+    at its ``max_static_moment_gcm``), ``"infeasible"`` (Delta-Q cannot reach 0 within the
+    limits: the least Delta-Q is given) or ``"not converged"`` (the best design found is
+    given); message : how it was solved, or why not;
+    xy : the static moments chosen (n, 2), kg mm; counterweights, counterweights_before : each
+    as people read it (:meth:`BalanceBasis.describe`); before, after : the balancing figures
+    (:data:`FIGURES`) of the machine as the file has it and with the chosen counterweights,
+    both computed on the whole machine; overrides : the parameter values to apply
+    (:meth:`Machine.with_parameters`); basis_error : the largest difference between the
+    basis' prediction of the result and the whole machine's, N or N m.
+    """
+
+    criterion: str
+    status: str
+    message: str
+    xy: np.ndarray
+    counterweights: dict
+    counterweights_before: dict
+    before: dict
+    after: dict
+    overrides: dict
+    basis_error: float
+    rpm: float
+    weights: dict = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        """The result as the ``sewmech balance --json`` keys."""
+        return {"criterion": self.criterion, "status": self.status, "message": self.message,
+                "rpm": self.rpm, "counterweights": self.counterweights,
+                "counterweights_before": self.counterweights_before,
+                "before": _plain(self.before), "after": _plain(self.after),
+                "weights": self.weights, "basis_error": self.basis_error}
+
+
+def _plain(d: dict) -> dict:
+    return {k: (None if v is None else float(v)) for k, v in d.items()}
+
+
+#: the weighted criterion's parts and their default weights
+WEIGHTED_PARTS = ("peak_force_N", "rms_force_N", "peak_moment_Nm", "bearings_peak_N",
+                  "torque_fluctuation_Nm")
+
+
+def balance(machine: Machine, criterion: str = "delta-q",
+            counterweights: Sequence[str] | None = None, *, rpm: float | None = None,
+            step_deg: float = 1.0, moment_point: tuple[float, float] | None = None,
+            weights: Mapping[str, float] | None = None,
+            basis: BalanceBasis | None = None) -> BalanceResult:
+    """Choose the static moments and angles of ``counterweights`` (default: all of the
+    machine's) that minimise ``criterion`` at ``rpm``:
+
+    - ``"delta-q"``: the balancing paper's | max|Qx| - max|Qy| | = 0 (Q the shaking force):
+      one counterweight, its static moment along its present angle;
+    - ``"peak"``, ``"rms"``: the peak or the RMS over the turn of the shaking force's length;
+    - ``"moment"``: the peak shaking moment about ``moment_point`` (default the upper shaft);
+    - ``"bearings"``: the larger of the peak front and rear bearing reactions of the upper
+      shaft (the JB dynamics report's third method; needs ``[shaft]``);
+    - ``"torque"``: the fluctuation (max - min) of the driving torque;
+    - ``"weighted"``: sum of ``weights[part] * part / part before`` over
+      :data:`WEIGHTED_PARTS` (default weight 1 each; bearings only with ``[shaft]``).
+
+    Each counterweight keeps its radius; its static moment stays within
+    ``max_static_moment_gcm`` if its table gives one. ``basis``: a :func:`balance_basis` of the
+    same machine, counterweights, speed and grid, to reuse.
+    """
+    if criterion not in CRITERIA:
+        raise OptionError("--criterion", f"unknown criterion {criterion!r}",
+                          f"Choose one of {', '.join(CRITERIA)}")
+    B = basis if basis is not None else balance_basis(
+        machine, counterweights, rpm=rpm, step_deg=step_deg, moment_point=moment_point)
+    if criterion == "bearings" and not B.has_bearings:
+        raise OptionError("--criterion", f"machine '{machine.name}' has no [shaft] table, so"
+                          " its bearing reactions are not known", "Add [shaft] (the cranks' and"
+                          " bearings' planes along the shaft) or choose another criterion")
+    w = _weights(weights, B) if criterion == "weighted" else {}
+    if criterion == "delta-q":
+        xy, status, message = _solve_delta_q(B)
+    elif criterion == "rms":
+        xy, status, message = _solve_rms(B)
+    elif criterion == "weighted":
+        xy, status, message = _solve_weighted(B, w)
+    else:
+        xy, status, message = _solve_peak(B, criterion)
+    if status == "optimal" and np.any(np.hypot(xy[:, 0], xy[:, 1]) >= B.s_max * (1 - 1e-9)):
+        status = "bounded"
+        message += "; a counterweight is at its max_static_moment_gcm"
+    both = B.evaluate(np.stack([B.start, xy]))  # the file's and the chosen, on the machine
+    before = figures({k: v[0] for k, v in both.items()})
+    exact = {k: v[1] for k, v in both.items()}
+    after = figures(exact)
+    predicted = B.quantities(xy)
+    err = max(float(np.abs(predicted[k] - exact[k]).max()) * (1e-3 if k in ("M", "T") else 1.0)
+              for k in exact)
+    return BalanceResult(criterion, status, message, xy, B.describe(xy), B.describe(B.start),
+                         before, after, B.design(xy), err, B.rpm, w)
+
+
+def _weights(weights: Mapping[str, float] | None, B: BalanceBasis) -> dict:
+    parts = [p for p in WEIGHTED_PARTS if B.has_bearings or p != "bearings_peak_N"]
+    w = {p: 1.0 for p in parts}
+    for k, v in (weights or {}).items():
+        if k not in parts:
+            raise OptionError("--weight", f"unknown part {k!r}", f"Parts: {', '.join(parts)}")
+        if not (math.isfinite(v) and v >= 0.0):
+            raise OptionError("--weight", f"{k} = {v!r}: a weight is a number >= 0")
+        w[k] = float(v)
+    if not any(w.values()):
+        raise OptionError("--weight", "every weight is 0", "Give at least one a weight > 0")
+    return w
+
+
+def _linear(B: BalanceBasis, key: str, xy0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Quantity ``key`` as c + L @ z, its first-order expansion at static moments ``xy0``
+    (n, 2) in z = (x_1, y_1, ..., x_n, y_n): exact where the S terms vanish, and along the ray
+    through xy0 (S is homogeneous of degree 1). Moments and torques in N m. Returns
+    (c (n_phi, k), L (n_phi, k, 2n))."""
+    r = B.resp[key]  # (n, 4, n_phi[, 2])
+    base = B.base[key]
+    shape = base.shape if base.ndim == 2 else base.shape + (1,)
+    unit = 1e-3 if key in ("M", "T") else 1.0
+    n = len(B.counterweights)
+    L = np.zeros(shape + (2 * n,))
+    for i in range(n):
+        x, y = xy0[i]
+        s = math.hypot(x, y)
+        E = (r[i, 0] / B.radius[i] + B.radius[i] * r[i, 3]).reshape(shape)
+        ux, uy = (x / s, y / s) if s > 0 else (0.0, 0.0)  # the gradient of S at xy0
+        L[..., 2 * i] = r[i, 1].reshape(shape) + ux * E
+        L[..., 2 * i + 1] = r[i, 2].reshape(shape) + uy * E
+    return unit * base.reshape(shape), unit * L
+
+
+def _s_terms(B: BalanceBasis, keys: Sequence[str]) -> float:
+    """How strong the S terms of the quantities ``keys`` are against their linear terms (the
+    largest ratio of their peaks; 0 when they vanish to round-off): where they do not vanish
+    the problems are not linear in the static moments' components."""
+    out = 0.0
+    for key in keys:
+        r = B.resp[key]
+        for i in range(len(B.counterweights)):
+            lin = np.abs(r[i, 1:3]).max() + 1e-300
+            E = np.abs(r[i, 0] / B.radius[i] + B.radius[i] * r[i, 3]).max()
+            if E > 1e-9 * lin:
+                out = max(out, E / lin)
+    return out
+
+
+def _solve_rms(B: BalanceBasis) -> tuple[np.ndarray, str, str]:
+    """Least squares of the shaking force over the turn (with S terms: Gauss-Newton, each step
+    the least squares of the expansion at the last answer); with a limit that the answer
+    passes, the cutting-plane method on the limited problem."""
+    n = len(B.counterweights)
+    xy = B.start.copy()
+    steps = 0
+    for steps in range(1, 101):
+        c, L = _linear(B, "F", xy)
+        z, *_ = np.linalg.lstsq(L.reshape(-1, 2 * n), -c.reshape(-1), rcond=None)
+        new = z.reshape(n, 2)
+        moved = np.abs(new - xy).max()
+        xy = new
+        if moved <= 1e-13 * (1.0 + np.abs(new).max()):
+            break
+    how = "least squares" if not _s_terms(B, ["F"]) else f"Gauss-Newton, {steps} steps"
+    if np.all(np.hypot(xy[:, 0], xy[:, 1]) <= B.s_max):
+        return xy, "optimal", f"RMS shaking force over the turn: {how}"
+    return _minimise(B, [("rms", ("F",), 1.0)], xy, "RMS shaking force")
+
+
+#: what each peak criterion minimises: (kind, quantities) of its one part
+_PEAKS = {"peak": ("vector", ("F",), "peak shaking force"),
+          "moment": ("abs", ("M",), "peak shaking moment"),
+          "bearings": ("vector", ("Bf", "Br"), "larger peak bearing reaction"),
+          "torque": ("range", ("T",), "torque fluctuation")}
+
+
+def _solve_peak(B: BalanceBasis, criterion: str) -> tuple[np.ndarray, str, str]:
+    kind, keys, what = _PEAKS[criterion]
+    start, _, _ = _solve_rms(B) if "F" in keys else (B.start, None, None)
+    return _minimise(B, [(kind, keys, 1.0)], start, what)
+
+
+def _solve_weighted(B: BalanceBasis, w: dict) -> tuple[np.ndarray, str, str]:
+    """Sum of weighted criteria, each divided by its value before (parts that are 0 before,
+    such as the moment of a machine that has none, are left out)."""
+    before = figures(B.quantities(B.start))
+    value = {"peak_force_N": before["peak_force_N"], "rms_force_N": before["rms_force_N"],
+             "peak_moment_Nm": before["peak_moment_Nm"],
+             "torque_fluctuation_Nm": before["torque_fluctuation_Nm"]}
+    if B.has_bearings:
+        value["bearings_peak_N"] = max(before["bearing_front_peak_N"],
+                                       before["bearing_rear_peak_N"])
+    scale = max(float(v) for v in value.values())
+    kinds = {"peak_force_N": ("vector", ("F",)), "rms_force_N": ("rms", ("F",)),
+             "peak_moment_Nm": ("abs", ("M",)), "bearings_peak_N": ("vector", ("Bf", "Br")),
+             "torque_fluctuation_Nm": ("range", ("T",))}
+    parts, used, left = [], [], []
+    for p, wp in w.items():
+        v = float(value[p])
+        if wp == 0.0:
+            continue
+        if not v > 1e-12 * scale:
+            left.append(p)
+            continue
+        parts.append((*kinds[p], wp / v))
+        used.append(f"{wp:g} x {p} / {v:.6g}")
+    if not parts:
+        raise OptionError("--weight", "every weighted part is 0 before balancing",
+                          "Nothing to balance by these parts")
+    start, _, _ = _solve_rms(B)
+    xy, status, message = _minimise(B, parts, start, "weighted sum")
+    message = message.replace("weighted sum", "weighted sum of " + ", ".join(used), 1)
+    if left:
+        message += f"; left out (0 before): {', '.join(left)}"
+    return xy, status, message
+
+
+def _minimise(B: BalanceBasis, parts, xy0: np.ndarray, what: str
+              ) -> tuple[np.ndarray, str, str]:
+    """Minimise sum_i w_i f_i (see :func:`_cutting_planes`) from ``xy0``: exactly by cutting
+    planes where the quantities have no S terms, else by SLSQP in polar coordinates."""
+    if _objective(B.quantities, parts, B.start.reshape(-1)) <= 1e-12:
+        return B.start.copy(), "optimal", f"{what}: 0 with the counterweights as they are"
+    strength = _s_terms(B, [k for _, keys, _ in parts for k in keys])
+    if strength == 0.0:
+        return _cutting_planes(B, parts, xy0, what)
+    if strength < 0.05:  # nearly linear (weights against inertia forces): the expansion's
+        near, _, _ = _cutting_planes(B, parts, xy0, what, max_iter=60, at=xy0)  # optimum
+        return _polar_slsqp(B, parts, [near, xy0], what)  # starts the exact problem
+    return _polar_slsqp(B, parts, [xy0, B.start], what, turns=True)
+
+
+def _polar(B: BalanceBasis, key: str, sb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Quantity ``key`` (N, or N m for moments and torques) at static moments and angles
+    ``sb`` = (S_1, beta_1, ..., S_n, beta_n) and its derivatives by them: (n_phi, k) and
+    (n_phi, k, 2n)."""
+    r = B.resp[key]
+    base = B.base[key]
+    shape = base.shape if base.ndim == 2 else base.shape + (1,)
+    unit = 1e-3 if key in ("M", "T") else 1.0
+    n = len(B.counterweights)
+    Q = base.reshape(shape).copy()
+    D = np.zeros(shape + (2 * n,))
+    for i in range(n):
+        S, b = sb[2 * i], sb[2 * i + 1]
+        c, s = math.cos(b), math.sin(b)
+        R0, R1, R2, R3 = (r[i, j].reshape(shape) for j in range(4))
+        dS = R0 / B.radius[i] + c * R1 + s * R2 + B.radius[i] * R3
+        Q += S * dS
+        D[..., 2 * i] = dS
+        D[..., 2 * i + 1] = S * (c * R2 - s * R1)
+    return unit * Q, unit * D
+
+
+def _polar_slsqp(B: BalanceBasis, parts, firsts: Sequence[np.ndarray], what: str,
+                 turns: bool = False) -> tuple[np.ndarray, str, str]:
+    """Minimise sum_i w_i f_i where S terms make the quantities nonlinear in the static
+    moments' components: each quantity is smooth in (S, beta) per counterweight, so SLSQP
+    solves the epigraph form (a bound t_i on each peak, t_i^2 >= |Q|^2 at every angle for a
+    vector, t_i >= +-Q for a scalar) with exact gradients, 0 <= S <= max_static_moment. The
+    problem is not convex: it starts from each of ``firsts`` (n, 2) and, with ``turns``, from
+    the first turned by 90, 180 and 270 degrees, each counterweight in turn, and keeps the best
+    local optimum."""
+    from scipy.optimize import minimize
+
+    n = len(B.counterweights)
+    nz = 2 * n
+    slots, nv = [], nz
+    for kind, _, _ in parts:
+        k = {"range": 2, "rms": 0}.get(kind, 1)
+        slots.append(list(range(nv, nv + k)))
+        nv += k
+
+    memo = {}
+
+    def split(v):  # the objective, constraints and Jacobian at one point share it
+        key = v[:nz].tobytes()
+        if key not in memo:
+            memo.clear()
+            memo[key] = {k: _polar(B, k, v[:nz]) for _, keys, _ in parts for k in keys}
+        return memo[key]
+
+    def objective(v):  # in units of its value at the first start
+        f, g = 0.0, np.zeros(nv)
+        q = split(v)
+        for (kind, keys, w), sl in zip(parts, slots):
+            if kind == "rms":
+                Q, D = q[keys[0]]
+                val = math.sqrt(float(np.mean(np.sum(Q * Q, axis=-1))))
+                f += w * val
+                if val > 0:
+                    g[:nz] += w * np.einsum("pk,pkz->z", Q, D) / (len(Q) * val)
+            else:
+                f += w * v[sl[0]]
+                g[sl[0]] += w
+                if kind == "range":
+                    f -= w * v[sl[1]]
+                    g[sl[1]] -= w
+        return f / unit_f[0], g / unit_f[0]
+
+    # the constraints in units of each peak at the first start: SLSQP's steps and tolerances
+    # then mean the same for a force of 50 N and a moment of 0.5 N m
+    unit = np.ones(len(parts))
+    unit_f = [1.0]
+
+    def cons(v):
+        q = split(v)
+        out = []
+        for (kind, keys, _), sl, un in zip(parts, slots, unit):
+            for k in keys:
+                Q = q[k][0] / un
+                if kind == "vector":
+                    out.append((v[sl[0]] / un) ** 2 - np.sum(Q * Q, axis=-1))
+                elif kind == "abs":
+                    out += [v[sl[0]] / un - Q[:, 0], v[sl[0]] / un + Q[:, 0]]
+                elif kind == "range":
+                    out += [v[sl[0]] / un - Q[:, 0], Q[:, 0] - v[sl[1]] / un]
+        return np.concatenate(out) if out else np.zeros(0)
+
+    def cons_jac(v):
+        q = split(v)
+        rows = []
+        for (kind, keys, _), sl, un in zip(parts, slots, unit):
+            for k in keys:
+                Q, D = q[k]
+                if kind == "vector":
+                    J = np.zeros((len(Q), nv))
+                    J[:, :nz] = -2.0 * np.einsum("pk,pkz->pz", Q, D) / un ** 2
+                    J[:, sl[0]] = 2.0 * v[sl[0]] / un ** 2
+                    rows.append(J)
+                elif kind in ("abs", "range"):
+                    for sgn, col in ((-1.0, sl[0]), (1.0, sl[-1])):
+                        J = np.zeros((len(Q), nv))
+                        J[:, :nz] = sgn * D[:, 0] / un
+                        J[:, col] = (-sgn if kind == "range" else 1.0) / un
+                        rows.append(J)
+        return np.vstack(rows) if rows else np.zeros((0, nv))
+
+    def polar(xy):
+        return np.column_stack([np.hypot(xy[:, 0], xy[:, 1]),
+                                np.arctan2(xy[:, 1], xy[:, 0])]).reshape(-1)
+
+    scale = max(max(float(np.abs(f).max()) for f in firsts), 1e-6)
+    firsts = [polar(np.asarray(f, dtype=float)) for f in firsts]
+    for i in range(n if turns else 0):
+        for turn in (0.5, 1.0, 1.5):
+            p = firsts[0].copy()
+            p[2 * i] = max(p[2 * i], 0.1 * scale)
+            p[2 * i + 1] += turn * math.pi
+            firsts.append(p)
+    bounds = [b for i in range(n) for b in ((0.0, B.s_max[i] if math.isfinite(B.s_max[i])
+                                             else None), (None, None))]
+    bounds += [(None, None)] * (nv - nz)
+    results, tried = [], 0
+    for p in firsts:
+        p = p.copy()
+        p[0:nz:2] = np.minimum(p[0:nz:2], B.s_max)
+        v0 = np.concatenate([p, np.zeros(nv - nz)])
+        q = split(v0)
+        for (kind, keys, _), sl in zip(parts, slots):  # start each bound where it holds
+            if kind == "vector":
+                v0[sl[0]] = max(float(np.hypot(q[k][0][:, 0], q[k][0][:, 1]).max())
+                                for k in keys)
+            elif kind == "abs":
+                v0[sl[0]] = float(np.abs(q[keys[0]][0]).max())
+            elif kind == "range":
+                v0[sl[0]], v0[sl[1]] = float(q[keys[0]][0].max()), float(q[keys[0]][0].min())
+        if not tried:
+            for j, ((kind, _, _), sl) in enumerate(zip(parts, slots)):
+                if kind != "rms":
+                    unit[j] = max(abs(v0[sl[0]]), abs(v0[sl[-1]]), 1e-9)
+            unit_f[0] = max(objective(v0)[0], 1e-12)
+        res = minimize(objective, v0, jac=True, method="SLSQP", bounds=bounds,
+                       constraints=[{"type": "ineq", "fun": cons, "jac": cons_jac}]
+                       if nv > nz else [], options={"maxiter": 500, "ftol": 1e-12})
+        tried += 1
+        sb = res.x[:nz]
+        xy = np.column_stack([sb[0::2] * np.cos(sb[1::2]), sb[0::2] * np.sin(sb[1::2])])
+        results.append((_objective(B.quantities, parts, xy.reshape(-1)), bool(res.success), xy))
+    best = min(results, key=lambda r: r[0])
+    # optimal when a start that converged reached the best value (others may stop a hair
+    # lower with "positive directional derivative": the line search found no more descent)
+    tol = 1e-9 * max(abs(best[0]), 1e-12)
+    ok = [r for r in results if r[1]]
+    status = "optimal" if any(r[0] <= best[0] + tol for r in ok) else "not converged"
+    how = (f"{what}: SLSQP on the exact basis in polar coordinates (the S terms make it"
+           f" nonlinear), best local optimum of {tried} starts ({len(ok)} converged)")
+    return best[2], status, how
+
+
+def _within_limits(B: BalanceBasis, xy: np.ndarray) -> np.ndarray:
+    """Static moments ``xy`` (n, 2) with each one beyond its limit scaled back onto it."""
+    s = np.hypot(xy[:, 0], xy[:, 1])
+    f = np.where(s > B.s_max, B.s_max / np.maximum(s, 1e-300), 1.0)
+    return xy * f[:, None]
+
+
+def _cutting_planes(B: BalanceBasis, parts, xy0: np.ndarray, what: str,
+                    tol: float = 1e-9, max_iter: int = 300, at: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, str, str]:
+    """Minimise sum_i w_i f_i(z) by cutting planes (Kelley's method): each f_i is a peak over
+    the turn of a vector's length (``"vector"``), of a scalar's magnitude (``"abs"``), a range
+    max - min (``"range"``) or an RMS (``"rms"``), each convex in the static moments'
+    components z where the S terms vanish. Every step is a linear programme (HiGHS) over the
+    cuts so far; its value is a lower bound and the exact objective at its answer an upper
+    bound, and the method stops when they meet (to ``tol``). Cuts: for a vector, its direction
+    at the angles where the programme underestimates it; for an RMS, its tangent plane; for a
+    limited counterweight, the direction of a static moment beyond the limit. Only for
+    quantities without S terms (:func:`_s_terms`); :func:`_polar_slsqp` solves the others.
+
+    With ``at`` (n, 2) it minimises the first-order expansion at ``at`` instead (for weak S
+    terms, see :func:`_minimise`).
+
+    parts: (kind, quantity keys, weight) each. Returns (xy, status, message)."""
+    from scipy.optimize import linprog
+
+    lin = {k: _linear(B, k, xy0 if at is None else at) for _, keys, _ in parts for k in keys}
+    qf = B.quantities if at is None else _expansion(lin)  # exact without S terms
+    n = len(B.counterweights)
+    nz = 2 * n
+    slots, nv = [], nz
+    for kind, _, _ in parts:
+        slots.append(list(range(nv, nv + (2 if kind == "range" else 1))))
+        nv += len(slots[-1])
+    cost = np.zeros(nv)
+    for (kind, _, w), sl in zip(parts, slots):
+        cost[sl[0]] = w
+        if kind == "range":
+            cost[sl[1]] = -w
+    ring = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
+    n_phi = len(B.phi)
+    cuts = {}  # vector key -> (angle indices, directions): the vector's at the start
+    q0 = qf(xy0)
+    for kind, keys, _ in parts:
+        if kind == "vector":
+            for k in keys:
+                mag = np.maximum(np.hypot(q0[k][:, 0], q0[k][:, 1]), 1e-300)
+                cuts[k] = (np.arange(n_phi), q0[k] / mag[:, None])
+    tangents: list[tuple[np.ndarray, float, np.ndarray]] = []  # rms: (z_j, f_j, gradient)
+    limited = [i for i in range(n) if math.isfinite(B.s_max[i])]
+    limit_dirs = {i: ring.copy() for i in limited}
+    # a box that keeps the first programmes bounded; an answer on it widens it
+    box = 4.0 * max(float(np.abs(xy0).max()), float(np.abs(B.start).max()), 1e-6)
+    z = _within_limits(B, xy0).reshape(-1)
+    exact = _objective(qf, parts, z)
+    best = (exact, z.copy())
+    # the gap that counts as closed: relative, with a floor for a criterion already ~0
+    floor = 1e-12 * max(_objective(qf, parts, B.start.reshape(-1)), exact, 1e-3)
+    lower = -np.inf
+    status, it = "not converged", 0
+    for it in range(1, max_iter + 1):
+        if any(kind == "rms" for kind, _, _ in parts):
+            f, g = _rms_and_gradient(lin["F"], z)
+            tangents.append((z.copy(), f, g))
+        rows, rhs = [], []
+        for (kind, keys, _), sl in zip(parts, slots):
+            for k in keys:
+                c, L = lin[k]
+                if kind == "vector":
+                    P, D = cuts[k]
+                    A = np.zeros((len(P), nv))
+                    A[:, :nz] = np.einsum("mk,mkz->mz", D, L[P])
+                    A[:, sl[0]] = -1.0
+                    rows.append(A)
+                    rhs.append(-np.einsum("mk,mk->m", D, c[P]))
+                elif kind == "abs":
+                    for sgn in (1.0, -1.0):
+                        A = np.zeros((n_phi, nv))
+                        A[:, :nz], A[:, sl[0]] = sgn * L[:, 0], -1.0
+                        rows.append(A)
+                        rhs.append(-sgn * c[:, 0])
+                elif kind == "range":
+                    A = np.zeros((n_phi, nv))
+                    A[:, :nz], A[:, sl[0]] = L[:, 0], -1.0
+                    rows.append(A)
+                    rhs.append(-c[:, 0])
+                    A = np.zeros((n_phi, nv))
+                    A[:, :nz], A[:, sl[1]] = -L[:, 0], 1.0
+                    rows.append(A)
+                    rhs.append(c[:, 0])
+                else:  # rms: tau >= f_j + g_j (z - z_j)
+                    for zj, fj, gj in tangents:
+                        A = np.zeros((1, nv))
+                        A[0, :nz], A[0, sl[0]] = gj, -1.0
+                        rows.append(A)
+                        rhs.append(np.array([gj @ zj - fj]))
+        for i in limited:
+            A = np.zeros((len(limit_dirs[i]), nv))
+            A[:, 2 * i:2 * i + 2] = limit_dirs[i]
+            rows.append(A)
+            rhs.append(np.full(len(limit_dirs[i]), B.s_max[i]))
+        bounds = [(-box, box)] * nz + [(None, None)] * (nv - nz)
+        A_ub, b_ub = np.vstack(rows), np.concatenate(rhs)
+        lp = linprog(cost, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method="highs")
+        if lp.status != 0:
+            raise AnalysisError(f"balancing '{B.machine.name}'", f"a linear programme failed:"
+                                f" {lp.message}", "Report this machine file as a bug")
+        z_new = lp.x
+        # the box is widened only where it binds (a direction the criterion does not see,
+        # such as two counterweights that act alike, leaves the answer on it at no cost)
+        pull = np.abs(lp.lower.marginals[:nz]) + np.abs(lp.upper.marginals[:nz])
+        on_box = np.any((np.abs(z_new[:nz]) >= box * (1 - 1e-9))
+                        & (pull > 1e-12 * np.abs(cost).max()))
+        lower = lp.fun
+        # the upper bound: the answer drawn back inside the limits (the cuts only approximate
+        # their circles)
+        z_in = _within_limits(B, z_new[:nz].reshape(n, 2)).reshape(-1)
+        value = _objective(qf, parts, z_in)
+        if value < best[0]:
+            best = (value, z_in)
+        gap = value - lower
+        if on_box:
+            box *= 4.0
+        elif gap <= max(tol * abs(value), floor):
+            status = "optimal"
+            break
+        # new cuts where the programme underestimates
+        xy_new = z_new[:nz].reshape(n, 2)
+        q = qf(xy_new)
+        for (kind, keys, _), sl in zip(parts, slots):
+            if kind != "vector":
+                continue
+            t = z_new[sl[0]]
+            for k in keys:
+                mag = np.hypot(q[k][:, 0], q[k][:, 1])
+                bad = np.nonzero(mag > t + 1e-12 * max(t, 1e-300))[0]
+                if bad.size:
+                    P, D = cuts[k]
+                    cuts[k] = (np.concatenate([P, bad]),
+                               np.vstack([D, q[k][bad] / mag[bad, None]]))
+        for i in limited:
+            x, y = xy_new[i]
+            s = math.hypot(x, y)
+            if s > B.s_max[i] * (1 + 1e-12):
+                limit_dirs[i] = np.vstack([limit_dirs[i], [x / s, y / s]])
+        z = z_new[:nz]
+    if status == "optimal":  # of the optimal designs, the one with the least static moments
+        best = _least_moments(B, qf, parts, A_ub, b_ub, bounds, cost, best, tol, floor)
+    xy = best[1].reshape(n, 2)
+    message = (f"{what}: cutting planes, {it} linear programmes (HiGHS), lower bound met"
+               if status == "optimal" else
+               f"{what}: cutting planes did not converge in {max_iter} linear programmes"
+               f" (best found; gap {best[0] - lower:.3g})")
+    return xy, status, message
+
+
+def _least_moments(B: BalanceBasis, qf, parts, A_ub, b_ub, bounds, cost, best, tol, floor):
+    """Among the designs of the last programme whose objective is at most the best found, the
+    one of least sum |x| + |y| (where the criterion does not fix every component, e.g. two
+    counterweights that act alike, it would otherwise pick any); kept if the exact objective
+    there is still the best (to ``tol``). Returns (value, z)."""
+    from scipy.optimize import linprog
+
+    nv, nz = len(cost), len(best[1])
+    c = np.concatenate([np.zeros(nv), np.ones(nz)])
+    eye = np.eye(nz, nv)
+    A = np.block([[A_ub, np.zeros((len(A_ub), nz))],
+                  [cost[None, :], np.zeros((1, nz))],
+                  [eye, -np.eye(nz)], [-eye, -np.eye(nz)]])
+    b = np.concatenate([b_ub, [best[0]], np.zeros(2 * nz)])
+    lp = linprog(c, A_ub=A, b_ub=b, bounds=list(bounds) + [(0.0, None)] * nz, method="highs")
+    if lp.status != 0:
+        return best
+    z = _within_limits(B, lp.x[:nz].reshape(-1, 2)).reshape(-1)
+    value = _objective(qf, parts, z)
+    if value <= best[0] + max(tol * abs(best[0]), floor) and \
+            np.abs(z).sum() < np.abs(best[1]).sum():
+        return value, z
+    return best
+
+
+def _rms_and_gradient(lin, z: np.ndarray) -> tuple[float, np.ndarray]:
+    """RMS of a vector quantity over the turn and its gradient, from its expansion (c, L)."""
+    c, L = lin
+    q = c + np.einsum("pkz,z->pk", L, z)
+    f = math.sqrt(float(np.mean(np.sum(q * q, axis=-1))))
+    g = np.einsum("pk,pkz->z", q, L) / (len(q) * f) if f > 0 else np.zeros(len(z))
+    return f, g
+
+
+def _expansion(lin: dict):
+    """The quantities as :meth:`BalanceBasis.quantities` gives them, from their first-order
+    expansions (:func:`_linear`, key -> (c, L))."""
+    def quantities(xy):
+        z = np.asarray(xy, dtype=float).reshape(-1)
+        out = {}
+        for k, (c, L) in lin.items():
+            unit = 1e-3 if k in ("M", "T") else 1.0
+            q = (c + L @ z) / unit
+            out[k] = q if k not in ("M", "T") else q[:, 0]
+        return out
+    return quantities
+
+
+def _objective(qf, parts, z: np.ndarray) -> float:
+    """sum_i w_i f_i at z (N, N m), with quantities ``qf`` (:meth:`BalanceBasis.quantities` or
+    an :func:`_expansion`)."""
+    q = qf(np.asarray(z).reshape(-1, 2))
+    total = 0.0
+    for kind, keys, w in parts:
+        if kind == "vector":
+            f = max(float(np.hypot(q[k][:, 0], q[k][:, 1]).max()) for k in keys)
+        elif kind == "abs":
+            f = 1e-3 * float(np.abs(q[keys[0]]).max())
+        elif kind == "range":
+            f = 1e-3 * float(np.ptp(q[keys[0]]))
+        else:
+            f = math.sqrt(float(np.mean(np.sum(q[keys[0]] ** 2, axis=-1))))
+        total += w * f
+    return total
+
+
+def _solve_delta_q(B: BalanceBasis) -> tuple[np.ndarray, str, str]:
+    """The paper's Delta-Q = 0: one counterweight's static moment along its present angle (a
+    root of max|Qx| - max|Qy| on the exact basis); the root of least peak force if several."""
+    from scipy.optimize import brentq, minimize_scalar
+
+    if len(B.counterweights) != 1:
+        raise OptionError("--counterweight", "delta-q chooses the static moment of one"
+                          f" counterweight; {len(B.counterweights)} are chosen",
+                          "Name one with --counterweight NAME (its angle stays as the file"
+                          " gives it), or choose peak, rms or weighted for several")
+    c = B.counterweights[0]
+    x0, y0 = B.start[0]
+    if math.hypot(x0, y0) > 0:
+        beta = math.atan2(y0, x0)
+    else:
+        spec = B.machine.spec.counterweights[c.name]
+        beta = math.radians(spec.angle_deg) if spec.by_moment else math.atan2(spec.at_mm[1],
+                                                                              spec.at_mm[0])
+    e = np.array([math.cos(beta), math.sin(beta)])
+
+    def f(S):
+        F = B.quantities((S * e)[None, :])["F"]
+        return float(np.abs(F[:, 0]).max() - np.abs(F[:, 1]).max())
+
+    # a scale for the scan: the static moment whose inertia force equals the peak force now
+    w = 2.0 * math.pi * B.rpm / 60.0
+    peak = float(B.criteria(B.start)["peak_force_N"])
+    hi = B.s_max[0] if math.isfinite(B.s_max[0]) else max(4.0 * 1e3 * peak / w ** 2, 1e-6)
+    grid = np.linspace(0.0, hi, 401)
+    vals = np.array([f(s) for s in grid])
+    roots = []
+    for k in np.nonzero(np.sign(vals[:-1]) * np.sign(vals[1:]) <= 0)[0]:
+        if vals[k] == 0.0:
+            roots.append(grid[k])
+        elif vals[k + 1] != 0.0:
+            roots.append(brentq(f, grid[k], grid[k + 1], xtol=1e-14 * hi, rtol=1e-14))
+    where = f"along {math.degrees(beta):.6g} deg"
+    if roots:
+        best = min(roots, key=lambda s: float(B.criteria((s * e)[None, :])["peak_force_N"]))
+        more = f" (the one of least peak force among {len(roots)})" if len(roots) > 1 else ""
+        return (best * e)[None, :], "optimal", \
+            f"Delta-Q = 0: root of max|Qx| - max|Qy| {where}{more}"
+    k = int(np.argmin(np.abs(vals)))
+    lo, up = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
+    s = minimize_scalar(lambda S: abs(f(S)), bounds=(lo, up), method="bounded",
+                        options={"xatol": 1e-12 * hi}).x
+    limit = "max_static_moment_gcm" if math.isfinite(B.s_max[0]) else "the scanned range"
+    return (s * e)[None, :], "infeasible", \
+        f"Delta-Q does not reach 0 {where} within {limit}: the least Delta-Q is given"
