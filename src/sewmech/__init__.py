@@ -43,7 +43,7 @@ MODULES = {
                              "counterweights")},
     **{m: "sewing" for m in ("timing", "checks", "feed", "thread", "transmission",
                              "embroidery")},
-    **{m: "design" for m in ("balancing",)},
+    **{m: "design" for m in ("balancing", "vibration", "inserts")},
     **{m: "app" for m in ("cli", "report", "report_dynamics", "plot", "io", "outdir")},
 }
 

@@ -21,8 +21,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 #: typical densities, kg/m^3 [estimates: handbook values for plain carbon steel, grey cast iron,
-#: aluminium alloy, brass]
-MATERIALS = {"steel": 7850.0, "cast_iron": 7200.0, "aluminium": 2700.0, "brass": 8500.0}
+#: aluminium alloy, brass, cast lead (the balancing paper's counterweight inserts)]
+MATERIALS = {"steel": 7850.0, "cast_iron": 7200.0, "aluminium": 2700.0, "brass": 8500.0,
+             "lead": 11340.0}
 
 _KG_PER_M3_TO_KG_PER_MM3 = 1e-9
 
