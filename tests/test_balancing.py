@@ -205,7 +205,7 @@ radius_mm = 20.0
 z_mm = 300.0
 """
     m = machine_from_toml(text)
-    B = balance_basis(m, step_deg=4.0)
+    B = balance_basis(m, ["front_cw", "rear_cw"], step_deg=4.0)
     res = balance(m, "bearings", basis=B)
     assert res.status == "optimal" and res.basis_error < 1e-9
     after = max(res.after["bearing_front_peak_N"], res.after["bearing_rear_peak_N"])

@@ -128,7 +128,7 @@ def test_bearing_reactions_count_a_counterweight_on_the_shaft():
     same point mass written among the crank's solids."""
     text = jb13_text()
     cw = text + """
-[counterweights.extra]
+[counterweights.added]
 link = "needle_crank"
 static_moment_gcm = 80.0
 angle_deg = 200.0
@@ -173,7 +173,7 @@ def test_a_counterweight_name_cannot_take_a_parameter_of_the_machine():
 
 
 def test_a_counterweight_on_the_shaft_needs_its_plane():
-    text = jb13_text() + ('\n[counterweights.extra]\nlink = "needle_crank"\n'
+    text = jb13_text() + ('\n[counterweights.added]\nlink = "needle_crank"\n'
                           'static_moment_gcm = 80.0\nangle_deg = 200.0\nradius_mm = 20.0\n')
     with pytest.raises(MachineFileError, match="z_mm"):
         machine_from_toml(text)

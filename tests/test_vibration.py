@@ -107,10 +107,24 @@ def test_lead_insert_static_moment_from_its_volume():
     assert same.depth_mm == pytest.approx(10.0)
     d = trim_hole(50.0, 15.0, 10.0)
     assert 11.34e-3 * math.pi * d * d / 4.0 * 10.0 * 15.0 / 10.0 == pytest.approx(50.0)
-    b = build_extra(64.1, 15.0, 10.0, factor=3.0)
+    b = build_extra(64.1, 15.0, depth_mm=10.0, factor=3.0)
     assert b["s_built_gcm"] == pytest.approx(192.3)
-    assert b["trim_diameter_mm"] < b["insert"]["diameter_mm"]
+    ins = b["insert"]
+    # the lead drilled out completely removes the whole margin, 2 x 64.1 g cm
+    lead_s = 11.34e-3 * math.pi * ins["diameter_mm"] ** 2 / 4.0 * 10.0 * 15.0 / 10.0
+    assert lead_s == pytest.approx(2.0 * 64.1, rel=1e-12)
+    # block + insert make the built static moment
+    assert b["body_s_gcm"] + ins["s_gcm"] == pytest.approx(192.3)
+    assert b["body_mass_g"] * 15.0 / 10.0 == pytest.approx(b["body_s_gcm"])
+    # trimming to S_add: the hole into the lead is the insert itself (it holds the margin
+    # exactly); a hole into steel must be wider, by the root of the densities
+    assert b["trim_diameter_mm"] == pytest.approx(ins["diameter_mm"])
+    assert b["trim_diameter_body_mm"] ** 2 * 7850.0 == pytest.approx(
+        b["trim_diameter_mm"] ** 2 * 11340.0)
+    assert b["hole_edge_mm"] == pytest.approx(15.0 - ins["diameter_mm"] / 2.0)
+    b = build_extra(64.1, 15.0, factor=2.5)  # by default as deep as the radius
+    assert b["insert"]["depth_mm"] == pytest.approx(15.0)
     with pytest.raises(OptionError, match="margin"):
-        build_extra(64.1, 15.0, 10.0, factor=5.0)
+        build_extra(64.1, 15.0, depth_mm=10.0, factor=5.0)
     with pytest.raises(OptionError, match="not denser"):
         insert(10.0, 15.0, depth_mm=5.0, filler="aluminium")

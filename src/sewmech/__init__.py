@@ -44,7 +44,8 @@ MODULES = {
     **{m: "sewing" for m in ("timing", "checks", "feed", "thread", "transmission",
                              "embroidery")},
     **{m: "design" for m in ("balancing", "vibration", "inserts")},
-    **{m: "app" for m in ("cli", "report", "report_dynamics", "plot", "io", "outdir")},
+    **{m: "app" for m in ("cli", "cli_common", "cli_balancing", "report", "report_dynamics",
+                          "report_balancing", "figures", "plot", "io", "outdir")},
 }
 
 

@@ -11,7 +11,7 @@ import json
 import math
 import os
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -186,3 +186,52 @@ def pair_forces_frame(res):
         for j, label in enumerate(_PAIR_LABELS[pair.kind]):
             cols[f"{pair.name}.{label}"] = x[:, j]
     return pd.DataFrame(cols)
+
+
+def read_csv_columns(path: str | Path, numbers: Sequence[str], texts: Sequence[str] = (),
+                     *, what: str = "measurements") -> dict[str, np.ndarray]:
+    """The columns ``numbers`` (as floats) and ``texts`` (as strings) of a CSV file with a
+    header line; other columns are ignored, blank lines and lines starting with ``#`` skipped.
+
+    Raises AnalysisError naming the file, and the line and column of a bad value, when a column
+    is missing, a number is not a finite number, or there are no data lines."""
+    import csv
+
+    from ..engine.errors import AnalysisError
+
+    path = Path(path).expanduser()
+    where = str(path)
+    if path.is_dir():
+        raise AnalysisError(where, "is a directory", f"Give the CSV file of the {what}")
+    with open(path, encoding="utf-8-sig", newline="") as fh:
+        lines = [(k, row) for k, row in enumerate(csv.reader(fh), start=1)
+                 if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")]
+    if not lines:
+        raise AnalysisError(where, "is empty", f"Write a header line ({', '.join(numbers)})"
+                            f" and one line per measurement")
+    head_line, header = lines[0]
+    header = [c.strip() for c in header]
+    missing = [c for c in (*numbers, *texts) if c not in header]
+    if missing:
+        raise AnalysisError(f"{where}:{head_line}", f"missing column(s) {', '.join(missing)}"
+                            f" (the header has {', '.join(header) or 'nothing'})",
+                            f"The header must name {', '.join((*numbers, *texts))}")
+    if len(lines) < 2:
+        raise AnalysisError(where, "has a header but no measurements", "Add one line each")
+    idx = {c: header.index(c) for c in (*numbers, *texts)}
+    out: dict[str, list] = {c: [] for c in idx}
+    for k, row in lines[1:]:
+        for c, j in idx.items():
+            cell = row[j].strip() if j < len(row) else ""
+            if c in texts:
+                out[c].append(cell)
+                continue
+            try:
+                v = float(cell)
+            except ValueError:
+                v = math.nan
+            if not math.isfinite(v):
+                raise AnalysisError(f"{where}:{k}", f"column {c}: {cell!r} is not a number",
+                                    "Give a finite number (a dot for decimals)")
+            out[c].append(v)
+    return {c: np.array(v, dtype=float if c in numbers else object) for c, v in out.items()}

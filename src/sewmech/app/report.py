@@ -74,7 +74,8 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
     # the sections that stand alone start now, in the workers if there are any
     names = (["feed"] if has_feed else []) + (["dynamics"] if machine.spec.masses else []) + (
         ["thread"] if machine.spec.thread is not None and machine.spec.thread.bobbin_case_radius
-        else []) + (["comparison"] if variants else [])
+        else []) + (["balancing"] if machine.counterweights else []) + (
+        ["comparison"] if variants else [])
     sections = _Sections(pool, machine, root, variants, names)
     conv = machine.spec.convention
     n = int(round(360.0 / step_deg))
@@ -220,6 +221,10 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
             result.to_csv(root / f"{machine.name}-dynamics-key-figures.csv", index=False,
                           float_format="%.10g")
             blocks.append(_dynamics_intro(machine, result))
+        elif name == "balancing":
+            result["comparison"].to_csv(root / f"{machine.name}-balancing-criteria.csv",
+                                        index=False, float_format="%.10g")
+            blocks.append(result["html"])
         blocks += section_blocks
         if name != "feed":
             step(name)
@@ -291,6 +296,11 @@ def _run_section(name: str):
         from .report_dynamics import dynamics_section
 
         result = dynamics_section(figs, machine, variants)
+    elif name == "balancing":
+        from .report_balancing import balancing_section, section_html
+
+        sec = balancing_section(figs, machine)
+        result = {"comparison": sec["comparison"], "html": section_html(machine, sec)}
     else:
         _comparison(figs, [machine] + list(variants))
     return figs.blocks, result
@@ -311,7 +321,7 @@ class _Sections:
         self.lock = threading.Lock()
         # the longest first, so that the last ones to finish are short
         self.queue = collections.deque(sorted(
-            names, key=["dynamics", "feed", "thread", "comparison"].index))
+            names, key=["dynamics", "feed", "balancing", "thread", "comparison"].index))
         if pool is not None:
             for _ in range(min(pool._max_workers, len(self.queue))):
                 self._next()

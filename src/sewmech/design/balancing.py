@@ -317,7 +317,9 @@ class BalanceResult:
     (:data:`FIGURES`) of the machine as the file has it and with the chosen counterweights,
     both computed on the whole machine; overrides : the parameter values to apply
     (:meth:`Machine.with_parameters`); basis_error : the largest difference between the
-    basis' prediction of the result and the whole machine's, N or N m.
+    basis' prediction of the result and the whole machine's, N or N m; curves: the
+    quantities over the turn (:attr:`BalanceBasis.base` keys; N, N mm) ``"before"`` and
+    ``"after"``, computed on the whole machine, with ``"phi"`` (rad).
     """
 
     criterion: str
@@ -332,6 +334,7 @@ class BalanceResult:
     basis_error: float
     rpm: float
     weights: dict = field(default_factory=dict)
+    curves: dict = field(default_factory=dict, repr=False)
 
     def to_json(self) -> dict:
         """The result as the ``sewmech balance --json`` keys."""
@@ -401,8 +404,9 @@ def balance(machine: Machine, criterion: str = "delta-q",
     predicted = B.quantities(xy)
     err = max(float(np.abs(predicted[k] - exact[k]).max()) * (1e-3 if k in ("M", "T") else 1.0)
               for k in exact)
+    curves = {"phi": B.phi, "before": {k: v[0] for k, v in both.items()}, "after": exact}
     return BalanceResult(criterion, status, message, xy, B.describe(xy), B.describe(B.start),
-                         before, after, B.design(xy), err, B.rpm, w)
+                         before, after, B.design(xy), err, B.rpm, w, curves)
 
 
 def _weights(weights: Mapping[str, float] | None, B: BalanceBasis) -> dict:
@@ -968,3 +972,100 @@ def _solve_delta_q(B: BalanceBasis) -> tuple[np.ndarray, str, str]:
     limit = "max_static_moment_gcm" if math.isfinite(B.s_max[0]) else "the scanned range"
     return (s * e)[None, :], "infeasible", \
         f"Delta-Q does not reach 0 {where} within {limit}: the least Delta-Q is given"
+
+
+# ---- the designer's views: the paper's workflow and the trade-off front -----------------------
+
+
+def link_static_moment(machine: Machine, link: str) -> tuple[float, float]:
+    """The static moment of a link's own masses (its ``[masses]`` table, without the
+    counterweights) about its frame's origin: (S g cm, angle deg in the link frame). For the
+    upper shaft's crank this is the balancing paper's S_1, the counterweight the machine has."""
+    mp = machine.masses.get(link)
+    if mp is None:
+        return 0.0, 0.0
+    m, com = mp.mass, mp.com
+    return (float(m * math.hypot(com[0], com[1]) * GCM_PER_KGMM),
+            float(math.degrees(math.atan2(com[1], com[0]))))
+
+
+def paper_workflow(machine: Machine, counterweight: str, *, rpm: float | None = None,
+                   step_deg: float = 1.0, factor: float = 3.0,
+                   insert_depth_mm: float | None = None, basis: BalanceBasis | None = None
+                   ) -> dict:
+    """The balancing paper's method on ``counterweight`` (an extra counterweight on the upper
+    shaft, static moment 0 in the file): S_add from Delta-Q = 0 along its angle, S_1 the
+    static moment the shaft's crank has (:func:`link_static_moment`), S_opt = |S_1 + S_add|
+    (as vectors), and the extra counterweight built ``factor`` times stronger with a lead insert
+    at its radius (``insert_depth_mm`` deep, default: 0.6 x the radius wide), with the trimming
+    holes that bring it back to S_add (:func:`sewmech.design.inserts.build_extra`). Returns a dict (g cm, deg, mm, g) with the
+    :class:`BalanceResult` under ``"result"``."""
+    from .inserts import build_extra
+
+    res = balance(machine, "delta-q", [counterweight], rpm=rpm, step_deg=step_deg, basis=basis)
+    cw = res.counterweights[counterweight]
+    link = cw["link"]
+    s1, a1 = link_static_moment(machine, link)
+    before = res.counterweights_before[counterweight]
+    add = cw["static_moment_gcm"] - before["static_moment_gcm"]
+    v1 = s1 * np.exp(1j * math.radians(a1))
+    v_opt = v1 + cw["static_moment_gcm"] * np.exp(1j * math.radians(cw["angle_deg"]))
+    out = {"counterweight": counterweight, "link": link, "s1_gcm": s1, "s1_angle_deg": a1,
+           "s_add_gcm": add, "s_add_angle_deg": cw["angle_deg"],
+           "s_opt_gcm": float(abs(v_opt)), "s_opt_angle_deg": float(np.degrees(np.angle(v_opt))),
+           "status": res.status, "result": res}
+    if add > 0:
+        out["build"] = build_extra(add, cw["radius_mm"], depth_mm=insert_depth_mm,
+                                   factor=factor)
+    return out
+
+
+def tradeoff(B: BalanceBasis, n: int = 2048, seed: int = 0, span: float | None = None) -> dict:
+    """Designs to choose from: ``n`` sets of static moments spread over the plane of each
+    counterweight (a scrambled Sobol sample, ``seed``) within ``span`` kg mm of 0 (default:
+    twice the largest of the file's and the least-RMS answer) and their limits, with every
+    balancing figure (computed from the basis, one batch) and which of them are not dominated
+    in peak shaking force, peak shaking moment and the larger peak bearing reaction (or the
+    torque fluctuation without ``[shaft]``). Returns {"xy": (n, k, 2) kg mm, "figures": dict of
+    (n,), "front": (n,) bool, "axes": the three figure names}."""
+    from scipy.stats import qmc
+
+    k = len(B.counterweights)
+    if span is None:
+        rms, _, _ = _solve_rms(B)
+        span = 2.0 * max(float(np.abs(rms).max()), float(np.abs(B.start).max()), 1e-3)
+    z = qmc.Sobol(2 * k, scramble=True, seed=seed).random(n) * 2.0 - 1.0
+    xy = _within_limits_batch(B, span * z.reshape(n, k, 2))
+    fig = B.criteria(xy)
+    if B.has_bearings:
+        third = np.maximum(fig["bearing_front_peak_N"], fig["bearing_rear_peak_N"])
+        axes = ("peak_force_N", "peak_moment_Nm", "bearings_peak_N")
+        fig["bearings_peak_N"] = third
+    else:
+        axes = ("peak_force_N", "peak_moment_Nm", "torque_fluctuation_Nm")
+    F = np.column_stack([fig[a] for a in axes])
+    return {"xy": xy, "figures": fig, "front": pareto_front(F), "axes": axes}
+
+
+def _within_limits_batch(B: BalanceBasis, xy: np.ndarray) -> np.ndarray:
+    s = np.hypot(xy[..., 0], xy[..., 1])
+    f = np.where(s > B.s_max, B.s_max / np.maximum(s, 1e-300), 1.0)
+    return xy * f[..., None]
+
+
+def pareto_front(F: ArrayLike) -> np.ndarray:
+    """Which rows of ``F`` (n, m), all to be minimised, no other row dominates (no worse in
+    every column and better in one): (n,) bool."""
+    F = np.asarray(F, dtype=float)
+    n = len(F)
+    keep = np.ones(n, dtype=bool)
+    for i in range(n):
+        if not keep[i]:
+            continue
+        dominated = np.all(F <= F[i], axis=1) & np.any(F < F[i], axis=1)
+        if dominated.any():
+            keep[i] = False
+        else:  # i dominates these
+            worse = np.all(F[i] <= F, axis=1) & np.any(F[i] < F, axis=1)
+            keep[worse] = False
+    return keep

@@ -5,7 +5,8 @@ steel block with a hole at radius r from the shaft's axis, filled with lead, and
 3 times stronger than computed (a margin for the errors of the model). The machine is then
 measured, and the counterweight is trimmed by drilling holes into the lead until the x and y
 vibration velocities are equal (:mod:`sewmech.design.vibration`). This module sizes the insert
-and the trimming holes.
+so that the lead can take the whole margin, what the steel block must supply besides, and the
+trimming holes.
 
 A hole of diameter d and depth h whose axis is at radius r from the shaft, filled with a
 material of density rho_f in a body of density rho_b, adds the static moment
@@ -98,22 +99,47 @@ def trim_hole(s_remove_gcm: float, radius_mm: float, depth_mm: float,
     return math.sqrt(4.0 * s_remove_gcm * _GMM_PER_GCM / (math.pi * rho * radius_mm * depth_mm))
 
 
-def build_extra(s_add_gcm: float, radius_mm: float, depth_mm: float, *,
-                factor: float = 3.0, filler: str = "lead", body: str = "steel") -> dict:
+def build_extra(s_add_gcm: float, radius_mm: float, *, depth_mm: float | None = None,
+                diameter_mm: float | None = None, factor: float = 3.0, filler: str = "lead",
+                body: str = "steel") -> dict:
     """The paper's extra counterweight for a computed static moment ``s_add_gcm`` (g cm): built
-    ``factor`` (2.5 .. 3) times stronger with a filled hole of ``depth_mm`` at ``radius_mm``,
-    and the hole to drill into the filler, at the same radius and depth, that brings it back to
-    the computed value (the starting point of the measured trimming). Returns a dict with
-    s_add_gcm, factor, s_built_gcm, insert (:class:`Insert` as a dict), trim_diameter_mm and
-    the steel alternative: the mass (g) a plain steel counterweight of the same static moment
-    needs at the same radius."""
-    _positive(s_add_gcm=s_add_gcm, factor=factor)
+    ``factor`` (2.5 .. 3) times stronger, a block of ``body`` material with a hole at
+    ``radius_mm`` filled with ``filler``, to be trimmed back on the machine by drilling into
+    the filler. The insert holds just enough filler for the whole margin: drilled out
+    completely it removes (factor - 1) * S_add, so its volume is
+    V = (factor - 1) S_add / (rho_filler r); its depth is ``depth_mm`` (default: the radius) or
+    follows from ``diameter_mm``. The block supplies the rest of the static moment.
+
+    Returns a dict (g cm, mm, g): s_add_gcm, factor, s_built_gcm; insert (:class:`Insert` as a
+    dict, its s_gcm the filler's gain over the body material it replaces); hole_edge_mm, the
+    distance from the shaft's axis to the hole's inner edge (it must clear the shaft's bore);
+    body_s_gcm and body_mass_g, what the block itself must supply (its mass as if at the same
+    radius); trim_diameter_mm, the hole into the filler (of the insert's depth, at its radius)
+    that brings the counterweight back to S_add, the starting point of the measured trimming;
+    trim_diameter_body_mm, the same hole drilled into the body material instead; and
+    body_only_mass_g, the mass of a plain block of the body material at that radius with the
+    built static moment."""
+    _positive(s_add_gcm=s_add_gcm, factor=factor, radius_mm=radius_mm)
     if not (FACTOR[0] <= factor <= FACTOR[1]):
         raise OptionError("factor", f"{factor:g} is outside the paper's margin"
                           f" {FACTOR[0]:g} .. {FACTOR[1]:g}", "Give e.g. 3")
+    rf, rb = _density(filler, "filler"), _density(body, "body")
     built = factor * s_add_gcm
-    ins = insert(built, radius_mm, depth_mm=depth_mm, filler=filler, body=body)
+    remove = built - s_add_gcm
+    volume = remove * _GMM_PER_GCM / (rf * radius_mm)  # mm^3 of filler
+    if depth_mm is None and diameter_mm is None:
+        depth_mm = radius_mm
+    if depth_mm is not None and diameter_mm is not None:
+        raise OptionError("depth_mm", "give the hole's depth or its diameter (one of them)")
+    if depth_mm is not None:
+        _positive(depth_mm=depth_mm)
+        diameter_mm = math.sqrt(4.0 * volume / (math.pi * depth_mm))
+    gain = (rf - rb) * volume * radius_mm / _GMM_PER_GCM
+    ins = insert(gain, radius_mm, diameter_mm=diameter_mm, filler=filler, body=body)
+    body_s = built - ins.s_gcm
     return {"s_add_gcm": s_add_gcm, "factor": factor, "s_built_gcm": built,
-            "insert": ins.to_json(),
-            "trim_diameter_mm": trim_hole(built - s_add_gcm, radius_mm, depth_mm, filler),
-            "steel_only_mass_g": built * _GMM_PER_GCM / radius_mm}
+            "insert": ins.to_json(), "hole_edge_mm": radius_mm - ins.diameter_mm / 2.0,
+            "body_s_gcm": body_s, "body_mass_g": body_s * _GMM_PER_GCM / radius_mm,
+            "trim_diameter_mm": trim_hole(remove, radius_mm, ins.depth_mm, filler),
+            "trim_diameter_body_mm": trim_hole(remove, radius_mm, ins.depth_mm, body),
+            "body_only_mass_g": built * _GMM_PER_GCM / radius_mm}

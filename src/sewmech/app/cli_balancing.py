@@ -1,0 +1,310 @@
+"""The balancing commands of the ``sewmech`` command line: ``balance`` (choose counterweights
+on a machine), ``trial-balance`` (the crossing of measured vibration velocities) and
+``influence-balance`` (correction masses from trial runs). Registered on the shared app of
+:mod:`sewmech.app.cli_common` when :mod:`sewmech.app.cli` imports this module."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from enum import Enum
+from pathlib import Path
+
+import numpy as np
+import typer
+from rich.markup import escape
+from rich.table import Table
+
+from ..engine.errors import OptionError
+from .cli_common import DEFAULT_MACHINE, SET_HELP, _load, _rpm, command, console
+
+
+class Criterion(str, Enum):
+    delta_q = "delta-q"
+    peak = "peak"
+    rms = "rms"
+    moment = "moment"
+    bearings = "bearings"
+    torque = "torque"
+    weighted = "weighted"
+
+
+def _weights(items: list[str] | None) -> dict[str, float] | None:
+    """--weight PART=W options -> {part: weight}."""
+    if not items:
+        return None
+    out = {}
+    for item in items:
+        name, eq, text = (x.strip() for x in item.partition("="))
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not eq or not name:
+            raise OptionError("--weight", f"{item!r} is not PART=WEIGHT",
+                              "Write e.g. --weight peak_force_N=2")
+        if not (math.isfinite(value) and value >= 0):
+            raise OptionError("--weight", f"{item!r}: the weight must be a number >= 0")
+        if name in out:
+            raise OptionError("--weight", f"{item!r}: '{name}' is given twice", "Give it once")
+        out[name] = value
+    return out
+
+
+def _figure_rows(res) -> Table:
+    from .report_balancing import FIGURE_LABELS
+
+    table = Table(title=f"balancing figures at {res.rpm:g} rpm (computed on the whole machine)")
+    for col in ("figure", "unit", "before", "after", "change"):
+        table.add_column(col, justify="left" if col in ("figure", "unit") else "right")
+    for k, (label, unit) in FIGURE_LABELS.items():
+        b, a = res.before[k], res.after[k]
+        if b is None:
+            continue
+        change = f"{100.0 * (a - b) / b:+.1f} %" if b > 1e-12 else ""
+        table.add_row(label, unit, f"{b:.4g}", f"{a:.4g}", change)
+    return table
+
+
+def _cw_table(res) -> Table:
+    table = Table(title=f"counterweights ({res.criterion}): {res.status}")
+    for col in ("counterweight", "link", "S before [g cm]", "S [g cm]", "angle [deg]",
+                "mass [g]", "radius [mm]"):
+        table.add_column(escape(col), justify="left" if col in ("counterweight", "link")
+                         else "right")
+    for name, c in res.counterweights.items():
+        b = res.counterweights_before[name]
+        table.add_row(name, c["link"], f"{b['static_moment_gcm']:.4g}",
+                      f"{c['static_moment_gcm']:.4g}", f"{c['angle_deg']:.4g}",
+                      f"{c['mass_g']:.4g}", f"{c['radius_mm']:.4g}")
+    return table
+
+
+@command("balance")
+def balance_cmd(
+    machine: str = typer.Argument(DEFAULT_MACHINE, help="shipped machine name or TOML file"),
+    criterion: Criterion = typer.Option(Criterion.delta_q, help="what to minimise: delta-q"
+                                        " (the balancing paper's equal peaks of Qx and Qy, one"
+                                        " counterweight), peak or rms shaking force, moment"
+                                        " (peak shaking moment about the upper shaft), bearings"
+                                        " (larger peak reaction of the upper shaft's bearings),"
+                                        " torque (fluctuation) or weighted"),
+    counterweights: list[str] = typer.Option(None, "--counterweight", help="a counterweight"
+                                             " of the file to choose; repeatable (default:"
+                                             " all; delta-q: the one on the upper shaft)"),
+    rpm: float = typer.Option(None, help="shaft speed, rev/min (default: the file's)"),
+    step_deg: float = typer.Option(1.0, help="shaft-angle step over the turn, deg"),
+    weights: list[str] = typer.Option(None, "--weight", help="weighted criterion: PART=W for"
+                                      " peak_force_N, rms_force_N, peak_moment_Nm,"
+                                      " bearings_peak_N, torque_fluctuation_Nm (default 1"
+                                      " each, each part divided by its value before)"),
+    as_json: bool = typer.Option(False, "--json", help="print the result as JSON"),
+    out: Path = typer.Option(None, help="also write the balancing figures (PNG, SVG, CSV),"
+                             " every criterion's answer (CSV) and the result (JSON) here"),
+    sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
+):
+    """Choose counterweights: static moment and angle of each, with the machine's balancing
+    figures before and after."""
+    from ..design.balancing import balance, paper_workflow
+    from .report_balancing import shaft_counterweight
+
+    m = _load(machine, sets)
+    rpm = _rpm(rpm)
+    w = _weights(weights)
+    if w is not None and criterion is not Criterion.weighted:
+        raise OptionError("--weight", "only the weighted criterion reads weights",
+                          "Add --criterion weighted or leave --weight out")
+    names = counterweights or None
+    if criterion is Criterion.delta_q and not names and len(m.counterweights) > 1:
+        shaft = shaft_counterweight(m)
+        names = [shaft] if shaft else None
+    if out is not None:
+        from .outdir import preflight
+
+        preflight(out, command="balance")
+    res = balance(m, criterion.value, names, rpm=rpm, step_deg=step_deg, weights=w)
+    data = {"machine": m.name, **res.to_json()}
+    if criterion is Criterion.delta_q:
+        paper = paper_workflow(m, next(iter(res.counterweights)), rpm=rpm, step_deg=step_deg)
+        data["paper"] = {k: v for k, v in paper.items() if k != "result"}
+    if out is not None:
+        _write_balance(m, out, res, data, names, rpm)
+    if as_json:
+        json.dump(data, sys.stdout)
+        sys.stdout.write("\n")
+        return
+    console.print(_cw_table(res))
+    console.print(escape(res.message))
+    console.print(_figure_rows(res))
+    if "paper" in data:
+        p = data["paper"]
+        console.print(f"the balancing paper's method: S_1 {p['s1_gcm']:.4g} g cm (the shaft's"
+                      f" crank), S_add {p['s_add_gcm']:.4g} g cm, S_opt {p['s_opt_gcm']:.4g}"
+                      " g cm")
+        b = p.get("build")
+        if b:
+            ins = b["insert"]
+            console.print(f"built {b['factor']:g} x: {b['s_built_gcm']:.4g} g cm, a steel block"
+                          f" of {b['body_s_gcm']:.4g} g cm ({b['body_mass_g']:.3g} g at"
+                          f" {ins['radius_mm']:.3g} mm) with a lead insert"
+                          f" {ins['diameter_mm']:.3g} mm across and {ins['depth_mm']:.3g} mm"
+                          f" deep ({ins['mass_g']:.3g} g of lead, {b['hole_edge_mm']:.3g} mm"
+                          " from the shaft's axis to its edge), which drilled out takes it"
+                          " back to S_add")
+    console.print(f"basis checked on the whole machine: largest difference"
+                  f" {res.basis_error:.2g} (N, N m)")
+    if out is not None:
+        console.print(f"written: figures, {m.name}-balance.json and"
+                      f" {m.name}-balance-criteria.csv in {out}")
+
+
+def _write_balance(m, out: Path, res, data: dict, names, rpm) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from .figures import Figures
+    from .io import atomic_write
+    from .outdir import output_dir
+    from .report_balancing import balancing_section, results_frame
+
+    with output_dir(out, command="balance") as root:
+        figs = Figures(root, m.name)
+        sec = balancing_section(figs, m, criterion=res.criterion, counterweights=names,
+                                rpm=rpm, weights=res.weights or None)
+        figs.blocks  # every figure written
+        with atomic_write(root / f"{m.name}-balance-criteria.csv") as fh:
+            results_frame(sec["results"]).to_csv(fh, index=False, float_format="%.10g")
+        with atomic_write(root / f"{m.name}-balance.json") as fh:
+            json.dump(data, fh, indent=1)
+
+
+@command("trial-balance")
+def trial_balance_cmd(
+    file: Path = typer.Argument(..., help="CSV with columns s_add_gcm, vx_mm_s, vy_mm_s: the"
+                                " extra counterweight's static moment (g cm) and the vibration"
+                                " velocity of the control point on x and y (mm/s); repeats"
+                                " allowed"),
+    as_json: bool = typer.Option(False, "--json", help="print the result as JSON"),
+    out: Path = typer.Option(None, help="also write the plot (PNG, SVG) and the fit (CSV)"),
+):
+    """The static moment where the measured x and y vibration velocities are equal, with its
+    95 % interval (the balancing paper's correction from measurements)."""
+    from ..design.vibration import crossing
+    from .io import read_csv_columns
+
+    cols = read_csv_columns(file, ["s_add_gcm", "vx_mm_s", "vy_mm_s"])
+    c = crossing(cols["s_add_gcm"], cols["vx_mm_s"], cols["vy_mm_s"], where=str(file))
+    data = c.to_json()
+    if out is not None:
+        _write_trial(out, file, cols, c)
+    if as_json:
+        json.dump(data, sys.stdout)
+        sys.stdout.write("\n")
+        return
+    lo, hi = c.ci95_gcm
+    console.print(f"crossing: S_add = [bold]{c.s_add_gcm:.4g} g cm[/] (95 % interval {lo:.4g}"
+                  f" .. {hi:.4g} g cm) from {c.n_points} measurements")
+    console.print(f"velocity there {c.v_at_crossing_mm_s:.4g} mm/s on each axis; level change"
+                  f" against S_add = {c.s_lowest_gcm:g} g cm: {c.level_change_db:+.2f} dB")
+    if out is not None:
+        console.print(f"written: plot and fit in {out}")
+
+
+def _write_trial(out: Path, file: Path, cols: dict, c) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import pandas as pd
+
+    from .figures import render
+    from .io import atomic_write
+    from .outdir import output_dir
+
+    s = cols["s_add_gcm"]
+    grid = np.linspace(s.min(), s.max(), 200)
+    with output_dir(out, command="trial-balance") as root:
+        fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+        ax.plot(s, cols["vx_mm_s"], "o", color="C0", ms=4, label="x measured")
+        ax.plot(s, cols["vy_mm_s"], "s", color="C1", ms=4, label="y measured")
+        ax.plot(grid, c.fit_x[0] + c.fit_x[1] * grid, color="C0")
+        ax.plot(grid, c.fit_y[0] + c.fit_y[1] * grid, color="C1")
+        ax.axvspan(*c.ci95_gcm, color="0.85", label="95 % interval")
+        ax.axvline(c.s_add_gcm, color="k", ls="--",
+                   label=f"crossing {c.s_add_gcm:.4g} g cm")
+        ax.set_xlabel("static moment of the extra counterweight S_add [g cm]")
+        ax.set_ylabel("vibration velocity [mm/s]")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+        ax.set_title(f"{file.name}: vibration velocity of the control point")
+        try:
+            render(fig, root, "trial-balance")
+        finally:
+            plt.close(fig)
+        with atomic_write(root / "trial-balance.csv") as fh:
+            pd.DataFrame({"s_add_gcm": grid, "vx_fit_mm_s": c.fit_x[0] + c.fit_x[1] * grid,
+                          "vy_fit_mm_s": c.fit_y[0] + c.fit_y[1] * grid}).to_csv(
+                fh, index=False, float_format="%.10g")
+        with atomic_write(root / "trial-balance.json") as fh:
+            json.dump(c.to_json(), fh, indent=1)
+
+
+@command("influence-balance")
+def influence_balance_cmd(
+    file: Path = typer.Argument(..., help="CSV with columns run, place, amplitude_mm_s,"
+                                " phase_deg, trial_gcm, trial_angle_deg: run 0 without trial"
+                                " masses, then one run per correction plane with its trial"
+                                " mass (static moment g cm, angle deg); a place is a sensor"
+                                " and speed (any label), measured in every run"),
+    as_json: bool = typer.Option(False, "--json", help="print the result as JSON"),
+):
+    """Correction masses for a built machine from trial runs (influence coefficients, least
+    squares over the places and speeds measured)."""
+    from ..design.vibration import influence_balance, phasor
+    from ..engine.errors import AnalysisError
+    from .io import read_csv_columns
+
+    cols = read_csv_columns(file, ["amplitude_mm_s", "phase_deg", "trial_gcm",
+                                   "trial_angle_deg"], ["run", "place"])
+    runs = list(dict.fromkeys(cols["run"]))
+    places = list(dict.fromkeys(cols["place"]))
+    if "0" not in runs or len(runs) < 2:
+        raise AnalysisError(str(file), f"runs {', '.join(runs)}: need run 0 (no trial mass)"
+                            " and one run per correction plane", "Label the runs 0, 1, 2, ...")
+    table: dict = {}
+    trial: dict = {}
+    for r, p, a, ph, s, ang in zip(cols["run"], cols["place"], cols["amplitude_mm_s"],
+                                   cols["phase_deg"], cols["trial_gcm"],
+                                   cols["trial_angle_deg"]):
+        if (r, p) in table:
+            raise AnalysisError(str(file), f"run {r} measures place {p} twice",
+                                "One line per run and place")
+        table[r, p] = phasor(a, ph)
+        if r != "0":
+            if r in trial and trial[r] != (s, ang):
+                raise AnalysisError(str(file), f"run {r} gives two different trial masses",
+                                    "One trial mass per run")
+            trial[r] = (s, ang)
+    missing = [f"run {r} place {p}" for r in runs for p in places if (r, p) not in table]
+    if missing:
+        raise AnalysisError(str(file), f"not measured: {', '.join(missing[:5])}",
+                            "Measure every place in every run")
+    planes = [r for r in runs if r != "0"]
+    V0 = np.array([table["0", p] for p in places])
+    Vt = np.array([[table[r, p] for p in places] for r in planes])
+    res = influence_balance(V0, Vt, [trial[r][0] for r in planes],
+                            [trial[r][1] for r in planes])
+    data = {**res.to_json([f"run {r}" for r in planes]), "n_places": len(places)}
+    if as_json:
+        json.dump(data, sys.stdout)
+        sys.stdout.write("\n")
+        return
+    t = Table(title=f"correction masses from {len(places)} places and {len(planes)} trial runs")
+    for col in ("plane (trial run)", "static moment [g cm]", "angle [deg]"):
+        t.add_column(col)
+    for name, v in data["corrections"].items():
+        t.add_row(name, f"{v['static_moment_gcm']:.4g}", f"{v['angle_deg']:.4g}")
+    console.print(t)
+    console.print(f"vibration RMS over the places {res.before:.4g} -> {res.after:.4g} mm/s"
+                  " predicted")

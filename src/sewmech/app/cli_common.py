@@ -1,0 +1,252 @@
+"""What every ``sewmech`` command shares: the typer app, the error guard, and the options'
+checks (the commands are in :mod:`sewmech.app.cli` and :mod:`sewmech.app.cli_balancing`).
+
+Every command runs inside :func:`_guard`: an error sewmech raises on purpose is printed as one
+line ``error: <where>: <what is wrong>. <what to do>`` with exit code 2 (docs/errors.md), Ctrl-C
+and SIGTERM stop the command cleanly (exit 130 and 143; nothing half-written is left behind),
+and anything unexpected is reported as an internal error (exit 70) without a traceback unless
+``SEWMECH_DEBUG=1`` is set. Options are checked here, where they enter, before any work.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import math
+import os
+import signal
+import sys
+import threading
+from enum import Enum
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.markup import escape
+
+from ..engine.errors import OptionError, SewmechError
+from ..engine.machine import Machine, load_machine
+
+DEFAULT_MACHINE = "jb1-3"
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="sewmech: kinematics and dynamics of sewing-machine mechanisms (mm, s,"
+                       " rad inside; degrees at the edges).")
+console = Console()
+err_console = Console(stderr=True)
+
+#: exit codes: 2 a user error (bad file, option or output path), 70 an internal error,
+#: 130 interrupted by Ctrl-C; 143 / 129 by SIGTERM / SIGHUP (128 + the signal's number)
+EXIT_ERROR, EXIT_INTERNAL, EXIT_SIGINT = 2, 70, 130
+#: the finest shaft-angle step of any command, deg (36,000 positions per turn)
+MIN_STEP_DEG = 0.01
+
+
+class Format(str, Enum):
+    csv = "csv"
+    json = "json"
+
+
+class Terminated(BaseException):
+    """Raised in the main thread when SIGTERM or SIGHUP arrives, so that every ``finally`` and
+    context manager on the way out runs (staging directories and temporary files are
+    removed)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _print_error(text: str) -> None:
+    err_console.print(f"[bold red]error:[/] {escape(text)}", markup=True, highlight=False,
+                      soft_wrap=True)
+
+
+@contextlib.contextmanager
+def _guard():
+    """One place where every command's failures become one clear line and an exit code."""
+    old: dict = {}
+    if threading.current_thread() is threading.main_thread():
+        def on_term(signum, frame):
+            raise Terminated(signum)
+
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            old[sig] = signal.signal(sig, on_term)
+    try:
+        yield
+    except (typer.Exit, typer.Abort):
+        raise
+    except SewmechError as exc:
+        _print_error(str(exc))
+        raise typer.Exit(EXIT_ERROR) from None
+    except KeyboardInterrupt:
+        _print_error("interrupted (Ctrl-C); nothing half-written was left behind")
+        raise typer.Exit(EXIT_SIGINT) from None
+    except Terminated as exc:
+        name = signal.Signals(exc.signum).name
+        _print_error(f"terminated ({name}); nothing half-written was left behind")
+        raise typer.Exit(128 + exc.signum) from None
+    except BrokenPipeError:  # the reader went away (`| head`): stop quietly, as SIGPIPE would
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        raise typer.Exit(141) from None
+    except MemoryError:
+        _print_error("out of memory. Use a coarser --step-deg, or fewer designs at a time")
+        raise typer.Exit(EXIT_ERROR) from None
+    except (ValueError, KeyError) as exc:  # the library's argument checks
+        text = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
+        _print_error(str(text))
+        raise typer.Exit(EXIT_ERROR) from None
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        _print_error(f"{where}{exc.strerror or exc}")
+        raise typer.Exit(EXIT_ERROR) from None
+    except Exception as exc:
+        if os.environ.get("SEWMECH_DEBUG"):
+            raise
+        _print_error(f"internal error ({type(exc).__name__}: {exc}). This is a bug in sewmech:"
+                     " please report it with the command line; SEWMECH_DEBUG=1 shows the"
+                     " traceback")
+        raise typer.Exit(EXIT_INTERNAL) from None
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+
+
+def command(name: str):
+    """``@app.command(name)`` whose body runs inside :func:`_guard`."""
+    def deco(fn):
+        @functools.wraps(fn)
+        def run(*args, **kwargs):
+            with _guard():
+                return fn(*args, **kwargs)
+
+        return app.command(name)(run)
+    return deco
+
+
+# ---- options: checked where they enter -----------------------------------------------------
+
+
+def _load(machine: str, sets: list[str] | None = None) -> Machine:
+    """The machine (shipped name or file), with the ``--set`` changes applied."""
+    m = load_machine(machine)
+    values = _parse_sets(m, sets)
+    return m.with_parameters(values, origin="--set") if values else m
+
+
+#: the units --set reads: suffix -> (internal unit, factor to it); counterweights in g, kg and
+#: g cm (static moment)
+_UNITS = {"mm": ("mm", 1.0), "deg": ("rad", math.pi / 180.0), "rad": ("rad", 1.0),
+          "kg": ("kg", 1.0), "g": ("kg", 1e-3), "gcm": ("kg mm", 1e-2)}
+
+
+def _parse_sets(m: Machine, sets: list[str] | None) -> dict[str, float]:
+    """--set NAME=VALUE[mm|deg|rad|g|kg|gcm] -> {name: value in internal units}."""
+    values: dict[str, float] = {}
+    designs = {f"{c}.{k}": ("mm" if k in ("width", "stroke") else "rad")
+               for c in m.cam_designs for k in ("width", "stroke", "dwell", "orientation")}
+    for item in sets or ():
+        name, eq, text = (x.strip() for x in item.partition("="))
+        if not eq or not name or not text:
+            raise OptionError("--set", f"{item!r} is not NAME=VALUE",
+                              "Write e.g. --set needle_bar.length=44 or"
+                              " --set needle_crank.phase=5deg")
+        unit = designs.get(name)
+        if unit is None:
+            try:
+                unit = m.parameter_units[m.parameter_index(name)]
+            except KeyError as exc:
+                raise OptionError("--set", exc.args[0], f"`sewmech check {m.name} --parameters`"
+                                  " lists them") from None
+        suffix = next((u for u in sorted(_UNITS, key=len, reverse=True) if text.endswith(u)),
+                      None)
+        number = text[: -len(suffix)] if suffix else text
+        try:
+            value = float(number)
+        except ValueError:
+            raise OptionError("--set", f"{item!r}: {number!r} is not a number") from None
+        if not math.isfinite(value):
+            raise OptionError("--set", f"{item!r}: the value must be a finite number")
+        if unit == "rad" and suffix is None:
+            raise OptionError("--set", f"{item!r}: '{name}' is an angle; give its unit",
+                              f"Write {name}={number}deg (or {number}rad)")
+        if unit in ("kg", "kg mm") and suffix is None:
+            example = f"{number}g" if unit == "kg" else f"{number}gcm"
+            raise OptionError("--set", f"{item!r}: '{name}' is a counterweight's"
+                              f" {'mass' if unit == 'kg' else 'static moment'}; give its unit",
+                              f"Write {name}={example}")
+        if suffix is not None and _UNITS[suffix][0] != unit:
+            raise OptionError("--set", f"{item!r}: '{name}' is in {unit}, not {suffix}")
+        if name in values:
+            raise OptionError("--set", f"{item!r}: '{name}' is given twice", "Set it once")
+        values[name] = value * (_UNITS[suffix][1] if suffix else 1.0)
+    return values
+
+
+def _phi_grid(step_deg: float, option: str = "--step-deg", min_step: float = MIN_STEP_DEG
+              ) -> np.ndarray:
+    """Shaft angles of one turn in steps of ``step_deg`` (which must divide 360), rad."""
+    if not min_step <= step_deg <= 90.0:  # (a NaN fails too)
+        raise OptionError(option, f"must be in {min_step:g} .. 90 deg, got {step_deg:g}",
+                          f"Give e.g. {option} 5 (72 positions per turn)")
+    n = int(round(360.0 / step_deg))
+    if not math.isclose(n * step_deg, 360.0, rel_tol=1e-9):
+        raise OptionError(option, f"{step_deg:g} deg does not divide 360",
+                          "Give a step such as 0.5, 1, 2, 5 or 10")
+    return np.radians(np.arange(n) * step_deg)
+
+
+def _phi(step_deg: float, phi_deg: list[float] | None) -> np.ndarray:
+    """--phi-deg angles if given (finite, any order), else one turn in --step-deg steps."""
+    if not phi_deg:
+        return _phi_grid(step_deg)
+    a = np.asarray(phi_deg, dtype=float)
+    if not (np.abs(a) <= 1e6).all():
+        raise OptionError("--phi-deg", f"must be finite angles in deg, got {list(phi_deg)}")
+    return np.radians(a)
+
+
+def _rpm(rpm: float | None) -> float | None:
+    from ..engine.kinematics import check_speed
+
+    return None if rpm is None else check_speed("--rpm", rpm)
+
+
+def _settings(m: Machine, inputs: list[str] | None) -> dict[str, float]:
+    """--input NAME=DEG options -> {name: rad}, checked against the declared ranges."""
+    settings = {}
+    for item in inputs or ():
+        name, _, value = (x.strip() for x in item.partition("="))
+        if name not in m.spec.inputs:
+            raise OptionError("--input", f"{item!r}: machine '{m.name}' has no input"
+                              f" '{name}'", f"Inputs: {', '.join(m.spec.inputs) or 'none'}")
+        try:
+            deg = float(value)
+        except ValueError:
+            raise OptionError("--input", f"{item!r}: expected NAME=DEGREES",
+                              f"Write e.g. --input {name}=20") from None
+        spec = m.spec.inputs[name]
+        lo = spec.min_deg if spec.min_deg is not None else -1e6
+        hi = spec.max_deg if spec.max_deg is not None else 1e6
+        if not lo <= deg <= hi:  # (a NaN fails too)
+            raise OptionError("--input", f"{item!r}: outside the range {lo:g} .. {hi:g} deg"
+                              f" declared in [inputs.{name}] of {m.file}",
+                              "Give a setting inside it")
+        if name in settings:
+            raise OptionError("--input", f"{item!r}: '{name}' is given twice",
+                              "Give each input once")
+        settings[name] = math.radians(deg)
+    return settings
+
+
+def _bounded(option: str, value: float, lo: float, hi: float, unit: str, example: str):
+    if not lo <= value <= hi:  # (a NaN fails too)
+        raise OptionError(option, f"must be in {lo:g} .. {hi:g} {unit}, got {value:g}",
+                          f"Give e.g. {option} {example}")
+    return value
+
+
+SET_HELP = ("change a parameter of the machine file, e.g. needle_bar.length=44 (mm),"
+            " needle_crank.phase=5deg or a counterweight's cw.mass=25g, cw.static_moment=64gcm;"
+            " names as `check --parameters` lists them; repeatable")
