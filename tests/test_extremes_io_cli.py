@@ -126,7 +126,8 @@ def test_cli_report_writes_page_figures_and_tables(tmp_path):
     figures = ("motion", "eye-path", "timing-diagram", "feed-trajectories", "stitch-curve",
                "feed-sensitivity", "thread-balance", "take-up-adjustment", "thread-consumption",
                "dyn-torque", "dyn-energy", "dyn-shaking", "dyn-bearings", "dyn-pairs",
-               "dyn-pressure", "dyn-regulator", "dyn-needle", "comparison")
+               "dyn-pressure", "dyn-regulator", "dyn-needle", "bal-components", "bal-hodograph",
+               "bal-bearings", "bal-front", "comparison")
     assert page.count("data:image/png;base64,") == len(figures)
     assert "jb1-3 against jb8-2" in page  # the file's variant, side by side
     for fig in figures:
@@ -142,6 +143,14 @@ def test_cli_report_writes_page_figures_and_tables(tmp_path):
     marks = pd.read_csv(out_dir / "jb1-3-scale-marks.csv")
     assert list(marks["stitch_mm"]) == [k * 0.5 for k in range(-8, 9)]
     assert (out_dir / "jb1-3.toml").exists()  # the machine data travel with the report
+    # the balancing section shows the library's answer for the extra counterweight
+    from sewmech.design.balancing import balance
+
+    bal = pd.read_csv(out_dir / "jb1-3-bal-components.csv")
+    lib = balance(sewmech.load_machine("jb1-3"), "delta-q", ["extra"])
+    np.testing.assert_allclose(bal["Qx_after_N"], lib.curves["after"]["F"][:, 0], rtol=1e-9,
+                               atol=1e-9)
+    assert 'id="balancing"' in page and "The balancing paper's method" in page
     # the dynamics figures are the library's numbers at the longest forward stitch
     from sewmech.dynamics import inverse_dynamics
 

@@ -451,10 +451,13 @@ def _s_terms(B: BalanceBasis, keys: Sequence[str]) -> float:
     out = 0.0
     for key in keys:
         r = B.resp[key]
+        # what counts as nothing: round-off of the quantity itself per kg mm of static moment
+        # (the shaking moment about the shaft's axis does not see a counterweight on the shaft)
+        floor = 1e-12 * max(float(np.abs(B.base[key]).max()), float(np.abs(r[:, 1:3]).max()))
         for i in range(len(B.counterweights)):
-            lin = np.abs(r[i, 1:3]).max() + 1e-300
-            E = np.abs(r[i, 0] / B.radius[i] + B.radius[i] * r[i, 3]).max()
-            if E > 1e-9 * lin:
+            lin = max(float(np.abs(r[i, 1:3]).max()), floor, 1e-300)
+            E = float(np.abs(r[i, 0] / B.radius[i] + B.radius[i] * r[i, 3]).max())
+            if E > max(1e-9 * lin, floor):
                 out = max(out, E / lin)
     return out
 
@@ -489,13 +492,18 @@ _PEAKS = {"peak": ("vector", ("F",), "peak shaking force"),
 
 def _solve_peak(B: BalanceBasis, criterion: str) -> tuple[np.ndarray, str, str]:
     kind, keys, what = _PEAKS[criterion]
+    if not _depends(B, keys):
+        return B.start.copy(), "optimal", (f"{what}: the chosen counterweights do not change it"
+                                           " (kept as the file has them)")
     start, _, _ = _solve_rms(B) if "F" in keys else (B.start, None, None)
     return _minimise(B, [(kind, keys, 1.0)], start, what)
 
 
 def _solve_weighted(B: BalanceBasis, w: dict) -> tuple[np.ndarray, str, str]:
     """Sum of weighted criteria, each divided by its value before (parts that are 0 before,
-    such as the moment of a machine that has none, are left out)."""
+    such as the moment of a machine that has none, are left out, and so are parts the chosen
+    counterweights cannot change, such as the moment about the shaft's axis of counterweights
+    on the shaft: a constant does not move the optimum)."""
     before = figures(B.quantities(B.start))
     value = {"peak_force_N": before["peak_force_N"], "rms_force_N": before["rms_force_N"],
              "peak_moment_Nm": before["peak_moment_Nm"],
@@ -507,7 +515,7 @@ def _solve_weighted(B: BalanceBasis, w: dict) -> tuple[np.ndarray, str, str]:
     kinds = {"peak_force_N": ("vector", ("F",)), "rms_force_N": ("rms", ("F",)),
              "peak_moment_Nm": ("abs", ("M",)), "bearings_peak_N": ("vector", ("Bf", "Br")),
              "torque_fluctuation_Nm": ("range", ("T",))}
-    parts, used, left = [], [], []
+    parts, used, left, fixed = [], [], [], []
     for p, wp in w.items():
         v = float(value[p])
         if wp == 0.0:
@@ -515,17 +523,33 @@ def _solve_weighted(B: BalanceBasis, w: dict) -> tuple[np.ndarray, str, str]:
         if not v > 1e-12 * scale:
             left.append(p)
             continue
+        if not _depends(B, kinds[p][1]):
+            fixed.append(p)
+            continue
         parts.append((*kinds[p], wp / v))
         used.append(f"{wp:g} x {p} / {v:.6g}")
     if not parts:
-        raise OptionError("--weight", "every weighted part is 0 before balancing",
-                          "Nothing to balance by these parts")
+        raise OptionError("--weight", "every weighted part is 0 before balancing or does not"
+                          " depend on the chosen counterweights", "Nothing to balance by these"
+                          " parts: weigh others")
     start, _, _ = _solve_rms(B)
     xy, status, message = _minimise(B, parts, start, "weighted sum")
     message = message.replace("weighted sum", "weighted sum of " + ", ".join(used), 1)
     if left:
         message += f"; left out (0 before): {', '.join(left)}"
+    if fixed:
+        message += f"; left out (the counterweights do not change them): {', '.join(fixed)}"
     return xy, status, message
+
+
+def _depends(B: BalanceBasis, keys: Sequence[str]) -> bool:
+    """Whether any of the quantities ``keys`` changes with the chosen counterweights (beyond
+    the round-off of the quantity itself)."""
+    for key in keys:
+        floor = 1e-12 * max(float(np.abs(B.base[key]).max()), 1e-300)
+        if float(np.abs(B.resp[key]).max()) * _natural(B) > floor:
+            return True
+    return False
 
 
 def _minimise(B: BalanceBasis, parts, xy0: np.ndarray, what: str
@@ -535,11 +559,20 @@ def _minimise(B: BalanceBasis, parts, xy0: np.ndarray, what: str
     if _objective(B.quantities, parts, B.start.reshape(-1)) <= 1e-12:
         return B.start.copy(), "optimal", f"{what}: 0 with the counterweights as they are"
     strength = _s_terms(B, [k for _, keys, _ in parts for k in keys])
-    if strength == 0.0:
-        return _cutting_planes(B, parts, xy0, what)
+    if strength == 0.0:  # convex: cutting planes, certified by their lower bound
+        info: dict = {}
+        xy, status, message = _cutting_planes(B, parts, xy0, what, max_iter=30, info=info)
+        if status == "optimal":
+            return xy, status, message
+        # Kelley's tail is slow where a peak is flat: SLSQP finishes from its best answer (a
+        # local optimum of a convex problem is the optimum), the bound says how close it is
+        xy, status, message = _polar_slsqp(B, parts, [xy], what, exchange=True)
+        gap = _objective(B.quantities, parts, xy.reshape(-1)) - info["lower"]
+        return xy, status, (f"{what}: cutting planes ({info['iterations']} linear programmes)"
+                            f" then SLSQP; within {gap:.2g} of the programmes' lower bound")
     if strength < 0.05:  # nearly linear (weights against inertia forces): the expansion's
-        near, _, _ = _cutting_planes(B, parts, xy0, what, max_iter=60, at=xy0)  # optimum
-        return _polar_slsqp(B, parts, [near, xy0], what)  # starts the exact problem
+        near, _, _ = _cutting_planes(B, parts, xy0, what, max_iter=3, at=xy0)  # optimum
+        return _polar_slsqp(B, parts, [near], what, exchange=True)  # starts the exact one
     return _polar_slsqp(B, parts, [xy0, B.start], what, turns=True)
 
 
@@ -566,14 +599,16 @@ def _polar(B: BalanceBasis, key: str, sb: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 def _polar_slsqp(B: BalanceBasis, parts, firsts: Sequence[np.ndarray], what: str,
-                 turns: bool = False) -> tuple[np.ndarray, str, str]:
+                 turns: bool = False, exchange: bool = False) -> tuple[np.ndarray, str, str]:
     """Minimise sum_i w_i f_i where S terms make the quantities nonlinear in the static
     moments' components: each quantity is smooth in (S, beta) per counterweight, so SLSQP
     solves the epigraph form (a bound t_i on each peak, t_i^2 >= |Q|^2 at every angle for a
     vector, t_i >= +-Q for a scalar) with exact gradients, 0 <= S <= max_static_moment. The
     problem is not convex: it starts from each of ``firsts`` (n, 2) and, with ``turns``, from
     the first turned by 90, 180 and 270 degrees, each counterweight in turn, and keeps the best
-    local optimum."""
+    local optimum. With ``exchange`` (for a start near the answer) SLSQP sees only the
+    constraints near their bounds, within a box of four times the starts' static moments, and
+    an answer that breaks another constraint adds it (:func:`_minimise`)."""
     from scipy.optimize import minimize
 
     n = len(B.counterweights)
@@ -616,7 +651,7 @@ def _polar_slsqp(B: BalanceBasis, parts, firsts: Sequence[np.ndarray], what: str
     unit = np.ones(len(parts))
     unit_f = [1.0]
 
-    def cons(v):
+    def cons_all(v):
         q = split(v)
         out = []
         for (kind, keys, _), sl, un in zip(parts, slots, unit):
@@ -630,7 +665,7 @@ def _polar_slsqp(B: BalanceBasis, parts, firsts: Sequence[np.ndarray], what: str
                     out += [v[sl[0]] / un - Q[:, 0], Q[:, 0] - v[sl[1]] / un]
         return np.concatenate(out) if out else np.zeros(0)
 
-    def cons_jac(v):
+    def cons_jac_all(v):
         q = split(v)
         rows = []
         for (kind, keys, _), sl, un in zip(parts, slots, unit):
@@ -649,23 +684,39 @@ def _polar_slsqp(B: BalanceBasis, parts, firsts: Sequence[np.ndarray], what: str
                         rows.append(J)
         return np.vstack(rows) if rows else np.zeros((0, nv))
 
+    # SLSQP's subproblem grows with the constraints (one per angle and bound); with exchange it
+    # sees those near their bound (the peaks' neighbourhoods), and an answer that breaks
+    # another adds it and goes on from there (the answer holds every constraint)
+    keep = [np.zeros(0, dtype=bool)]
+
+    def cons(v):
+        return cons_all(v)[keep[0]]
+
+    def cons_jac(v):
+        return cons_jac_all(v)[keep[0]]
+
     def polar(xy):
         return np.column_stack([np.hypot(xy[:, 0], xy[:, 1]),
                                 np.arctan2(xy[:, 1], xy[:, 0])]).reshape(-1)
 
-    scale = max(max(float(np.abs(f).max()) for f in firsts), 1e-6)
-    firsts = [polar(np.asarray(f, dtype=float)) for f in firsts]
+    # a scale of static moments: the starts' or the natural one
+    scale = max(max(float(np.abs(f).max()) for f in firsts), _natural(B))
+    # (S_1, beta_1, ...) of each start; a static moment of 0 turned is no new start, so the
+    # turned ones get at least a tenth of the largest
+    starts = [polar(np.asarray(f, dtype=float)) for f in firsts]
     for i in range(n if turns else 0):
         for turn in (0.5, 1.0, 1.5):
-            p = firsts[0].copy()
+            p = starts[0].copy()
             p[2 * i] = max(p[2 * i], 0.1 * scale)
             p[2 * i + 1] += turn * math.pi
-            firsts.append(p)
-    bounds = [b for i in range(n) for b in ((0.0, B.s_max[i] if math.isfinite(B.s_max[i])
-                                             else None), (None, None))]
+            starts.append(p)
+    box = 4.0 * scale if exchange else np.inf
+    bounds = [b for i in range(n) for b in ((0.0, min(B.s_max[i], box) if
+                                             math.isfinite(min(B.s_max[i], box)) else None),
+                                            (None, None))]
     bounds += [(None, None)] * (nv - nz)
     results, tried = [], 0
-    for p in firsts:
+    for p in starts:
         p = p.copy()
         p[0:nz:2] = np.minimum(p[0:nz:2], B.s_max)
         v0 = np.concatenate([p, np.zeros(nv - nz)])
@@ -683,11 +734,21 @@ def _polar_slsqp(B: BalanceBasis, parts, firsts: Sequence[np.ndarray], what: str
                 if kind != "rms":
                     unit[j] = max(abs(v0[sl[0]]), abs(v0[sl[-1]]), 1e-9)
             unit_f[0] = max(objective(v0)[0], 1e-12)
-        res = minimize(objective, v0, jac=True, method="SLSQP", bounds=bounds,
-                       constraints=[{"type": "ineq", "fun": cons, "jac": cons_jac}]
-                       if nv > nz else [], options={"maxiter": 500, "ftol": 1e-12})
+        keep[0] = cons_all(v0) <= (0.5 if exchange else np.inf)
+        for _ in range(20):
+            res = minimize(objective, v0, jac=True, method="SLSQP", bounds=bounds,
+                           constraints=[{"type": "ineq", "fun": cons, "jac": cons_jac}]
+                           if nv > nz else [], options={"maxiter": 500, "ftol": 1e-12})
+            full = cons_all(res.x)
+            broken = full < -1e-10
+            if not broken[~keep[0]].any():
+                break
+            keep[0] = keep[0] | broken | (full <= 0.5)
+            v0 = res.x
         tried += 1
         sb = res.x[:nz]
+        if exchange and np.any((sb[0::2] >= box * (1 - 1e-9)) & (B.s_max > box)):
+            return _polar_slsqp(B, parts, firsts, what, turns)  # the box binds: without it
         xy = np.column_stack([sb[0::2] * np.cos(sb[1::2]), sb[0::2] * np.sin(sb[1::2])])
         results.append((_objective(B.quantities, parts, xy.reshape(-1)), bool(res.success), xy))
     best = min(results, key=lambda r: r[0])
@@ -701,6 +762,34 @@ def _polar_slsqp(B: BalanceBasis, parts, firsts: Sequence[np.ndarray], what: str
     return best[2], status, how
 
 
+def _worst(excess: np.ndarray, eps: float, most: int = 8) -> np.ndarray:
+    """Where a periodic curve ``excess`` over the turn is above ``eps``: its local maxima there,
+    at most ``most`` of them, the largest first (cuts at the peaks of what a programme
+    underestimates keep it small, and the neighbours follow if they must)."""
+    over = excess > eps
+    if not over.any():
+        return np.zeros(0, dtype=np.int64)
+    peak = over & (excess >= np.roll(excess, 1)) & (excess >= np.roll(excess, -1))
+    idx = np.nonzero(peak)[0]
+    if idx.size == 0:
+        idx = np.nonzero(over)[0]
+    return idx[np.argsort(excess[idx])[::-1][:most]]
+
+
+def _natural(B: BalanceBasis) -> float:
+    """A scale of static moments, kg mm: the one whose inertia force at the basis' speed is the
+    machine's peak shaking force as the file has it (F = S w^2 with S in kg mm, F in N:
+    S = 1e3 F / w^2)."""
+    w = 2.0 * math.pi * B.rpm / 60.0
+    peak = float(figures(B.quantities(B.start))["peak_force_N"])
+    return max(1e3 * peak / w ** 2, 1e-6)
+
+
+#: HiGHS's feasibility tolerances, tighter than its defaults (1e-7): the programmes' values are
+#: the lower bounds that certify an answer to 1e-9 of the criterion
+_HIGHS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
+
+
 def _within_limits(B: BalanceBasis, xy: np.ndarray) -> np.ndarray:
     """Static moments ``xy`` (n, 2) with each one beyond its limit scaled back onto it."""
     s = np.hypot(xy[:, 0], xy[:, 1])
@@ -709,8 +798,8 @@ def _within_limits(B: BalanceBasis, xy: np.ndarray) -> np.ndarray:
 
 
 def _cutting_planes(B: BalanceBasis, parts, xy0: np.ndarray, what: str,
-                    tol: float = 1e-9, max_iter: int = 300, at: np.ndarray | None = None
-                    ) -> tuple[np.ndarray, str, str]:
+                    tol: float = 1e-9, max_iter: int = 300, at: np.ndarray | None = None,
+                    info: dict | None = None) -> tuple[np.ndarray, str, str]:
     """Minimise sum_i w_i f_i(z) by cutting planes (Kelley's method): each f_i is a peak over
     the turn of a vector's length (``"vector"``), of a scalar's magnitude (``"abs"``), a range
     max - min (``"range"``) or an RMS (``"rms"``), each convex in the static moments'
@@ -722,7 +811,8 @@ def _cutting_planes(B: BalanceBasis, parts, xy0: np.ndarray, what: str,
     quantities without S terms (:func:`_s_terms`); :func:`_polar_slsqp` solves the others.
 
     With ``at`` (n, 2) it minimises the first-order expansion at ``at`` instead (for weak S
-    terms, see :func:`_minimise`).
+    terms, see :func:`_minimise`). ``info``, if given, receives the last lower bound
+    (``"lower"``) and the number of programmes (``"iterations"``).
 
     parts: (kind, quantity keys, weight) each. Returns (xy, status, message)."""
     from scipy.optimize import linprog
@@ -747,16 +837,35 @@ def _cutting_planes(B: BalanceBasis, parts, xy0: np.ndarray, what: str,
     for kind, keys, _ in parts:
         if kind == "vector":
             for k in keys:
+                # the angles near the peak to begin with: the programme stays small, and an
+                # angle it underestimates later gets its cut then
                 mag = np.maximum(np.hypot(q0[k][:, 0], q0[k][:, 1]), 1e-300)
-                cuts[k] = (np.arange(n_phi), q0[k] / mag[:, None])
+                near = np.nonzero(mag >= 0.5 * mag.max())[0]
+                cuts[k] = (near, q0[k][near] / mag[near, None])
     tangents: list[tuple[np.ndarray, float, np.ndarray]] = []  # rms: (z_j, f_j, gradient)
     limited = [i for i in range(n) if math.isfinite(B.s_max[i])]
     limit_dirs = {i: ring.copy() for i in limited}
     # a box that keeps the first programmes bounded; an answer on it widens it
-    box = 4.0 * max(float(np.abs(xy0).max()), float(np.abs(B.start).max()), 1e-6)
+    box = 4.0 * max(float(np.abs(xy0).max()), float(np.abs(B.start).max()), _natural(B))
     z = _within_limits(B, xy0).reshape(-1)
     exact = _objective(qf, parts, z)
     best = (exact, z.copy())
+    # a scalar's rows (its magnitude's, its range's two sides): the angles near its extremes to
+    # begin with; one the programme breaks later is added then
+    rows_at = {}
+    for kind, keys, _ in parts:
+        if kind in ("abs", "range"):
+            c, L = lin[keys[0]]
+            val = c[:, 0] + L[:, 0] @ z
+            if kind == "abs":
+                m = float(np.abs(val).max())
+                up, down = val >= 0.5 * m, -val >= 0.5 * m
+            else:
+                half = 0.5 * float(np.ptp(val))
+                up, down = val >= val.max() - half, val <= val.min() + half
+            up[np.argmax(val)] = down[np.argmin(val)] = True
+            rows_at[keys[0], 1.0], rows_at[keys[0], -1.0] = np.nonzero(up)[0], \
+                np.nonzero(down)[0]
     # the gap that counts as closed: relative, with a floor for a criterion already ~0
     floor = 1e-12 * max(_objective(qf, parts, B.start.reshape(-1)), exact, 1e-3)
     lower = -np.inf
@@ -776,21 +885,24 @@ def _cutting_planes(B: BalanceBasis, parts, xy0: np.ndarray, what: str,
                     A[:, sl[0]] = -1.0
                     rows.append(A)
                     rhs.append(-np.einsum("mk,mk->m", D, c[P]))
-                elif kind == "abs":
+                elif kind == "abs":  # t >= +-(c + L z)
                     for sgn in (1.0, -1.0):
-                        A = np.zeros((n_phi, nv))
-                        A[:, :nz], A[:, sl[0]] = sgn * L[:, 0], -1.0
+                        P = rows_at[k, sgn]
+                        A = np.zeros((len(P), nv))
+                        A[:, :nz], A[:, sl[0]] = sgn * L[P, 0], -1.0
                         rows.append(A)
-                        rhs.append(-sgn * c[:, 0])
-                elif kind == "range":
-                    A = np.zeros((n_phi, nv))
-                    A[:, :nz], A[:, sl[0]] = L[:, 0], -1.0
+                        rhs.append(-sgn * c[P, 0])
+                elif kind == "range":  # t_max >= c + L z >= t_min
+                    P = rows_at[k, 1.0]
+                    A = np.zeros((len(P), nv))
+                    A[:, :nz], A[:, sl[0]] = L[P, 0], -1.0
                     rows.append(A)
-                    rhs.append(-c[:, 0])
-                    A = np.zeros((n_phi, nv))
-                    A[:, :nz], A[:, sl[1]] = -L[:, 0], 1.0
+                    rhs.append(-c[P, 0])
+                    P = rows_at[k, -1.0]
+                    A = np.zeros((len(P), nv))
+                    A[:, :nz], A[:, sl[1]] = -L[P, 0], 1.0
                     rows.append(A)
-                    rhs.append(c[:, 0])
+                    rhs.append(c[P, 0])
                 else:  # rms: tau >= f_j + g_j (z - z_j)
                     for zj, fj, gj in tangents:
                         A = np.zeros((1, nv))
@@ -804,7 +916,8 @@ def _cutting_planes(B: BalanceBasis, parts, xy0: np.ndarray, what: str,
             rhs.append(np.full(len(limit_dirs[i]), B.s_max[i]))
         bounds = [(-box, box)] * nz + [(None, None)] * (nv - nz)
         A_ub, b_ub = np.vstack(rows), np.concatenate(rhs)
-        lp = linprog(cost, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method="highs")
+        lp = linprog(cost, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method="highs",
+                     options=_HIGHS)
         if lp.status != 0:
             raise AnalysisError(f"balancing '{B.machine.name}'", f"a linear programme failed:"
                                 f" {lp.message}", "Report this machine file as a bug")
@@ -827,16 +940,25 @@ def _cutting_planes(B: BalanceBasis, parts, xy0: np.ndarray, what: str,
         elif gap <= max(tol * abs(value), floor):
             status = "optimal"
             break
-        # new cuts where the programme underestimates
+        # new cuts and rows where the programme underestimates
         xy_new = z_new[:nz].reshape(n, 2)
         q = qf(xy_new)
         for (kind, keys, _), sl in zip(parts, slots):
+            if kind in ("abs", "range"):
+                c, L = lin[keys[0]]
+                val = c[:, 0] + L[:, 0] @ z_new[:nz]
+                top, bottom = z_new[sl[0]], (-z_new[sl[0]] if kind == "abs" else z_new[sl[1]])
+                eps = 1e-12 * max(abs(top), abs(bottom), 1e-300)
+                for sgn, bad in ((1.0, val > top + eps), (-1.0, val < bottom - eps)):
+                    if bad.any():
+                        rows_at[keys[0], sgn] = np.union1d(rows_at[keys[0], sgn],
+                                                           np.nonzero(bad)[0])
             if kind != "vector":
                 continue
             t = z_new[sl[0]]
             for k in keys:
                 mag = np.hypot(q[k][:, 0], q[k][:, 1])
-                bad = np.nonzero(mag > t + 1e-12 * max(t, 1e-300))[0]
+                bad = _worst(mag - t, 1e-12 * max(t, 1e-300))
                 if bad.size:
                     P, D = cuts[k]
                     cuts[k] = (np.concatenate([P, bad]),
@@ -854,6 +976,8 @@ def _cutting_planes(B: BalanceBasis, parts, xy0: np.ndarray, what: str,
                if status == "optimal" else
                f"{what}: cutting planes did not converge in {max_iter} linear programmes"
                f" (best found; gap {best[0] - lower:.3g})")
+    if info is not None:
+        info["lower"], info["iterations"] = lower, it
     return xy, status, message
 
 
@@ -871,7 +995,8 @@ def _least_moments(B: BalanceBasis, qf, parts, A_ub, b_ub, bounds, cost, best, t
                   [cost[None, :], np.zeros((1, nz))],
                   [eye, -np.eye(nz)], [-eye, -np.eye(nz)]])
     b = np.concatenate([b_ub, [best[0]], np.zeros(2 * nz)])
-    lp = linprog(c, A_ub=A, b_ub=b, bounds=list(bounds) + [(0.0, None)] * nz, method="highs")
+    lp = linprog(c, A_ub=A, b_ub=b, bounds=list(bounds) + [(0.0, None)] * nz, method="highs",
+                 options=_HIGHS)
     if lp.status != 0:
         return best
     z = _within_limits(B, lp.x[:nz].reshape(-1, 2)).reshape(-1)
@@ -947,12 +1072,11 @@ def _solve_delta_q(B: BalanceBasis) -> tuple[np.ndarray, str, str]:
         F = B.quantities((S * e)[None, :])["F"]
         return float(np.abs(F[:, 0]).max() - np.abs(F[:, 1]).max())
 
-    # a scale for the scan: the static moment whose inertia force equals the peak force now
-    w = 2.0 * math.pi * B.rpm / 60.0
-    peak = float(B.criteria(B.start)["peak_force_N"])
-    hi = B.s_max[0] if math.isfinite(B.s_max[0]) else max(4.0 * 1e3 * peak / w ** 2, 1e-6)
+    # the scan reaches four times the natural scale (or the limit)
+    hi = B.s_max[0] if math.isfinite(B.s_max[0]) else 4.0 * _natural(B)
     grid = np.linspace(0.0, hi, 401)
-    vals = np.array([f(s) for s in grid])
+    F = B.quantities(grid[:, None, None] * e)["F"]  # the scan in one batch
+    vals = np.abs(F[..., 0]).max(axis=-1) - np.abs(F[..., 1]).max(axis=-1)
     roots = []
     for k in np.nonzero(np.sign(vals[:-1]) * np.sign(vals[1:]) <= 0)[0]:
         if vals[k] == 0.0:
