@@ -8,9 +8,9 @@ import json
 
 import numpy as np
 import pytest
+from sewmech.cli import app
 from typer.testing import CliRunner
 
-from sewmech.cli import app
 from sewmech.design.balancing import balance
 from sewmech.design.vibration import crossing
 from sewmech.engine.machine import load_machine

@@ -9,13 +9,13 @@ import math
 
 import numpy as np
 import pytest
+from sewmech.cli import app
+from sewmech.mass import MATERIALS
 from typer.testing import CliRunner
 
 import sewmech
-from sewmech.cli import app
 from sewmech.design.balancing import balance
 from sewmech.engine.mass import from_spec
-from sewmech.mass import MATERIALS
 
 NAME = "bartack-1820"
 S_FACT_KGMM = 0.435  # 43.5 g cm (Sunkuev, Radkevich, Tsvetkov): the counterweight before balancing

@@ -831,7 +831,6 @@ def _cutting_planes(B: BalanceBasis, parts, xy0: np.ndarray, what: str,
         if kind == "range":
             cost[sl[1]] = -w
     ring = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
-    n_phi = len(B.phi)
     cuts = {}  # vector key -> (angle indices, directions): the vector's at the start
     q0 = qf(xy0)
     for kind, keys, _ in parts:
