@@ -128,3 +128,22 @@ def test_influence_balance_from_a_csv(tmp_path, rng):
     bad = write(tmp_path / "bad.csv", "\n".join(rows[:-1]) + "\n")
     code, text = run("influence-balance", bad)
     assert code == 2 and "not measured: run 2 place p2" in text
+
+
+def test_the_shipped_example_measurements():
+    """examples/measurements: synthetic data made with a crossing at 143 g cm and a known
+    unbalance (60 g cm at 200 deg, 25 g cm at 35 deg); the commands find them within noise."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent / "examples" / "measurements"
+    code, text = run("trial-balance", root / "bartack-1820-vibration.csv", "--json")
+    assert code == 0, text
+    data = json.loads(text)
+    assert data["ci95_gcm"][0] < 143.0 < data["ci95_gcm"][1] and data["n_points"] == 21
+    code, text = run("influence-balance", root / "trial-runs.csv", "--json")
+    assert code == 0, text
+    c = json.loads(text)["corrections"]
+    assert abs(c["run 1"]["static_moment_gcm"] - 60.0) < 3.0
+    assert abs(c["run 2"]["static_moment_gcm"] - 25.0) < 3.0
+    assert abs((c["run 1"]["angle_deg"] - 20.0 + 180.0) % 360.0 - 180.0) < 5.0
+    assert abs((c["run 2"]["angle_deg"] + 145.0 + 180.0) % 360.0 - 180.0) < 5.0

@@ -302,7 +302,7 @@ def influence_balance_cmd(
         return
     t = Table(title=f"correction masses from {len(places)} places and {len(planes)} trial runs")
     for col in ("plane (trial run)", "static moment [g cm]", "angle [deg]"):
-        t.add_column(col)
+        t.add_column(escape(col))
     for name, v in data["corrections"].items():
         t.add_row(name, f"{v['static_moment_gcm']:.4g}", f"{v['angle_deg']:.4g}")
     console.print(t)
