@@ -147,3 +147,25 @@ def test_the_shipped_example_measurements():
     assert abs(c["run 2"]["static_moment_gcm"] - 25.0) < 3.0
     assert abs((c["run 1"]["angle_deg"] - 20.0 + 180.0) % 360.0 - 180.0) < 5.0
     assert abs((c["run 2"]["angle_deg"] + 145.0 + 180.0) % 360.0 - 180.0) < 5.0
+
+
+def test_level_change_and_the_moment_point():
+    code, text = run("level-change", "1.0", "0.5", "--json")
+    assert code == 0, text
+    data = json.loads(text)
+    assert data["level_change_db"] == pytest.approx(20.0 * np.log10(0.5))
+    assert data["before_db"] == pytest.approx(20.0 * np.log10(1.0 / 5e-5))
+    code, text = run("level-change", "0", "1")
+    assert code == 2 and "BEFORE" in text
+    # the moment about a named point: the command's answer is the library's
+    code, text = run("balance", "bartack-1820", "--criterion", "moment", "--moment-point-mm",
+                     "0,-150", "--step-deg", "4", "--json")
+    assert code == 0, text
+    data = json.loads(text)
+    lib = balance(load_machine("bartack-1820"), "moment", step_deg=4.0,
+                  moment_point=(0.0, -150.0))
+    assert data["after"]["peak_moment_Nm"] == pytest.approx(lib.after["peak_moment_Nm"],
+                                                            rel=1e-9)
+    assert data["after"]["peak_moment_Nm"] < data["before"]["peak_moment_Nm"]
+    code, text = run("balance", "bartack-1820", "--moment-point-mm", "1,2,3")
+    assert code == 2 and "--moment-point-mm" in text

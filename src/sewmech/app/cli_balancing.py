@@ -95,6 +95,9 @@ def balance_cmd(
                                              " all; delta-q: the one on the upper shaft)"),
     rpm: float = typer.Option(None, help="shaft speed, rev/min (default: the file's)"),
     step_deg: float = typer.Option(1.0, help="shaft-angle step over the turn, deg"),
+    moment_point: str = typer.Option(None, "--moment-point-mm", help="the point X,Y (mm, machine"
+                                     " frame) the shaking moment is taken about (default: the"
+                                     " upper shaft's axis)"),
     weights: list[str] = typer.Option(None, "--weight", help="weighted criterion: PART=W for"
                                       " peak_force_N, rms_force_N, peak_moment_Nm,"
                                       " bearings_peak_N, torque_fluctuation_Nm (default 1"
@@ -123,13 +126,15 @@ def balance_cmd(
         from .outdir import preflight
 
         preflight(out, command="balance")
-    res = balance(m, criterion.value, names, rpm=rpm, step_deg=step_deg, weights=w)
+    point = _point(moment_point)
+    res = balance(m, criterion.value, names, rpm=rpm, step_deg=step_deg, weights=w,
+                  moment_point=point)
     data = {"machine": m.name, **res.to_json()}
     if criterion is Criterion.delta_q:
         paper = paper_workflow(m, next(iter(res.counterweights)), rpm=rpm, step_deg=step_deg)
         data["paper"] = {k: v for k, v in paper.items() if k != "result"}
     if out is not None:
-        _write_balance(m, out, res, data, names, rpm)
+        _write_balance(m, out, res, data, names, rpm, point)
     if as_json:
         json.dump(data, sys.stdout)
         sys.stdout.write("\n")
@@ -159,7 +164,22 @@ def balance_cmd(
                       f" {m.name}-balance-criteria.csv in {out}")
 
 
-def _write_balance(m, out: Path, res, data: dict, names, rpm) -> None:
+def _point(text: str | None) -> tuple[float, float] | None:
+    """--moment-point-mm X,Y -> (x, y) mm."""
+    if text is None:
+        return None
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        x, y = (float(p) for p in parts)
+    except ValueError:
+        raise OptionError("--moment-point-mm", f"{text!r} is not X,Y in mm",
+                          "Write e.g. --moment-point-mm 0,-80") from None
+    if not (math.isfinite(x) and math.isfinite(y) and abs(x) <= 1e6 and abs(y) <= 1e6):
+        raise OptionError("--moment-point-mm", f"{text!r}: give finite coordinates in mm")
+    return x, y
+
+
+def _write_balance(m, out: Path, res, data: dict, names, rpm, point) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -171,7 +191,7 @@ def _write_balance(m, out: Path, res, data: dict, names, rpm) -> None:
     with output_dir(out, command="balance") as root:
         figs = Figures(root, m.name)
         sec = balancing_section(figs, m, criterion=res.criterion, counterweights=names,
-                                rpm=rpm, weights=res.weights or None)
+                                rpm=rpm, weights=res.weights or None, moment_point=point)
         figs.blocks  # every figure written
         with atomic_write(root / f"{m.name}-balance-criteria.csv") as fh:
             results_frame(sec["results"]).to_csv(fh, index=False, float_format="%.10g")
@@ -308,3 +328,27 @@ def influence_balance_cmd(
     console.print(t)
     console.print(f"vibration RMS over the places {res.before:.4g} -> {res.after:.4g} mm/s"
                   " predicted")
+
+
+@command("level-change")
+def level_change_cmd(
+    before: float = typer.Argument(..., help="vibration velocity before, mm/s"),
+    after: float = typer.Argument(..., help="vibration velocity after, mm/s"),
+    as_json: bool = typer.Option(False, "--json", help="print the result as JSON"),
+):
+    """The change in vibration velocity level (dB) between two measurements, and each level
+    against 5e-8 m/s."""
+    from ..design.vibration import V_REF_MM_S, level_change_db, level_db
+
+    for name, v in (("BEFORE", before), ("AFTER", after)):
+        if not (math.isfinite(v) and v > 0):
+            raise OptionError(name, f"must be a velocity > 0 mm/s, got {v:g}")
+    data = {"before_db": float(level_db(before)), "after_db": float(level_db(after)),
+            "level_change_db": level_change_db(before, after), "reference_mm_s": V_REF_MM_S}
+    if as_json:
+        json.dump(data, sys.stdout)
+        sys.stdout.write("\n")
+        return
+    console.print(f"{before:g} mm/s -> {after:g} mm/s: {data['before_db']:.1f} dB ->"
+                  f" {data['after_db']:.1f} dB (re 5e-8 m/s), change"
+                  f" [bold]{data['level_change_db']:+.2f} dB[/]")

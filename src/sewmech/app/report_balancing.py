@@ -56,21 +56,24 @@ def results_frame(results: dict[str, BalanceResult]) -> pd.DataFrame:
 
 def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
                       counterweights: Sequence[str] | None = None, rpm: float | None = None,
-                      weights: dict | None = None, front: bool = True) -> dict:
+                      weights: dict | None = None, front: bool = True,
+                      moment_point: tuple[float, float] | None = None) -> dict:
     """Add the balancing figures to ``figs`` (:class:`~sewmech.app.figures.Figures`).
 
     criterion: the one shown before/after (default: the paper's delta-q on the shaft's
     counterweight if there is one, else weighted); counterweights: those varied by every
-    criterion but delta-q (default: all of the file's); rpm: default the file's. Returns a dict
+    criterion but delta-q (default: all of the file's); rpm: default the file's;
+    moment_point: the shaking moment's point (x, y mm; default the upper shaft's axis). Returns a dict
     with ``main`` (the shown :class:`BalanceResult`), ``results`` (criterion -> result),
     ``paper`` (:func:`sewmech.design.balancing.paper_workflow`, or None), ``key`` (a table of
     key figures) and ``html`` (the section's text blocks: intro, comparison and the paper's
     workflow)."""
     import matplotlib.pyplot as plt
 
-    B = balance_basis(machine, counterweights, rpm=rpm)
+    B = balance_basis(machine, counterweights, rpm=rpm, moment_point=moment_point)
     shaft_cw = shaft_counterweight(machine)
-    Bq = balance_basis(machine, [shaft_cw], rpm=rpm) if shaft_cw else None
+    Bq = balance_basis(machine, [shaft_cw], rpm=rpm, moment_point=moment_point) \
+        if shaft_cw else None
     results: dict[str, BalanceResult] = {}
     for crit in CRITERIA:
         if crit == "delta-q":
