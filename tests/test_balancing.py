@@ -250,3 +250,22 @@ def test_bad_balancing_options_are_located():
                                                   gy=0.0, branch=1))
     with pytest.raises(OptionError, match="has no counterweights"):
         balance(plain, "rms")
+
+
+def test_the_trade_off_front_is_what_no_other_set_beats():
+    from sewmech.design.balancing import pareto_front, spread, tradeoff
+
+    # the sample spreads evenly: every cell of a 8 x 8 grid of the square gets points
+    u = spread(1024, 2)
+    counts = np.histogram2d(u[:, 0], u[:, 1], bins=8, range=[[0, 1], [0, 1]])[0]
+    assert counts.min() >= 12 and counts.max() <= 20  # 16 each for a perfect spread
+    # the front against brute force: a point is on it iff no other is <= in all, < in one
+    rng = np.random.default_rng(5)
+    F = rng.random((300, 3))
+    front = pareto_front(F)
+    for i in range(len(F)):
+        dominated = np.any(np.all(F <= F[i], axis=1) & np.any(F < F[i], axis=1))
+        assert front[i] == (not dominated)
+    m, _, _ = berkof_lowen()
+    T = tradeoff(balance_basis(m, step_deg=6.0), n=256)
+    assert T["front"].any() and T["xy"].shape == (256, 2, 2)

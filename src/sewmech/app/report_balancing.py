@@ -72,8 +72,12 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
 
     B = balance_basis(machine, counterweights, rpm=rpm, moment_point=moment_point)
     shaft_cw = shaft_counterweight(machine)
-    Bq = balance_basis(machine, [shaft_cw], rpm=rpm, moment_point=moment_point) \
-        if shaft_cw else None
+    if shaft_cw is None:
+        Bq = None
+    elif B.names == (shaft_cw,):
+        Bq = B
+    else:
+        Bq = balance_basis(machine, [shaft_cw], rpm=rpm, moment_point=moment_point)
     results: dict[str, BalanceResult] = {}
     for crit in CRITERIA:
         if crit == "delta-q":
@@ -189,7 +193,9 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
             return figures[key]
 
         fig, ax = plt.subplots(figsize=(7.5, 5.6), constrained_layout=True)
-        sc = ax.scatter(fx, fy, c=fc, s=6, cmap="viridis", alpha=0.5)
+        # the cloud as pixels (also in the SVG): thousands of markers as paths cost more than
+        # they show
+        sc = ax.scatter(fx, fy, c=fc, s=6, cmap="viridis", alpha=0.5, rasterized=True)
         on = T["front"]
         ax.scatter(fx[on], fy[on], c=fc[on], s=28, cmap="viridis", edgecolors="k",
                    linewidths=0.6, label="not dominated")
@@ -212,8 +218,9 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
             table[f"{c}_static_moment_gcm"] = S
             table[f"{c}_angle_deg"] = np.degrees(np.arctan2(T["xy"][:, j, 1], T["xy"][:, j, 0]))
         figs.add(fig, "bal-front", "Trade-off: shaking force, shaking moment, bearings",
-                 "Counterweight sets spread over the plane of each counterweight (a scrambled"
-                 " Sobol sample, evaluated exactly from the balancing basis), with the sets no"
+                 "Counterweight sets spread over the plane of each counterweight (a"
+                 " low-discrepancy sample, evaluated exactly from the balancing basis), with the"
+                 " sets no"
                  " other beats in all three figures ringed, and each criterion's answer (stars;"
                  " the colour's figure in brackets). A designer picks from the ringed ones.",
                  pd.DataFrame(table))
