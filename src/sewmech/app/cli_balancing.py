@@ -17,7 +17,8 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..engine.errors import OptionError
-from .cli_common import DEFAULT_MACHINE, SET_HELP, _load, _rpm, command, console
+from .cli_common import (DEFAULT_MACHINE, SET_HELP, _bounded, _load, _phi_grid, _rpm, command,
+                         console)
 
 
 class Criterion(str, Enum):
@@ -112,6 +113,8 @@ def balance_cmd(
     from ..design.balancing import balance, paper_workflow
     from .report_balancing import shaft_counterweight
 
+    _bounded("--step-deg", step_deg, 0.1, 30.0, "deg", "1")
+    _phi_grid(step_deg)  # it divides 360
     m = _load(machine, sets)
     rpm = _rpm(rpm)
     w = _weights(weights)
