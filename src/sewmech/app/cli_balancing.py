@@ -110,8 +110,7 @@ def balance_cmd(
 ):
     """Choose counterweights: static moment and angle of each, with the machine's balancing
     figures before and after."""
-    from ..design.balancing import balance, paper_workflow
-    from .report_balancing import shaft_counterweight
+    from ..design.balancing import balance, paper_workflow, shaft_counterweight
 
     _bounded("--step-deg", step_deg, 0.1, 30.0, "deg", "1")
     _phi_grid(step_deg)  # it divides 360

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from ..design.balancing import (CRITERIA, FIGURES, BalanceResult, balance, balance_basis,
-                                paper_workflow, tradeoff)
+                                paper_workflow, shaft_counterweight, tradeoff)
 from ..engine.machine import Machine
 
 #: labels and units of the figures, for tables
@@ -25,18 +25,6 @@ FIGURE_LABELS = {"delta_q_N": ("Delta-Q = | max|Qx| - max|Qy| |", "N"),
                  "bearing_front_rms_N": ("RMS front bearing reaction", "N"),
                  "bearing_rear_rms_N": ("RMS rear bearing reaction", "N"),
                  "torque_fluctuation_Nm": ("driving-torque fluctuation (max - min)", "N m")}
-
-
-def shaft_counterweight(machine: Machine) -> str | None:
-    """The counterweight the balancing paper's workflow applies to: the first one on a crank
-    that turns with the upper shaft (ratio 1), else None."""
-    spec = machine.spec
-    cranks = {u.link or u.name for u in spec.units
-              if u.type == "crank" and u.input == "shaft" and u.ratio == 1.0}
-    for c in machine.counterweights:
-        if c.link in cranks:
-            return c.name
-    return None
 
 
 def results_frame(results: dict[str, BalanceResult]) -> pd.DataFrame:
@@ -271,8 +259,8 @@ def paper_html(paper: dict | None) -> str:
                  ("steel block's own static moment", b["body_s_gcm"], "g cm",
                   f"{b['body_mass_g']:.4g} g as if at radius {ins['radius_mm']:.4g} mm"),
                  ("lead insert: hole diameter", ins["diameter_mm"], "mm",
-                  f"at radius {ins['radius_mm']:.4g} mm in {ins['body']};"
-                  f" {b['hole_edge_mm']:.3g} mm from the shaft's axis to its edge"),
+                  (f"at radius {ins['radius_mm']:.4g} mm in {ins['body']};"
+                   f" {b['hole_edge_mm']:.3g} mm from the shaft's axis to its edge")),
                  ("lead insert: hole depth", ins["depth_mm"], "mm",
                   f"{ins['mass_g']:.4g} g of lead, adds {ins['s_gcm']:.4g} g cm"),
                  ("trim to S_add: the lead drilled out", b["trim_diameter_mm"], "mm",

@@ -309,10 +309,11 @@ _HIGHS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1
 
 
 def _within_limits(B, xy: np.ndarray) -> np.ndarray:
-    """Static moments ``xy`` (n, 2) with each one beyond its limit scaled back onto it."""
-    s = np.hypot(xy[:, 0], xy[:, 1])
+    """Static moments ``xy`` (batch + (n, 2)) with each one beyond its limit scaled back onto
+    it."""
+    s = np.hypot(xy[..., 0], xy[..., 1])
     f = np.where(s > B.s_max, B.s_max / np.maximum(s, 1e-300), 1.0)
-    return xy * f[:, None]
+    return xy * f[..., None]
 
 
 def _cutting_planes(B, parts, xy0: np.ndarray, what: str,

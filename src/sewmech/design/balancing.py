@@ -40,7 +40,7 @@ from ..engine.counterweights import GCM_PER_KGMM, Counterweight, counterweight_v
 from ..engine.dynamics import DynamicsPlan
 from ..engine.errors import OptionError
 from ..engine.machine import Machine
-from ._minimax import _linear, _minimise, _natural, _s_terms
+from ._minimax import _linear, _minimise, _natural, _s_terms, _within_limits
 
 #: the criteria :func:`balance` can minimise
 CRITERIA = ("delta-q", "peak", "rms", "moment", "bearings", "torque", "weighted")
@@ -207,6 +207,17 @@ def shaft_axis(machine: Machine) -> tuple[float, float]:
             p = spec.points[u.pivot]
             return float(p.x), float(p.y)
     return 0.0, 0.0
+
+
+def shaft_counterweight(machine: Machine) -> str | None:
+    """The counterweight the balancing paper's workflow applies to: the first one on a crank
+    that turns with the upper shaft (ratio 1), else None."""
+    cranks = {u.link or u.name for u in machine.spec.units
+              if u.type == "crank" and u.input == "shaft" and u.ratio == 1.0}
+    for c in machine.counterweights:
+        if c.link in cranks:
+            return c.name
+    return None
 
 
 def balance_basis(machine: Machine, counterweights: Sequence[str] | None = None, *,
@@ -624,7 +635,7 @@ def tradeoff(B: BalanceBasis, n: int = 2048, seed: int = 0, span: float | None =
         rms, _, _ = _solve_rms(B)
         span = 2.0 * max(float(np.abs(rms).max()), float(np.abs(B.start).max()), 1e-3)
     z = spread(n, 2 * k, seed) * 2.0 - 1.0
-    xy = _within_limits_batch(B, span * z.reshape(n, k, 2))
+    xy = _within_limits(B, span * z.reshape(n, k, 2))
     fig = B.criteria(xy)
     if B.has_bearings:
         third = np.maximum(fig["bearing_front_peak_N"], fig["bearing_rear_peak_N"])
@@ -647,12 +658,6 @@ def spread(n: int, d: int, seed: int = 0) -> np.ndarray:
     alpha = phi ** -np.arange(1, d + 1)
     shift = np.random.default_rng(seed).random(d)
     return np.mod(shift + np.arange(1, n + 1)[:, None] * alpha[None, :], 1.0)
-
-
-def _within_limits_batch(B: BalanceBasis, xy: np.ndarray) -> np.ndarray:
-    s = np.hypot(xy[..., 0], xy[..., 1])
-    f = np.where(s > B.s_max, B.s_max / np.maximum(s, 1e-300), 1.0)
-    return xy * f[..., None]
 
 
 def pareto_front(F: ArrayLike) -> np.ndarray:
