@@ -40,12 +40,13 @@ __version__ = "0.1.0"
 MODULES = {
     **{m: "engine" for m in ("errors", "spec", "cams", "mass", "machine", "results",
                              "kinematics", "dynamics", "extremes", "margins", "assembly",
-                             "counterweights")},
+                             "counterweights", "sensitivity")},
     **{m: "sewing" for m in ("timing", "checks", "feed", "thread", "transmission",
                              "embroidery")},
     **{m: "design" for m in ("balancing", "vibration", "inserts")},
-    **{m: "app" for m in ("cli", "cli_common", "cli_balancing", "report", "report_dynamics",
-                          "report_balancing", "figures", "plot", "io", "outdir")},
+    **{m: "app" for m in ("cli", "cli_common", "cli_balancing", "cli_accuracy", "report",
+                          "report_dynamics", "report_balancing", "figures", "plot", "io",
+                          "outdir")},
 }
 
 

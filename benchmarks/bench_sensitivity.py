@@ -1,0 +1,63 @@
+"""Benchmark: exact design sensitivities of positions (issue 17, first part).
+
+Target (issue 17): a gradient of all parameters costs at most 3 evaluations (finite
+differences cost n + 1). Measured on JB1-3 (122 parameters, every unit type including the feed's
+loops with cams): the time of ``sensitivities()`` (the kinematics included) in units of one
+``kinematics()`` call at the same angles, at one angle and at 360, side by side with central
+differences of all parameters in one batch call (2 n designs). Best of several repeats after a
+warm-up. Prints a table and writes ``benchmarks/results/sensitivity.json``; a missed target
+prints MISSED and exits 0.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from _timing import best
+
+import sewmech
+from sewmech.engine.sensitivity import sensitivities
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results" / "sensitivity.json"
+TARGET_EVALUATIONS = 3.0
+
+
+def main():
+    m = sewmech.load_machine("jb1-3")
+    n = len(m.parameter_names)
+    P0 = np.array(m.defaults)
+    h = 1e-4 * np.maximum(1.0, np.abs(P0))
+    keep = np.array([not p.startswith("extra.") for p in m.parameter_names])
+    h = np.where(keep, h, 0.0)
+    FD = np.concatenate([P0 + np.diag(h), P0 - np.diag(h)])
+    out = {"parameters": n, "target_evaluations": TARGET_EVALUATIONS}
+    print(f"JB1-3, {n} parameters")
+    print(f"{'angles':>7} {'kinematics ms':>14} {'sensitivities ms':>17} {'evaluations':>12}"
+          f" {'central differences ms':>23} {'evaluations':>12}")
+    worst = 0.0
+    for n_phi in (1, 360):
+        phi = np.radians(np.arange(n_phi) * (360.0 / n_phi) + 30.0)
+        t_kin, _ = best(lambda: sewmech.kinematics(m, phi), repeat=9)
+        t_sens, t_sens_med = best(lambda: sensitivities(m, phi), repeat=9)
+        t_fd, _ = best(lambda: sewmech.kinematics(m, phi, params=FD), repeat=3)
+        ev, ev_fd = t_sens / t_kin, t_fd / t_kin
+        worst = max(worst, ev)
+        print(f"{n_phi:7d} {t_kin * 1e3:14.3f} {t_sens * 1e3:17.3f} {ev:12.1f}"
+              f" {t_fd * 1e3:23.1f} {ev_fd:12.1f}")
+        out[f"{n_phi}"] = {"kinematics_ms": t_kin * 1e3, "sensitivities_ms": t_sens * 1e3,
+                           "sensitivities_median_ms": t_sens_med * 1e3,
+                           "evaluations": ev, "central_differences_ms": t_fd * 1e3,
+                           "central_differences_evaluations": ev_fd}
+    verdict = "met" if worst <= TARGET_EVALUATIONS else "MISSED"
+    print(f"target: a gradient of all parameters in at most {TARGET_EVALUATIONS:g} evaluations:"
+          f" {worst:.1f}, {verdict}")
+    out["verdict"] = verdict
+    RESULTS.parent.mkdir(exist_ok=True)
+    RESULTS.write_text(json.dumps(out, indent=1))
+
+
+if __name__ == "__main__":
+    main()

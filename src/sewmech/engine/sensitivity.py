@@ -1,0 +1,301 @@
+"""Exact design sensitivities of positions: d(point position, link angle, joint variable) /
+d(every parameter), at every shaft angle, from the solved mechanism.
+
+Each unit of the compiled program is differentiated where it is solved, in solve order
+(forward mode, every parameter direction at once): a closed-form unit's closure equations give
+its outputs' tangents from its inputs' tangents and its own parameters' (for a dyad,
+(C - B1) . (dC - dB1) = l1 dl1 and (C - B2) . (dC - dB2) = l2 dl2: a 2 x 2 system per angle); a
+loop unit's closure F(q, known, p) = 0 gives J_q dq = -(dF/dknown dknown + dF/dp dp), with the
+same terms (points, vectors of parameter or variable length, circular-arc cam contacts) as the
+kernel's loop solver. The positions come from the kinematics kernel; this module adds the
+tangents, vectorised over designs and angles, in numpy.
+
+Derivatives are in internal units: mm or rad per unit of the parameter (mm, rad, 1).
+Velocities and accelerations are not differentiated here yet.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ._kernels import (OP_CRANK, OP_FIXED, OP_LOOP, OP_POINT, OP_RPR, OP_RRP, OP_RRR, SRC_LINK,
+                       SRC_PARAM, TERM_CAM, TERM_POINT, TERM_VEC)
+from .errors import AnalysisError, name_index
+from .kinematics import kinematics
+from .machine import Machine
+from .results import KinematicsResult
+
+
+@dataclass(frozen=True)
+class Sensitivities:
+    """Tangents of the positions with respect to every parameter.
+
+    kin : the kinematics the tangents belong to; dp : (batch, n_phi, n_points, 2, n_params)
+    d(point position)/d(parameter), mm per parameter unit; dtheta : (batch, n_phi, n_links,
+    n_params) rad per unit; dq : (batch, n_phi, n_variables, n_params) per unit (mm or rad).
+    """
+
+    kin: KinematicsResult
+    dp: np.ndarray
+    dtheta: np.ndarray
+    dq: np.ndarray
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        return self.kin.machine.parameter_names
+
+    def channel(self, name: str) -> tuple[np.ndarray, np.ndarray, str]:
+        """A position channel (``p_POINT_x``/``_y``, ``theta_LINK``, ``q_VAR``): its values
+        (batch + (n_phi,)), its derivatives (batch + (n_phi, n_params)) and its unit."""
+        r = self.kin
+        kind, _, rest = name.partition("_")
+        if kind == "p":
+            pt, _, comp = rest.rpartition("_")
+            if comp not in ("x", "y"):
+                raise KeyError(f"channel '{name}': a point channel ends in _x or _y")
+            i = name_index(r.point_names, pt, "point")
+            c = "xy".index(comp)
+            return r.p[..., i, c], self.dp[..., i, c, :], "mm"
+        if kind == "theta":
+            i = name_index(r.link_names, rest, "link")
+            return r.theta[..., i], self.dtheta[..., i, :], "rad"
+        if kind == "q":
+            i = name_index(r.variable_names, rest, "joint variable")
+            return r.q[..., i], self.dq[..., i, :], r.variable_units[i]
+        raise KeyError(f"'{name}' is not a position channel: sensitivities exist for p_POINT_x,"
+                       " p_POINT_y, theta_LINK and q_VAR (velocities and accelerations are not"
+                       " differentiated yet)")
+
+
+def _rot90(x: np.ndarray) -> np.ndarray:
+    """(x, y) -> (-y, x) on the coordinate axis -2 (vectors with a trailing parameter axis) or
+    -1."""
+    return np.stack([-x[..., 1], x[..., 0]], axis=-1)
+
+
+def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None = None,
+                  inputs=None) -> Sensitivities:
+    """Exact derivatives of every point position, link angle and joint variable with respect
+    to every parameter (``machine.parameter_names``), at shaft angles ``phi`` (rad), for the
+    designs ``params`` (default: the file's) and setting ``inputs`` (rad, as for
+    :func:`sewmech.kinematics`). A position where the mechanism cannot be assembled raises
+    (the derivatives are not defined there)."""
+    r = kinematics(machine, phi, params=params, inputs=inputs)
+    if not r.all_feasible:
+        raise AnalysisError(f"machine '{machine.name}'", "cannot be assembled at some of the"
+                            " angles: the sensitivities are not defined there",
+                            "Choose angles where it assembles (sewmech check)")
+    batch = r.p.shape[:-2]  # (batch..., n_phi)
+    n = int(np.prod(batch)) if batch else 1
+    P = r.p.reshape(n, len(machine.point_names), 2)
+    TH = r.theta.reshape(n, len(machine.link_names))
+    Q = r.q.reshape(n, len(machine.variable_names))
+    # the parameters of each position (designs broadcast over the angles)
+    par = np.broadcast_to(_design_params(machine, r, params, inputs)[..., None, :],
+                          batch + (len(machine.parameter_names),)).reshape(n, -1)
+    npar = par.shape[1]
+    dP = np.zeros((n, len(machine.point_names), 2, npar))
+    dTH = np.zeros((n, len(machine.link_names), npar))
+    dQ = np.zeros((n, len(machine.variable_names), npar))
+    eye = np.eye(npar)
+    prog = machine.program
+    for row in prog:
+        op = row[0]
+        if op == OP_FIXED:
+            i, jx, jy = row[1], row[2], row[3]
+            dP[:, i, 0, :] = eye[jx]
+            dP[:, i, 1, :] = eye[jy]
+        elif op == OP_CRANK:
+            L, jph, jra, jset = row[1], row[2], row[3], row[4]
+            if jset >= 0:
+                dTH[:, L, :] = eye[jph] + eye[jset]
+            else:  # theta = phase + ratio * (the march's angle, which may differ from phi
+                # by whole turns): d theta / d ratio = (theta - phase) / ratio
+                turned = (TH[:, L] - par[:, jph]) / par[:, jra]
+                dTH[:, L, :] = eye[jph][None, :] + turned[:, None] * eye[jra][None, :]
+        elif op == OP_POINT:
+            i, L, o, ju, jv = row[1], row[2], row[3], row[4], row[5]
+            c, s = np.cos(TH[:, L]), np.sin(TH[:, L])
+            rel = P[:, i] - P[:, o]
+            # dP = dO + R (du, dv) + J (P - O) dtheta
+            dP[:, i, 0, :] = (dP[:, o, 0, :] + c[:, None] * eye[ju] - s[:, None] * eye[jv]
+                              - rel[:, 1, None] * dTH[:, L, :])
+            dP[:, i, 1, :] = (dP[:, o, 1, :] + s[:, None] * eye[ju] + c[:, None] * eye[jv]
+                              + rel[:, 0, None] * dTH[:, L, :])
+        elif op == OP_RRR:
+            _rrr(row, P, dP, dTH, par, eye)
+        elif op == OP_RRP:
+            _rrp(row, P, TH, Q, dP, dTH, dQ, par, eye)
+        elif op == OP_RPR:
+            _rpr(row, P, TH, Q, dP, dTH, dQ, par, eye)
+        elif op == OP_LOOP:
+            _loop(machine, row[1], P, TH, Q, dP, dTH, dQ, par, eye)
+    shape = batch
+    return Sensitivities(r, dP.reshape(shape + dP.shape[1:]), dTH.reshape(shape + dTH.shape[1:]),
+                         dQ.reshape(shape + dQ.shape[1:]))
+
+
+def _design_params(machine: Machine, r: KinematicsResult, params, inputs) -> np.ndarray:
+    """The parameter vectors the kinematics used: batch + (n_params,)."""
+    return machine.parameters(base=params, inputs=inputs) if params is not None or inputs \
+        else np.asarray(machine.defaults)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b for a (n, 2) and b (n, 2, k): (n, k)."""
+    return a[:, 0, None] * b[:, 1, :] - a[:, 1, None] * b[:, 0, :]
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a . b for a (n, 2) and b (n, 2, k): (n, k)."""
+    return a[:, 0, None] * b[:, 0, :] + a[:, 1, None] * b[:, 1, :]
+
+
+def _rrr(row, P, dP, dTH, par, eye) -> None:
+    i1, i2, i, L1, L2, j1, j2 = row[1], row[2], row[3], row[4], row[5], row[6], row[7]
+    r1 = P[:, i] - P[:, i1]
+    r2 = P[:, i] - P[:, i2]
+    l1, l2 = par[:, j1], par[:, j2]
+    # r_k . dC = l_k dl_k + r_k . dP_k: a 2 x 2 system [r1; r2] dC = rhs per angle
+    rhs1 = l1[:, None] * eye[j1][None, :] + _dot(r1, dP[:, i1])
+    rhs2 = l2[:, None] * eye[j2][None, :] + _dot(r2, dP[:, i2])
+    det = r1[:, 0] * r2[:, 1] - r1[:, 1] * r2[:, 0]
+    dCx = (rhs1 * r2[:, 1, None] - rhs2 * r1[:, 1, None]) / det[:, None]
+    dCy = (r1[:, 0, None] * rhs2 - r2[:, 0, None] * rhs1) / det[:, None]
+    dP[:, i, 0, :] = dCx
+    dP[:, i, 1, :] = dCy
+    dC = dP[:, i]
+    dTH[:, L1, :] = _cross(r1, dC - dP[:, i1]) / (l1 * l1)[:, None]
+    dTH[:, L2, :] = _cross(r2, dC - dP[:, i2]) / (l2 * l2)[:, None]
+
+
+def _rrp(row, P, TH, Q, dP, dTH, dQ, par, eye) -> None:
+    b, gp, gl, i, L1, Ls, jl, ja, je, _, var = row[1:12]
+    beta = TH[:, Ls]
+    u = np.stack([np.cos(beta), np.sin(beta)], axis=-1)
+    nrm = _rot90(u)
+    s = Q[:, var]
+    e = par[:, je]
+    l = par[:, jl]
+    dbeta = dTH[:, gl, :] + eye[ja][None, :]
+    # dQ_foot = dG + de n - e u dbeta; dC = dQ_foot + ds u + s n dbeta
+    known = (dP[:, gp] + nrm[:, :, None] * eye[je][None, None, :]
+             - (e[:, None, None] * u[:, :, None]) * dbeta[:, None, :]
+             + (s[:, None, None] * nrm[:, :, None]) * dbeta[:, None, :])
+    r1 = P[:, i] - P[:, b]
+    # r1 . (dC - dB) = l dl
+    ds = (l[:, None] * eye[jl][None, :] - _dot(r1, known - dP[:, b])) / _dot(r1, u[:, :, None])
+    dC = known + u[:, :, None] * ds[:, None, :]
+    dP[:, i] = dC
+    dQ[:, var, :] = ds
+    dTH[:, L1, :] = _cross(r1, dC - dP[:, b]) / (l * l)[:, None]
+    dTH[:, Ls, :] = dbeta
+
+
+def _rpr(row, P, TH, Q, dP, dTH, dQ, par, eye) -> None:
+    b, pv, L, Lb, je, _, var = row[1:8]
+    th = TH[:, L]
+    u = np.stack([np.cos(th), np.sin(th)], axis=-1)
+    nrm = _rot90(u)
+    s = Q[:, var]
+    e = par[:, je]
+    # B - A = e n + s u: dB - dA = u (ds - e dtheta) + n (de + s dtheta)
+    dd = dP[:, b] - dP[:, pv]
+    dth = (_dot(nrm, dd) - eye[je][None, :]) / s[:, None]
+    ds = _dot(u, dd) + e[:, None] * dth
+    dTH[:, L, :] = dth
+    if Lb >= 0:
+        dTH[:, Lb, :] = dth
+    dQ[:, var, :] = ds
+
+
+def _loop(machine: Machine, g: int, P, TH, Q, dP, dTH, dQ, par, eye) -> None:
+    """J_q dq = -(the closure's derivative by everything known): each term's tangent split into
+    the unknowns' columns and the rest."""
+    grp, unk, terms = machine.groups, machine.unknowns, machine.terms
+    nq, u0, _, t0, nt = grp[g]
+    n = P.shape[0]
+    npar = eye.shape[0]
+    J = np.zeros((n, nq, nq))
+    rhs = np.zeros((n, nq, npar))
+    for t in range(t0, t0 + nt):
+        typ, lrow, sign, len_src, len_idx, ang_src, ang_idx, jalpha, cam, joff, lc, ac = terms[t]
+        row = 2 * lrow
+        if typ == TERM_POINT:
+            rhs[:, row:row + 2, :] -= sign * dP[:, len_idx]
+            continue
+        psi = (TH[:, ang_idx] if ang_src == SRC_LINK else Q[:, ang_idx]) + (
+            par[:, jalpha] if jalpha >= 0 else 0.0)
+        e = np.stack([np.cos(psi), np.sin(psi)], axis=-1)
+        ie = _rot90(e)
+        dpsi_known = 0.0 if ac >= 0 else (dTH[:, ang_idx, :] if ang_src == SRC_LINK
+                                          else dQ[:, ang_idx, :])
+        dalpha = eye[jalpha][None, :] if jalpha >= 0 else 0.0
+        if typ == TERM_VEC:
+            if len_src == SRC_PARAM:
+                L = par[:, len_idx]
+                dL = eye[len_idx][None, :]
+            else:
+                L = Q[:, len_idx]
+                dL = 0.0 if lc >= 0 else dQ[:, len_idx, :]
+            if lc >= 0:
+                J[:, row:row + 2, lc] += sign * e
+            if ac >= 0:
+                J[:, row:row + 2, ac] += sign * L[:, None] * ie
+            known = e[:, :, None] * _rows(dL) + (L[:, None, None] * ie[:, :, None]) * _rows(
+                dpsi_known + dalpha)
+            rhs[:, row:row + 2, :] -= sign * known
+            continue
+        # TERM_CAM: p_cp + R(theta_c) c_k + (R_k + off) e^{i psi}
+        cl, cp, a0, na = machine.cams[cam]
+        tc = TH[:, cl]
+        k = _active_arc(machine, par, cl, a0, na, psi - tc)
+        jcx, jcy, jR = (machine.arcs[k, c] for c in range(3))
+        cx = par[np.arange(n), jcx]
+        cy = par[np.arange(n), jcy]
+        R = par[np.arange(n), jR] + (par[:, joff] if joff >= 0 else 0.0)
+        cc, cs = np.cos(tc), np.sin(tc)
+        rc = np.stack([cc * cx - cs * cy, cs * cx + cc * cy], axis=-1)
+        dcx, dcy, dR = eye[jcx], eye[jcy], eye[jR] + (eye[joff] if joff >= 0 else 0.0)
+        rot_dc = np.stack([cc[:, None] * dcx - cs[:, None] * dcy,
+                           cs[:, None] * dcx + cc[:, None] * dcy], axis=1)
+        if ac >= 0:
+            J[:, row:row + 2, ac] += sign * R[:, None] * ie
+        known = (dP[:, cp] + rot_dc + _rot90(rc)[:, :, None] * dTH[:, cl, None, :]
+                 + e[:, :, None] * dR[:, None, :]
+                 + (R[:, None, None] * ie[:, :, None]) * _rows(dpsi_known + dalpha))
+        rhs[:, row:row + 2, :] -= sign * known
+    sol = np.linalg.solve(J, rhs)  # (n, nq, npar)
+    for j in range(nq):
+        kind, idx = unk[u0 + j, 0], unk[u0 + j, 1]
+        if kind == 0:
+            dTH[:, idx, :] = sol[:, j, :]
+        else:
+            dQ[:, idx, :] = sol[:, j, :]
+
+
+def _rows(x):
+    """A tangent (positions, n_params) as (positions, 1, n_params) to multiply a vector; a
+    constant 0 stays 0."""
+    return x[:, None, :] if np.ndim(x) == 2 else x
+
+
+def _active_arc(machine: Machine, par: np.ndarray, cl, a0: int, na: int, rho: np.ndarray
+                ) -> np.ndarray:
+    """Index (into machine.arcs) of the arc whose normal-angle range holds ``rho`` (per
+    position), as the kernel picks it."""
+    two_pi = 2.0 * np.pi
+    out = np.full(rho.shape, -1, dtype=np.int64)
+    for k in range(a0, a0 + na):
+        lo = par[:, machine.arcs[k, 3]]
+        hi = par[:, machine.arcs[k, 4]]
+        r = lo + np.mod(rho - lo, two_pi)
+        hit = (out < 0) & (r < hi)
+        out[hit] = k
+    if np.any(out < 0):
+        raise AnalysisError(f"machine '{machine.name}'", "a cam contact lies on no arc of its"
+                            " profile", "Check the cam's arcs (sewmech check)")
+    return out

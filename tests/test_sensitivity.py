@@ -1,0 +1,129 @@
+"""Exact design sensitivities of positions (issue 17, first part): against closed forms and
+against central differences of the kinematics on every shipped machine (every unit type:
+cranks driven by the shaft and by a setting, points, RRR, RRP on the frame and in a moving slot,
+RPR, loops with vector and cam terms)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from conftest import SLIDER_CRANK, fourbar
+
+import sewmech
+from sewmech.engine.machine import shipped_machines
+from sewmech.engine.sensitivity import sensitivities
+
+PHI = np.radians(np.arange(0.37, 360.0, 17.0))
+
+
+def richardson(machine, phi, P0, keep, h_rel=3e-4):
+    """Central differences of p, theta, q by every parameter with Richardson's extrapolation
+    ((4 D(h/2) - D(h)) / 3, error O(h^4)): all 4 n designs in one kinematics call. The step is
+    not smaller because the loop solver's tolerance (about 1e-10 mm) divided by the step is the
+    other error. Parameters not in ``keep`` are not stepped (their column is 0)."""
+    n = len(P0)
+    h = np.where(keep, h_rel * np.maximum(1.0, np.abs(P0)), 0.0)
+    steps = np.concatenate([h, -h, h / 2, -h / 2])
+    h = np.where(keep, h, 1.0)
+    P = np.tile(P0, (4 * n, 1))
+    P[np.arange(4 * n), np.tile(np.arange(n), 4)] += steps
+    r = sewmech.kinematics(machine, phi, params=P)
+    out = []
+    for arr in (r.p, r.theta, r.q):
+        a = arr.reshape((4, n) + arr.shape[1:])
+        d1 = (a[0] - a[1]) / (2 * h).reshape((n,) + (1,) * (a.ndim - 2))
+        d2 = (a[2] - a[3]) / h.reshape((n,) + (1,) * (a.ndim - 2))
+        out.append(np.moveaxis((4 * d2 - d1) / 3, 0, -1))  # parameter axis last
+    return out
+
+
+@pytest.mark.parametrize("name", sorted(shipped_machines()))
+def test_sensitivities_equal_central_differences_on_every_shipped_machine(name):
+    m = sewmech.load_machine(name)
+    S = sensitivities(m, PHI)
+    P0 = np.array(m.defaults)
+    # the counterweights do not move anything (their parameters' derivatives are 0), and a
+    # step below 0 g cm is outside their domain
+    keep = np.array([not any(p.startswith(c.name + ".") for c in m.counterweights)
+                     for p in m.parameter_names])
+    fd = richardson(m, PHI, P0, keep)
+    for d, ref, what in ((S.dp, fd[0], "p"), (S.dtheta, fd[1], "theta"), (S.dq, fd[2], "q")):
+        if ref.size == 0:
+            continue
+        err = np.abs(d[..., keep] - ref[..., keep])
+        scale = np.maximum(1.0, np.abs(ref[..., keep]).max(axis=tuple(range(ref.ndim - 1))))
+        worst = (err.max(axis=tuple(range(err.ndim - 1))) / scale).max()
+        assert worst < 1e-6, (name, what, worst)
+    assert np.abs(S.dp[..., ~keep]).max(initial=0.0) == 0.0
+
+
+def test_slider_crank_closed_forms():
+    """x = r cos(t) + sqrt(l^2 - r^2 sin^2 t) on a guide through the crank's axis:
+    dx/dr = cos t - r sin^2 t / sqrt(l^2 - r^2 sin^2 t), dx/dl = l / sqrt(l^2 - r^2 sin^2 t);
+    both 1 at the top dead centre, and the stroke 2 r has d/dr = 2, d/dl = 0."""
+    r, l = 15.0, 44.0
+    m = sewmech.machine_from_toml(SLIDER_CRANK.format(r=r, l=l, e=0.0, alpha=0.0, gx=0.0,
+                                                      gy=0.0, branch=1))
+    t = np.radians(np.arange(0.0, 360.0, 10.0))
+    S = sensitivities(m, t)
+    x, dx, unit = S.channel("q_slider")
+    names = m.parameter_names
+    root = np.sqrt(l * l - r * r * np.sin(t) ** 2)
+    assert np.allclose(x, r * np.cos(t) + root, atol=1e-9) and unit == "mm"
+    np.testing.assert_allclose(dx[:, names.index("B.u")],
+                               np.cos(t) - r * np.sin(t) ** 2 / root, atol=1e-12)
+    np.testing.assert_allclose(dx[:, names.index("slider.length")], l / root, atol=1e-12)
+    assert dx[0, names.index("B.u")] == pytest.approx(1.0, abs=1e-12)
+    assert dx[0, names.index("slider.length")] == pytest.approx(1.0, abs=1e-12)
+    bdc = int(np.argmin(np.abs(t - math.pi)))
+    stroke = dx[0] - dx[bdc]
+    assert stroke[names.index("B.u")] == pytest.approx(2.0, abs=1e-12)
+    assert stroke[names.index("slider.length")] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_four_bar_output_angle_closed_forms():
+    """a e^{i t2} + b e^{i t3} = d + c e^{i t4}, differentiated with t2 held: the real part
+    after multiplying by e^{-i t3} eliminates dt3, so
+    dt4 = Re[(dd + dc e^{i t4} - da e^{i t2} - db e^{i t3}) e^{-i t3}] / (c sin(t4 - t3))."""
+    m = fourbar()
+    t = np.radians(np.arange(3.0, 360.0, 11.0))
+    S = sensitivities(m, t)
+    r = S.kin
+    t2 = r.link("crank").theta
+    t3 = r.link("coupler").theta
+    t4 = r.link("rocker").theta
+    c = 35.0
+    den = c * np.sin(t4 - t3)
+    expected = {"B.u": -np.cos(t2 - t3) / den, "dyad.length1": -1.0 / den,
+                "dyad.length2": np.cos(t4 - t3) / den, "D.x": np.cos(t3) / den}
+    _, d, unit = S.channel("theta_rocker")
+    assert unit == "rad"
+    for name, ref in expected.items():
+        np.testing.assert_allclose(d[:, m.parameter_names.index(name)], ref, rtol=1e-10,
+                                   atol=1e-13, err_msg=name)
+
+
+def test_sensitivity_command_prints_the_issue_keys(tmp_path):
+    from typer.testing import CliRunner
+
+    from sewmech.cli import app
+
+    out = CliRunner().invoke(app, ["sensitivity", "jb1-3", "--output", "p_needle.point_y",
+                                   "--phi-deg", "30", "--json"])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.output)
+    assert data["output"] == "p_needle.point_y" and data["phi_deg"] == 30.0
+    m = sewmech.load_machine("jb1-3")
+    S = sensitivities(m, np.radians([30.0]))
+    v, d, _ = S.channel("p_needle.point_y")
+    assert data["value"] == pytest.approx(float(v[0]))
+    assert set(data["d_dparam"]) == set(m.parameter_names)
+    j = m.parameter_names.index("needle_bar.length")
+    assert data["d_dparam"]["needle_bar.length"] == pytest.approx(float(d[0, j]))
+    bad = CliRunner().invoke(app, ["sensitivity", "jb1-3", "--output", "v_needle.point_y"])
+    assert bad.exit_code == 2 and "position channel" in bad.output
+    bad = CliRunner().invoke(app, ["sensitivity", "jb1-3", "--output", "p_nothing_y"])
+    assert bad.exit_code == 2 and "nothing" in bad.output
