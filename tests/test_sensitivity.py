@@ -127,3 +127,59 @@ def test_sensitivity_command_prints_the_issue_keys(tmp_path):
     assert bad.exit_code == 2 and "position channel" in bad.output
     bad = CliRunner().invoke(app, ["sensitivity", "jb1-3", "--output", "p_nothing_y"])
     assert bad.exit_code == 2 and "nothing" in bad.output
+
+
+def test_stitch_length_gradient_against_differences_of_located_events():
+    """The stitch length's derivative (events moving with the design) against central
+    differences of the stitch length located again on the perturbed designs (Richardson), for
+    the parameters that move it most, and by the regulator setting itself."""
+    from sewmech.sewing.feed import feed_cycles
+    from sewmech.sewing.gradients import stitch_length_gradient
+
+    m = sewmech.load_machine("jb1-3")
+    g = stitch_length_gradient(m, 25.0)
+    assert g.value == pytest.approx(float(feed_cycles(m, 25.0).stitch_mm), abs=1e-7)
+    P0 = np.array(m.defaults)
+    names = m.parameter_names
+    order = [j for j in np.argsort(-np.abs(g.d_dparam)) if names[j] != "input.regulator"][:8]
+    for j in order:
+        h = 1e-4 * max(1.0, abs(P0[j]))
+
+        def at(step, j=j):
+            P = P0.copy()
+            P[j] += step
+            return stitch_length_gradient(m, 25.0, params=P).value
+
+        fd = (4 * (at(h / 2) - at(-h / 2)) / h - (at(h) - at(-h)) / (2 * h)) / 3
+        assert g.d_dparam[j] == pytest.approx(fd, rel=1e-6, abs=1e-9), names[j]
+    # by the setting: the input's derivative, per rad of regulator
+    h = 1e-3  # deg
+    fd = (stitch_length_gradient(m, 25.0 + h).value
+          - stitch_length_gradient(m, 25.0 - h).value) / math.radians(2 * h)
+    assert g.d_dparam[names.index("input.regulator")] == pytest.approx(fd, rel=1e-6)
+    # the rise and fall are on the plate
+    r = sewmech.kinematics(m, np.radians(list(g.events_deg.values())),
+                           inputs={"regulator": math.radians(25.0)})
+    plate = m.spec.sewing.plate_y
+    assert np.abs(r.point("feed_dog.tip").p[..., 1] - plate).max() < 1e-10
+
+
+def test_sensitivity_command_for_the_stitch_length():
+    from typer.testing import CliRunner
+
+    from sewmech.cli import app
+
+    out = CliRunner().invoke(app, ["sensitivity", "jb1-3", "--output", "stitch_length",
+                                   "--input", "regulator=25", "--json"])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.output)
+    assert data["output"] == "stitch_length" and data["unit"] == "mm"
+    assert data["events_deg"]["regulator"] == 25.0
+    from sewmech.sewing.gradients import stitch_length_gradient
+
+    g = stitch_length_gradient(sewmech.load_machine("jb1-3"), 25.0)
+    assert data["value"] == pytest.approx(g.value)
+    assert data["d_dparam"]["feed_cam.arc0.radius"] == pytest.approx(
+        g.as_dict()["feed_cam.arc0.radius"])
+    bad = CliRunner().invoke(app, ["sensitivity", "bartack-1820", "--output", "stitch_length"])
+    assert bad.exit_code == 2 and "stitch length" in bad.output

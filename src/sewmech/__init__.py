@@ -42,7 +42,7 @@ MODULES = {
                              "kinematics", "dynamics", "extremes", "margins", "assembly",
                              "counterweights", "sensitivity")},
     **{m: "sewing" for m in ("timing", "checks", "feed", "thread", "transmission",
-                             "embroidery")},
+                             "embroidery", "gradients")},
     **{m: "design" for m in ("balancing", "vibration", "inserts")},
     **{m: "app" for m in ("cli", "cli_common", "cli_balancing", "cli_accuracy", "report",
                           "report_dynamics", "report_balancing", "figures", "plot", "io",

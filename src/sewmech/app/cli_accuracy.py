@@ -17,12 +17,34 @@ from ..engine.errors import OptionError
 from .cli_common import DEFAULT_MACHINE, SET_HELP, _load, _settings, command, console
 
 
+#: the sewing metrics ``--output`` accepts besides the position channels
+METRICS = ("stitch_length",)
+
+
+def _metric(m, name: str, settings: dict) -> tuple[float, np.ndarray, str, dict]:
+    """A sewing metric's value, derivatives, unit and event angles (deg)."""
+    from ..sewing.gradients import stitch_length_gradient
+    from ..sewing.timing import roles
+
+    s = roles(m)
+    if s.regulator is None or s.feed_dog is None:
+        raise OptionError("--output", f"machine '{m.name}' has no feed dog and regulator in its"
+                          " [sewing] table: no stitch length", "Choose a position channel")
+    reg = settings.get(s.regulator)
+    deg = m.spec.inputs[s.regulator].default_deg if reg is None else math.degrees(reg)
+    g = stitch_length_gradient(m, deg)
+    return g.value, g.d_dparam, g.unit, {**g.events_deg, "regulator": deg}
+
+
 @command("sensitivity")
 def sensitivity_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="shipped machine name or TOML file"),
     output: str = typer.Option(..., help="a position channel: p_POINT_x, p_POINT_y, theta_LINK"
-                               " or q_VAR (as `sewmech kinematics --json` names them)"),
-    phi_deg: float = typer.Option(0.0, "--phi-deg", help="shaft angle, deg"),
+                               " or q_VAR (as `sewmech kinematics --json` names them), or a"
+                               " metric: stitch_length (at --input regulator=DEG, default the"
+                               " file's setting)"),
+    phi_deg: float = typer.Option(0.0, "--phi-deg", help="shaft angle, deg (position"
+                                  " channels)"),
     inputs: list[str] = typer.Option(None, "--input", help="a setting input NAME=DEG, e.g."
                                      " regulator=30; repeatable (default: the file's)"),
     top: int = typer.Option(15, help="rows of the table: the largest derivatives"),
@@ -40,23 +62,30 @@ def sensitivity_cmd(
         raise OptionError("--top", f"must be at least 1, got {top}")
     m = _load(machine, sets)
     settings = _settings(m, inputs)
-    try:
-        S = sensitivities(m, np.radians([phi_deg]), inputs=settings or None)
-        value, d, unit = S.channel(output)
-    except KeyError as exc:
-        raise OptionError("--output", exc.args[0], "Give e.g. p_needle.point_y or"
-                          " theta_take_up_lever") from None
-    d = d[0]
     names = m.parameter_names
-    data = {"output": output, "phi_deg": phi_deg, "value": float(value[0]), "unit": unit,
-            "d_dparam": {n: float(x) for n, x in zip(names, d)},
-            "parameter_units": dict(zip(names, m.parameter_units))}
+    if output in METRICS:
+        value, d, unit, events = _metric(m, output, settings)
+        at = "at " + ", ".join(f"{k} {v:.6g} deg" for k, v in events.items())
+        data = {"output": output, "phi_deg": None, "events_deg": events}
+    else:
+        try:
+            S = sensitivities(m, np.radians([phi_deg]), inputs=settings or None)
+            value, d, unit = S.channel(output)
+        except KeyError as exc:
+            raise OptionError("--output", exc.args[0], "Give e.g. p_needle.point_y,"
+                              " theta_take_up_lever or a metric: " + ", ".join(METRICS)) from None
+        value, d = float(value[0]), d[0]
+        at = f"at phi = {phi_deg:g} deg"
+        data = {"output": output, "phi_deg": phi_deg}
+    data.update({"value": float(value), "unit": unit,
+                 "d_dparam": {n: float(x) for n, x in zip(names, d)},
+                 "parameter_units": dict(zip(names, m.parameter_units))})
     if as_json:
         json.dump(data, sys.stdout)
         sys.stdout.write("\n")
         return
-    table = Table(title=f"{m.name}: d {output} / d parameter at phi = {phi_deg:g} deg"
-                        f" ({output} = {value[0]:.6g} {unit})")
+    table = Table(title=f"{m.name}: d {output} / d parameter {at} ({output} ="
+                        f" {value:.6g} {unit})")
     for col in ("parameter", "derivative", "unit"):
         table.add_column(col, justify="right" if col == "derivative" else "left")
     order = np.argsort(-np.abs(d))[:top]
@@ -64,4 +93,4 @@ def sensitivity_cmd(
         table.add_row(names[j], f"{d[j]:.6g}", escape(f"{unit} per {m.parameter_units[j]}"))
     console.print(table)
     zero = int(np.sum(d == 0.0))
-    console.print(f"{len(names)} parameters; {zero} do not move {output} at this angle")
+    console.print(f"{len(names)} parameters; {zero} do not move {output} {at}")
