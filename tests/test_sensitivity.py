@@ -183,3 +183,19 @@ def test_sensitivity_command_for_the_stitch_length():
         g.as_dict()["feed_cam.arc0.radius"])
     bad = CliRunner().invoke(app, ["sensitivity", "bartack-1820", "--output", "stitch_length"])
     assert bad.exit_code == 2 and "stitch length" in bad.output
+
+
+def test_a_batch_of_designs_equals_each_alone_and_a_huge_one_is_refused():
+    from sewmech.engine.errors import AnalysisError
+
+    m = sewmech.load_machine("jb1-3")
+    phi = np.radians([10.0, 100.0, 250.0])
+    P = m.parameters({"needle_bar.length": np.array([44.0, 45.0, 46.0])})
+    S = sensitivities(m, phi, params=P)
+    assert S.dp.shape == (3, 3, len(m.point_names), 2, len(m.parameter_names))
+    for k in range(3):
+        alone = sensitivities(m, phi, params=P[k])
+        assert np.array_equal(S.dp[k], alone.dp) and np.array_equal(S.dtheta[k], alone.dtheta)
+    with pytest.raises(AnalysisError, match="GiB"):
+        sensitivities(m, np.radians(np.arange(0.0, 360.0, 0.1)),
+                      params=np.tile(m.defaults, (40, 1)))

@@ -22,11 +22,15 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ._kernels import (OP_CRANK, OP_FIXED, OP_LOOP, OP_POINT, OP_RPR, OP_RRP, OP_RRR, SRC_LINK,
-                       SRC_PARAM, TERM_CAM, TERM_POINT, TERM_VEC)
+                       SRC_PARAM, TERM_POINT, TERM_VEC)
 from .errors import AnalysisError, name_index
 from .kinematics import kinematics
 from .machine import Machine
 from .results import KinematicsResult
+
+
+#: the most memory the tangents of one call may take, bytes
+MAX_BYTES = 2 * 2**30
 
 
 @dataclass(frozen=True)
@@ -83,6 +87,10 @@ def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None 
     designs ``params`` (default: the file's) and setting ``inputs`` (rad, as for
     :func:`sewmech.kinematics`). A position where the mechanism cannot be assembled raises
     (the derivatives are not defined there)."""
+    designs = int(np.prod(np.shape(params)[:-1])) if params is not None else 1
+    for v in (inputs or {}).values():
+        designs = max(designs, int(np.size(v)))
+    _check_size(machine, designs * int(np.size(phi)))
     r = kinematics(machine, phi, params=params, inputs=inputs)
     if not r.all_feasible:
         raise AnalysisError(f"machine '{machine.name}'", "cannot be assembled at some of the"
@@ -136,6 +144,17 @@ def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None 
     shape = batch
     return Sensitivities(r, dP.reshape(shape + dP.shape[1:]), dTH.reshape(shape + dTH.shape[1:]),
                          dQ.reshape(shape + dQ.shape[1:]))
+
+
+def _check_size(machine: Machine, n: int) -> None:
+    """Refuse a call whose tangents would not fit in :data:`MAX_BYTES`."""
+    need = n * (2 * len(machine.point_names) + len(machine.link_names)
+                + len(machine.variable_names)) * len(machine.parameter_names) * 8
+    if need > MAX_BYTES:
+        raise AnalysisError(f"machine '{machine.name}'", f"the derivatives of {n} positions"
+                            f" (designs x angles) by {len(machine.parameter_names)} parameters"
+                            f" take {need / 2**30:.1f} GiB", "Ask for fewer designs or angles"
+                            f" at a time (at most {MAX_BYTES / 2**30:g} GiB)")
 
 
 def _design_params(machine: Machine, r: KinematicsResult, params, inputs) -> np.ndarray:
