@@ -199,3 +199,37 @@ def test_a_batch_of_designs_equals_each_alone_and_a_huge_one_is_refused():
     with pytest.raises(AnalysisError, match="GiB"):
         sensitivities(m, np.radians(np.arange(0.0, 360.0, 0.1)),
                       params=np.tile(m.defaults, (40, 1)))
+
+
+@pytest.mark.parametrize("metric", ["feed_lift", "dog_height_at_needle_plate"])
+def test_metric_gradients_against_differences_of_located_events(metric):
+    """The lift (a value at an extremum) and the dog's height when the needle reaches the plate
+    (a value at another point's crossing): against central differences of the metric located
+    again on perturbed designs (Richardson), for the parameters that move it most."""
+    from sewmech.sewing.feed import check_feed
+    from sewmech.sewing.gradients import METRICS
+
+    m = sewmech.load_machine("jb1-3")
+    f = METRICS[metric]
+    g = f(m, 25.0)
+    if metric == "feed_lift":
+        from sewmech.sewing.feed import feed_cycles
+
+        assert g.value == pytest.approx(float(feed_cycles(m, 25.0).lift_mm), abs=1e-6)
+    else:  # the check at the longest stitch reads the same quantity
+        at30 = f(m, 30.0).value
+        check = next(c for c in check_feed(m) if c.name.startswith("dog height"))
+        assert at30 == pytest.approx(check.value, abs=1e-6)
+    P0 = np.array(m.defaults)
+    names = m.parameter_names
+    order = [j for j in np.argsort(-np.abs(g.d_dparam)) if names[j] != "input.regulator"][:6]
+    for j in order:
+        h = 1e-4 * max(1.0, abs(P0[j]))
+
+        def at(step, j=j):
+            P = P0.copy()
+            P[j] += step
+            return f(m, 25.0, params=P).value
+
+        fd = (4 * (at(h / 2) - at(-h / 2)) / h - (at(h) - at(-h)) / (2 * h)) / 3
+        assert g.d_dparam[j] == pytest.approx(fd, rel=1e-6, abs=1e-9), (metric, names[j])

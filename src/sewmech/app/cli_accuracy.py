@@ -17,22 +17,24 @@ from ..engine.errors import OptionError
 from .cli_common import DEFAULT_MACHINE, SET_HELP, _load, _settings, command, console
 
 
-#: the sewing metrics ``--output`` accepts besides the position channels
-METRICS = ("stitch_length",)
+#: the sewing metrics ``--output`` accepts besides the position channels (the keys of
+#: :data:`sewmech.sewing.gradients.METRICS`)
+METRICS = ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
 
 
 def _metric(m, name: str, settings: dict) -> tuple[float, np.ndarray, str, dict]:
     """A sewing metric's value, derivatives, unit and event angles (deg)."""
-    from ..sewing.gradients import stitch_length_gradient
+    from ..sewing.gradients import METRICS as FUNCTIONS
     from ..sewing.timing import roles
 
     s = roles(m)
     if s.regulator is None or s.feed_dog is None:
         raise OptionError("--output", f"machine '{m.name}' has no feed dog and regulator in its"
-                          " [sewing] table: no stitch length", "Choose a position channel")
+                          f" [sewing] table: no {name.replace('_', ' ')}",
+                          "Choose a position channel")
     reg = settings.get(s.regulator)
     deg = m.spec.inputs[s.regulator].default_deg if reg is None else math.degrees(reg)
-    g = stitch_length_gradient(m, deg)
+    g = FUNCTIONS[name](m, deg)
     return g.value, g.d_dparam, g.unit, {**g.events_deg, "regulator": deg}
 
 
@@ -41,8 +43,8 @@ def sensitivity_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="shipped machine name or TOML file"),
     output: str = typer.Option(..., help="a position channel: p_POINT_x, p_POINT_y, theta_LINK"
                                " or q_VAR (as `sewmech kinematics --json` names them), or a"
-                               " metric: stitch_length (at --input regulator=DEG, default the"
-                               " file's setting)"),
+                               " metric: stitch_length, feed_lift, dog_height_at_needle_plate"
+                               " (at --input regulator=DEG, default the file's setting)"),
     phi_deg: float = typer.Option(0.0, "--phi-deg", help="shaft angle, deg (position"
                                   " channels)"),
     inputs: list[str] = typer.Option(None, "--input", help="a setting input NAME=DEG, e.g."

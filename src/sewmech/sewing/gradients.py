@@ -5,6 +5,9 @@ An event angle moves with the design: where a channel crosses a level, y(phi*, p
 d phi*/dp = -(dy/dp) / (dy/dphi); a value read at the event moves by dx/dp + dx/dphi dphi*/dp.
 (At an extremum dy/dphi = 0 and the value's derivative is just dy/dp.)
 
+At an extremum the angle's motion does not change the value to first order (dy/dphi = 0):
+the lift's derivative is dy/dp at the top.
+
 The stitch length is the dog's travel between rising through the throat plate and dropping
 through it again (:func:`sewmech.sewing.feed.feed_cycles`):
 stitch = fwd (x(phi_fall) - x(phi_rise)) with y(phi_rise) = y(phi_fall) = plate.
@@ -88,3 +91,65 @@ def stitch_length_gradient(machine: Machine, regulator_deg: float, *, params=Non
     return Gradient("stitch_length", float(fwd * (x[1] - x[0])), "mm",
                     machine.parameter_names, fwd * (dX[1] - dX[0]),
                     {"rise": float(np.degrees(phi[0])), "fall": float(np.degrees(phi[1]))})
+
+
+def extremum_angle(machine: Machine, point: str, axis: int, phi0: float, *, params=None,
+                   inputs=None, tol: float = 1e-13, max_iter: int = 30) -> float:
+    """The shaft angle (rad) near ``phi0`` where ``point``'s coordinate ``axis`` (0: x, 1: y)
+    is stationary, by Newton's method on its rate and acceleration per shaft angle."""
+    phi = float(phi0)
+    for _ in range(max_iter):
+        r = kinematics(machine, np.array([phi]), params=params, inputs=inputs, omega=1.0,
+                       points=[point], links=[], variables=[])
+        pm = r.point(point)
+        rate, acc = float(pm.v[0, axis]), float(pm.a[0, axis])
+        step = rate / acc
+        phi -= step
+        if abs(step) <= tol:
+            return phi
+    raise AnalysisError(f"machine '{machine.name}'", f"the extremum of {point} near"
+                        f" {math.degrees(phi0):.6g} deg did not converge")
+
+
+def feed_lift_gradient(machine: Machine, regulator_deg: float, *, params=None) -> Gradient:
+    """The dog's lift above the throat plate (mm) at a regulator setting (deg) and its exact
+    derivative: dy/dp at the top of the lift (the top's angle moves, the value does not to first
+    order)."""
+    s = _roles(machine)
+    c = feed_cycles(machine, regulator_deg, params=params)
+    inputs = {s.regulator: math.radians(regulator_deg)}
+    phi = extremum_angle(machine, s.feed_dog, 1, math.radians(float(c.top_deg)), params=params,
+                         inputs=inputs)
+    S = sensitivities(machine, np.array([phi]), params=params, inputs=inputs)
+    y, dy, _ = S.channel(f"p_{s.feed_dog}_y")
+    return Gradient("feed_lift", float(y[0] - s.plate_y), "mm", machine.parameter_names,
+                    dy[0], {"top": math.degrees(phi), "regulator": regulator_deg})
+
+
+def dog_height_at_needle_plate_gradient(machine: Machine, regulator_deg: float, *,
+                                        params=None) -> Gradient:
+    """The dog's height above the plate (mm) when the needle point reaches the plate going
+    down, at a regulator setting (deg), and its exact derivative: both the dog and the event
+    (the needle's crossing) move with the design."""
+    from .timing import needle_windows
+
+    s = _roles(machine)
+    inputs = {s.regulator: math.radians(regulator_deg)}
+    start = needle_windows(machine, params)[1].start_deg
+    phi = crossing_angles(machine, s.needle_point, s.plate_y, np.radians([start]),
+                          params=params, inputs=inputs)
+    S = sensitivities(machine, phi, params=params, inputs=inputs)
+    _, dyn, _ = S.channel(f"p_{s.needle_point}_y")
+    yd, dyd, _ = S.channel(f"p_{s.feed_dog}_y")
+    r = kinematics(machine, phi, params=params, inputs=inputs, omega=1.0,
+                   points=[s.needle_point, s.feed_dog], links=[], variables=[])
+    dphi = -dyn[0] / r.point(s.needle_point).v[0, 1]
+    d = dyd[0] + r.point(s.feed_dog).v[0, 1] * dphi
+    return Gradient("dog_height_at_needle_plate", float(yd[0] - s.plate_y), "mm",
+                    machine.parameter_names, d,
+                    {"needle_at_plate": float(np.degrees(phi[0])), "regulator": regulator_deg})
+
+
+#: the metrics with exact derivatives: name -> function(machine, regulator_deg, params=)
+METRICS = {"stitch_length": stitch_length_gradient, "feed_lift": feed_lift_gradient,
+           "dog_height_at_needle_plate": dog_height_at_needle_plate_gradient}
