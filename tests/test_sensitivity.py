@@ -129,6 +129,25 @@ def test_sensitivity_command_prints_the_issue_keys(tmp_path):
     assert bad.exit_code == 2 and "nothing" in bad.output
 
 
+def located_differences_agree(m, f, g, n_params: int, regulator_deg: float = 25.0) -> None:
+    """``g`` (a metric's gradient by ``f``) against central differences with Richardson's
+    extrapolation of the metric located again on perturbed designs, for the ``n_params``
+    parameters that move it most (the setting input aside), to 1e-6."""
+    P0 = np.array(m.defaults)
+    names = m.parameter_names
+    order = [j for j in np.argsort(-np.abs(g.d_dparam)) if names[j] != "input.regulator"]
+    for j in order[:n_params]:
+        h = 1e-4 * max(1.0, abs(P0[j]))
+
+        def at(step, j=j):
+            P = P0.copy()
+            P[j] += step
+            return f(m, regulator_deg, params=P).value
+
+        fd = (4 * (at(h / 2) - at(-h / 2)) / h - (at(h) - at(-h)) / (2 * h)) / 3
+        assert g.d_dparam[j] == pytest.approx(fd, rel=1e-6, abs=1e-9), (g.metric, names[j])
+
+
 def test_stitch_length_gradient_against_differences_of_located_events():
     """The stitch length's derivative (events moving with the design) against central
     differences of the stitch length located again on the perturbed designs (Richardson), for
@@ -139,19 +158,8 @@ def test_stitch_length_gradient_against_differences_of_located_events():
     m = sewmech.load_machine("jb1-3")
     g = stitch_length_gradient(m, 25.0)
     assert g.value == pytest.approx(float(feed_cycles(m, 25.0).stitch_mm), abs=1e-7)
-    P0 = np.array(m.defaults)
+    located_differences_agree(m, stitch_length_gradient, g, 8)
     names = m.parameter_names
-    order = [j for j in np.argsort(-np.abs(g.d_dparam)) if names[j] != "input.regulator"][:8]
-    for j in order:
-        h = 1e-4 * max(1.0, abs(P0[j]))
-
-        def at(step, j=j):
-            P = P0.copy()
-            P[j] += step
-            return stitch_length_gradient(m, 25.0, params=P).value
-
-        fd = (4 * (at(h / 2) - at(-h / 2)) / h - (at(h) - at(-h)) / (2 * h)) / 3
-        assert g.d_dparam[j] == pytest.approx(fd, rel=1e-6, abs=1e-9), names[j]
     # by the setting: the input's derivative, per rad of regulator
     h = 1e-3  # deg
     fd = (stitch_length_gradient(m, 25.0 + h).value
@@ -220,16 +228,4 @@ def test_metric_gradients_against_differences_of_located_events(metric):
         at30 = f(m, 30.0).value
         check = next(c for c in check_feed(m) if c.name.startswith("dog height"))
         assert at30 == pytest.approx(check.value, abs=1e-6)
-    P0 = np.array(m.defaults)
-    names = m.parameter_names
-    order = [j for j in np.argsort(-np.abs(g.d_dparam)) if names[j] != "input.regulator"][:6]
-    for j in order:
-        h = 1e-4 * max(1.0, abs(P0[j]))
-
-        def at(step, j=j):
-            P = P0.copy()
-            P[j] += step
-            return f(m, 25.0, params=P).value
-
-        fd = (4 * (at(h / 2) - at(-h / 2)) / h - (at(h) - at(-h)) / (2 * h)) / 3
-        assert g.d_dparam[j] == pytest.approx(fd, rel=1e-6, abs=1e-9), (metric, names[j])
+    located_differences_agree(m, f, g, 6)
