@@ -1,5 +1,6 @@
 """The accuracy commands of the ``sewmech`` command line: ``sensitivity`` (exact derivatives of
-an output by every parameter). Registered on the shared app of :mod:`sewmech.app.cli_common`
+an output by every parameter) and ``tolerance`` (worst case, RSS, Monte Carlo, contributions,
+allocation). Registered on the shared app of :mod:`sewmech.app.cli_common`
 when :mod:`sewmech.app.cli` imports this module."""
 
 from __future__ import annotations
@@ -7,6 +8,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+from pathlib import Path
 
 import numpy as np
 import typer
@@ -96,3 +98,146 @@ def sensitivity_cmd(
     console.print(table)
     zero = int(np.sum(d == 0.0))
     console.print(f"{len(names)} parameters; {zero} do not move {output} {at}")
+
+
+@command("tolerance")
+def tolerance_cmd(
+    machine: str = typer.Argument(DEFAULT_MACHINE, help="shipped machine name or TOML file"),
+    output: str = typer.Option(..., help="a metric (stitch_length, feed_lift,"
+                               " dog_height_at_needle_plate) or a position channel (p_POINT_y,"
+                               " theta_LINK, q_VAR at --phi-deg)"),
+    tolerances: Path = typer.Option(None, help="tolerance file (TOML, docs/accuracy.md);"
+                                    " default: IT9 on every length, angles exact"),
+    samples: int = typer.Option(10_000, help="Monte Carlo designs (one batch call)"),
+    seed: int = typer.Option(0, help="random seed of the Monte Carlo"),
+    band: float = typer.Option(None, help="allocate: the widest tolerances (least cost) that"
+                               " keep the output within +-BAND (its unit)"),
+    regulator_deg: float = typer.Option(None, "--regulator-deg", help="stitch regulator"
+                                        " setting, deg (default: the file's)"),
+    phi_deg: float = typer.Option(0.0, "--phi-deg", help="shaft angle of a position channel,"
+                                  " deg"),
+    top: int = typer.Option(12, help="rows of the contributions table"),
+    as_json: bool = typer.Option(False, "--json", help="print worst_case, rss, monte_carlo,"
+                                 " contributions (and allocation) as JSON"),
+    out: Path = typer.Option(None, help="also write the distribution and Pareto charts"
+                             " (PNG, SVG, CSV) and the result (JSON) here"),
+    sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
+):
+    """How far an output strays when every dimension is made within its tolerance: worst
+    case, RSS, Monte Carlo, each dimension's share, and allocation to a band."""
+    from rich.progress import Progress
+
+    from ..design.tolerance_file import load_tolerance_file
+    from ..design.tolerances import tolerance_analysis
+
+    if not (math.isfinite(phi_deg) and abs(phi_deg) <= 1e6):
+        raise OptionError("--phi-deg", f"must be a finite angle in deg, got {phi_deg}")
+    if top < 1:
+        raise OptionError("--top", f"must be at least 1, got {top}")
+    m = _load(machine, sets)
+    if regulator_deg is not None:
+        _settings(m, [f"{m.spec.sewing.regulator}={regulator_deg}"] if m.spec.sewing and
+                  m.spec.sewing.regulator else [])
+    spec = load_tolerance_file(tolerances) if tolerances is not None else None
+    if out is not None:
+        from .outdir import preflight
+
+        preflight(out, command="tolerance")
+    with Progress(console=console, transient=True) as progress:
+        progress.add_task(f"tolerance analysis of {output} ({samples} designs)", total=None)
+        res = tolerance_analysis(m, output, spec, regulator_deg=regulator_deg, phi_deg=phi_deg,
+                                 samples=samples, seed=seed, band=band,
+                                 where=str(tolerances or "tolerances"))
+    data = {"machine": m.name, **res.to_json()}
+    if out is not None:
+        _write_tolerance(m, out, res, data)
+    if as_json:
+        json.dump(data, sys.stdout)
+        sys.stdout.write("\n")
+        return
+    mc = res.monte_carlo
+    u = res.unit
+    console.print(f"{m.name}: {output} = {res.value:.6g} {u}; {len(res.names)} toleranced"
+                  f" dimensions ({res.distribution})")
+    console.print(f"  worst case +-{res.worst_case:.4g} {u}, RSS +-{res.rss:.4g} {u}")
+    console.print(f"  Monte Carlo ({mc['n']} designs): std {mc['std']:.4g} {u} (RSS / 3 ="
+                  f" {res.rss / 3:.4g}), p99 of |deviation| {mc['p99']:.4g} {u}, range"
+                  f" {mc['min']:.4g} .. {mc['max']:.4g}")
+    table = Table(title="contributions (share of the RSS variance)")
+    for col in ("parameter", "tolerance", "derivative", "share"):
+        table.add_column(col, justify="left" if col == "parameter" else "right")
+    idx = {n: j for j, n in enumerate(res.names)}
+    for name, share in list(res.contributions.items())[:top]:
+        j = idx[name]
+        tu = "deg" if res.units[j] == "rad" else res.units[j]
+        tv = math.degrees(res.tolerance[j]) if res.units[j] == "rad" else res.tolerance[j]
+        table.add_row(name, f"+-{tv:.4g} {tu}", f"{res.derivative[j]:.4g}",
+                      f"{100 * share:.1f} %")
+    console.print(table)
+    if res.allocation is not None:
+        t = Table(title=f"allocated to +-{band:g} {u} ({res.allocation_rule}), tightest first")
+        for col in ("parameter", "tolerance"):
+            t.add_column(col)
+        for name, tol in sorted(res.allocation.items(), key=lambda x: x[1])[:top]:
+            unit = m.parameter_units[m.parameter_names.index(name)]
+            shown = f"+-{math.degrees(tol):.4g} deg" if unit == "rad" else \
+                f"+-{tol:.4g} {unit}"
+            t.add_row(name, shown)
+        console.print(t)
+    if out is not None:
+        console.print(f"written: charts and {m.name}-tolerance.json in {out}")
+
+
+def _write_tolerance(m, out: Path, res, data: dict) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import pandas as pd
+
+    from .figures import render
+    from .io import atomic_write
+    from .outdir import output_dir
+
+    u = res.unit
+    with output_dir(out, command="tolerance") as root:
+        stem = f"{m.name}-tolerance-{res.metric}"
+        fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
+        ax.hist(res.deviations, bins=80, density=True, color="C0", alpha=0.6,
+                label=f"Monte Carlo, {res.monte_carlo['n']} designs")
+        sigma = res.rss / 3.0 if res.distribution == "normal" else res.rss / math.sqrt(3.0)
+        x = np.linspace(-res.worst_case, res.worst_case, 400)
+        ax.plot(x, np.exp(-0.5 * (x / sigma) ** 2) / (sigma * math.sqrt(2 * math.pi)), "k-",
+                lw=1.2, label=f"normal, sigma from the RSS ({sigma:.3g} {u})")
+        for v, ls, lab in ((res.worst_case, ":", "worst case"), (res.rss, "--", "RSS")):
+            ax.axvline(v, color="C3", ls=ls, lw=1.0, label=f"{lab} +-{v:.3g} {u}")
+            ax.axvline(-v, color="C3", ls=ls, lw=1.0)
+        ax.set_xlabel(f"deviation of {res.metric} from its nominal {res.value:.5g} [{u}]")
+        ax.set_ylabel("density")
+        ax.legend(fontsize=7)
+        ax.set_title(f"{m.name}: {res.metric} with every dimension within its tolerance")
+        try:
+            render(fig, root, stem + "-distribution")
+        finally:
+            plt.close(fig)
+        names = list(res.contributions)[:15]
+        shares = np.array([res.contributions[n] for n in names])
+        fig, ax = plt.subplots(figsize=(8, 0.35 * len(names) + 1.5), constrained_layout=True)
+        ax.barh(range(len(names))[::-1], 100 * shares, color="C0")
+        ax.set_yticks(range(len(names))[::-1], names, fontsize=8)
+        ax2 = ax.twiny()
+        ax2.plot(100 * np.cumsum(shares), range(len(names))[::-1], "C3o-", ms=3)
+        ax2.set_xlim(0, 100)
+        ax2.set_xlabel("cumulative share [%]", color="C3")
+        ax.set_xlabel("share of the RSS variance [%]")
+        ax.set_title(f"{m.name}: what makes {res.metric} stray", fontsize=10)
+        try:
+            render(fig, root, stem + "-pareto")
+        finally:
+            plt.close(fig)
+        with atomic_write(root / f"{stem}-contributions.csv") as fh:
+            pd.DataFrame({"parameter": list(res.contributions),
+                          "share": list(res.contributions.values())}).to_csv(
+                fh, index=False, float_format="%.10g")
+        with atomic_write(root / f"{m.name}-tolerance.json") as fh:
+            json.dump(data, fh, indent=1)

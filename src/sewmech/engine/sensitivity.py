@@ -287,7 +287,7 @@ def _loop(machine: Machine, g: int, P, TH, Q, dP, dTH, dQ, par, eye) -> None:
                  + e[:, :, None] * dR[:, None, :]
                  + (R[:, None, None] * ie[:, :, None]) * _rows(dpsi_known + dalpha))
         rhs[:, row:row + 2, :] -= sign * known
-    sol = np.linalg.solve(J, rhs)  # (n, nq, npar)
+    sol = np.linalg.inv(J) @ rhs  # (n, nq, npar): one small inverse per position
     for j in range(nq):
         kind, idx = unk[u0 + j, 0], unk[u0 + j, 1]
         if kind == 0:

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..engine._events import at_rows, crossing_rows
 from ..engine.errors import AnalysisError
 from ..engine.kinematics import kinematics
 from ..engine.machine import Machine
@@ -153,3 +154,38 @@ def dog_height_at_needle_plate_gradient(machine: Machine, regulator_deg: float, 
 #: the metrics with exact derivatives: name -> function(machine, regulator_deg, params=)
 METRICS = {"stitch_length": stitch_length_gradient, "feed_lift": feed_lift_gradient,
            "dog_height_at_needle_plate": dog_height_at_needle_plate_gradient}
+
+
+def metric_values(machine: Machine, name: str, regulator_deg: float, params: np.ndarray,
+                  step_deg: float = 1.0) -> np.ndarray:
+    """The metric ``name`` (a key of :data:`METRICS`) for a batch of designs ``params``
+    (batch, n_params) at a regulator setting (deg), in one kinematics call: the events on a
+    ``step_deg`` grid refined on its cubic Hermite interpolant (as the feed figures are; about
+    1e-7 mm from the located events at 1 deg). NaN for a design that cannot be assembled."""
+    if name == "stitch_length":
+        return feed_cycles(machine, regulator_deg, params=params, step_deg=step_deg,
+                           on_failure="mask").stitch_mm
+    if name == "feed_lift":
+        return feed_cycles(machine, regulator_deg, params=params, step_deg=step_deg,
+                           on_failure="mask").lift_mm
+    if name != "dog_height_at_needle_plate":
+        raise KeyError(f"unknown metric {name!r}; metrics: {', '.join(METRICS)}")
+    s = _roles(machine)
+    n = round(360.0 / step_deg)
+    h = 2.0 * math.pi / n
+    r = kinematics(machine, np.arange(n) * h, params=params,
+                   inputs={s.regulator: math.radians(regulator_deg)}, omega=1.0,
+                   points=[s.needle_point, s.feed_dog], links=[], variables=[],
+                   on_failure="mask")
+    N = r.point(s.needle_point)
+    D = r.point(s.feed_dog)
+    m = int(np.prod(params.shape[:-1]))
+    ph, dirn, t = crossing_rows((N.p[..., 1] - s.plate_y).reshape(m, n),
+                                N.v[..., 1].reshape(m, n), h)
+    # the needle's one crossing going down per design
+    down = np.where(dirn < 0, 1.0, np.inf)
+    k = np.argmin(down, axis=1)
+    ok = np.isfinite(down[np.arange(m), k]) & r.feasible.reshape(m, n).all(axis=1)
+    y = at_rows(D.p[..., 1].reshape(m, n), D.v[..., 1].reshape(m, n), k,
+                t[np.arange(m), k], h) - s.plate_y
+    return np.where(ok, y, np.nan).reshape(params.shape[:-1])

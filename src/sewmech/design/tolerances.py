@@ -1,0 +1,188 @@
+"""Tolerance analysis: how far a sewing metric strays when every dimension is made within its
+tolerance, which dimensions matter, and the widest tolerances that keep a metric in a band.
+
+The JB kinematics report states its aim as reasonable dimensions and accuracy requirements;
+this module answers the second half from the exact derivatives of the metrics
+(:mod:`sewmech.sewing.gradients`, :mod:`sewmech.engine.sensitivity`):
+
+- **worst case**: sum_j |d_j| t_j (every dimension at the unlucky end of its tolerance);
+- **RSS**: sqrt(sum_j (d_j t_j)^2), the band at the same confidence as the tolerances (3
+  standard deviations for normally distributed dimensions);
+- **Monte Carlo**: the metric computed again on a batch of designs drawn within the
+  tolerances (normal with sigma = t / 3, or uniform over +-t), in one batch call, nonlinear
+  effects included;
+- **contributions**: each dimension's share of the RSS variance, (d_j t_j)^2 / RSS^2;
+- **allocation**: the tolerances of least cost sum_j b_j / t_j (the cost model: halving a
+  tolerance doubles its cost) that keep the metric within +-B: by RSS
+  t_j = B (b_j / d_j^2)^(1/3) / sqrt(sum_k d_k^2 (b_k / d_k^2)^(2/3)), by worst case
+  t_j = B sqrt(b_j / |d_j|) / sum_k sqrt(b_k |d_k|) (Lagrange's conditions, closed forms).
+
+Units: tolerances and deviations in internal units (mm, rad), metrics in their own (mm).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..engine.errors import OptionError
+from ..engine.machine import Machine
+from ..engine.sensitivity import sensitivities
+from ..sewing.gradients import METRICS, metric_values
+from .tolerance_file import ToleranceSpec, costs_of, tolerances_of
+
+
+@dataclass(frozen=True)
+class ToleranceResult:
+    """What :func:`tolerance_analysis` found. ``deviations`` holds the Monte Carlo samples'
+    deviations from the nominal value (for plots); ``allocation`` the allocated tolerances
+    (parameter -> +- internal units) when a band was given."""
+
+    metric: str
+    unit: str
+    value: float
+    distribution: str
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    tolerance: np.ndarray
+    derivative: np.ndarray
+    worst_case: float
+    rss: float
+    monte_carlo: dict
+    contributions: dict
+    deviations: np.ndarray = field(repr=False)
+    allocation: dict | None = None
+    allocation_rule: str | None = None
+    band: float | None = None
+
+    def to_json(self) -> dict:
+        return {"metric": self.metric, "unit": self.unit, "value": self.value,
+                "distribution": self.distribution, "worst_case": self.worst_case,
+                "rss": self.rss, "monte_carlo": self.monte_carlo,
+                "contributions": self.contributions,
+                "tolerances": {n: float(t) for n, t in zip(self.names, self.tolerance)},
+                "derivatives": {n: float(d) for n, d in zip(self.names, self.derivative)},
+                "band": self.band, "allocation": self.allocation,
+                "allocation_rule": self.allocation_rule}
+
+
+def metric_gradient(machine: Machine, metric: str, *, regulator_deg: float | None = None,
+                    phi_deg: float = 0.0) -> tuple[float, np.ndarray, str]:
+    """A metric (a key of :data:`sewmech.sewing.gradients.METRICS`) or a position channel at
+    ``phi_deg``: its value, its derivatives by every parameter and its unit."""
+    if metric in METRICS:
+        g = METRICS[metric](machine, _setting(machine, regulator_deg))
+        return g.value, g.d_dparam, g.unit
+    inputs = _inputs(machine, regulator_deg)
+    S = sensitivities(machine, np.radians([phi_deg]), inputs=inputs)
+    try:
+        v, d, unit = S.channel(metric)
+    except KeyError as exc:
+        raise OptionError("--output", exc.args[0], "Metrics: " + ", ".join(METRICS)) from None
+    return float(v[0]), d[0], unit
+
+
+def _setting(machine: Machine, regulator_deg: float | None) -> float:
+    s = machine.spec.sewing
+    if s is None or s.regulator is None:
+        raise OptionError("--output", f"machine '{machine.name}' has no stitch regulator in"
+                          " its [sewing] table", "Choose a position channel")
+    return machine.spec.inputs[s.regulator].default_deg if regulator_deg is None \
+        else float(regulator_deg)
+
+
+def _inputs(machine: Machine, regulator_deg: float | None):
+    s = machine.spec.sewing
+    if regulator_deg is None or s is None or s.regulator is None:
+        return None
+    return {s.regulator: math.radians(regulator_deg)}
+
+
+#: the shaft-angle grid of the Monte Carlo's feed metrics, deg: their events on it are within
+#: 1.5e-5 mm of the located ones on JB1-3 (docs/accuracy.md), and the nominal design is computed
+#: on the same grid, so that the deviations keep no bias of it
+MC_STEP_DEG = 5.0
+
+
+def sample_values(machine: Machine, metric: str, P: np.ndarray, *,
+                  regulator_deg: float | None = None, phi_deg: float = 0.0) -> np.ndarray:
+    """The metric for a batch of designs ``P`` (n, n_params), one batch call."""
+    if metric in METRICS:
+        return metric_values(machine, metric, _setting(machine, regulator_deg), P,
+                             step_deg=MC_STEP_DEG)
+    from ..engine.kinematics import kinematics
+
+    r = kinematics(machine, np.radians([phi_deg]), params=P,
+                   inputs=_inputs(machine, regulator_deg), on_failure="mask")
+    return r.channel(metric)[0][..., 0]
+
+
+def tolerance_analysis(machine: Machine, metric: str, spec: ToleranceSpec | None = None, *,
+                       regulator_deg: float | None = None, phi_deg: float = 0.0,
+                       samples: int = 10_000, seed: int = 0, band: float | None = None,
+                       where: str = "tolerances") -> ToleranceResult:
+    """Worst case, RSS, Monte Carlo (``samples`` designs, ``seed``), contributions and, with
+    ``band`` (+- in the metric's unit), the allocated tolerances, for ``metric`` under the
+    tolerances of ``spec`` (default: IT9 on every length, see
+    :func:`sewmech.design.tolerance_file.tolerances_of`)."""
+    if not (isinstance(samples, int) and 100 <= samples <= 1_000_000):
+        raise OptionError("--samples", f"must be a whole number in 100 .. 1000000, got"
+                          f" {samples!r}", "Give e.g. --samples 10000")
+    if band is not None and not (math.isfinite(band) and band > 0):
+        raise OptionError("--band", f"must be a number > 0, got {band!r}")
+    tol = tolerances_of(machine, spec, where)
+    dist = (spec or ToleranceSpec()).defaults.distribution
+    value, d, unit = metric_gradient(machine, metric, regulator_deg=regulator_deg,
+                                     phi_deg=phi_deg)
+    on = tol > 0
+    contrib = (d * tol) ** 2
+    rss = float(np.sqrt(contrib.sum()))
+    worst = float(np.sum(np.abs(d) * tol))
+    names = tuple(n for n, o in zip(machine.parameter_names, on) if o)
+    units = tuple(u for u, o in zip(machine.parameter_units, on) if o)
+    shares = {machine.parameter_names[j]: float(contrib[j] / rss ** 2)
+              for j in np.argsort(-contrib) if on[j] and rss > 0}
+    # Monte Carlo: deviations within the tolerances, one batch call
+    rng = np.random.default_rng(seed)
+    t = tol[on]
+    if dist == "normal":
+        dev = rng.normal(size=(samples, t.size)) * (t / 3.0)
+    else:
+        dev = rng.uniform(-1.0, 1.0, size=(samples, t.size)) * t
+    P = np.tile(np.asarray(machine.defaults, dtype=float), (samples + 1, 1))
+    P[1:, on] += dev  # row 0: the nominal design, evaluated the same way
+    vals = sample_values(machine, metric, P, regulator_deg=regulator_deg, phi_deg=phi_deg)
+    ok = np.isfinite(vals[1:])
+    dv = vals[1:][ok] - vals[0]
+    mc = {"n": int(samples), "assembled": int(ok.sum()), "mean": float(np.mean(dv)),
+          "std": float(np.std(dv, ddof=1)), "p99": float(np.quantile(np.abs(dv), 0.99)),
+          "min": float(dv.min()), "max": float(dv.max()), "seed": int(seed)}
+    alloc = rule = None
+    if band is not None:
+        alloc, rule = allocate(machine, d, costs_of(machine, spec), on, band, dist)
+    return ToleranceResult(metric, unit, value, dist, names, units, t, d[on], worst, rss, mc,
+                           shares, dv, alloc, rule, band)
+
+
+def allocate(machine: Machine, d: np.ndarray, b: np.ndarray, on: np.ndarray, band: float,
+             distribution: str) -> tuple[dict, str]:
+    """The tolerances (+-, internal units) of least cost sum b_j / t_j over the parameters
+    ``on`` that keep the metric within +-``band``: by RSS for normally distributed
+    dimensions, by worst case for uniform ones. Parameters that do not move the metric are
+    left out (any tolerance serves)."""
+    # a derivative at round-off of the largest one does not move the metric
+    act = on & (np.abs(d) > 1e-9 * np.abs(d).max()) & (b > 0.0)
+    out = {}
+    if distribution == "normal":
+        w = (b[act] / d[act] ** 2) ** (1.0 / 3.0)
+        t = band * w / math.sqrt(float(np.sum(d[act] ** 2 * w ** 2)))
+        rule = "RSS"
+    else:
+        w = np.sqrt(b[act] / np.abs(d[act]))
+        t = band * w / float(np.sum(np.sqrt(b[act] * np.abs(d[act]))))
+        rule = "worst case"
+    for j, tj in zip(np.nonzero(act)[0], t):
+        out[machine.parameter_names[j]] = float(tj)
+    return out, rule

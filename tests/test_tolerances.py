@@ -1,0 +1,140 @@
+"""Tolerance analysis (issue 17): the ISO 286 table against its formula, RSS against Monte
+Carlo, worst case as a bound, allocation against a numerical optimiser, and tolerance files'
+errors."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from conftest import fourbar
+from typer.testing import CliRunner
+
+import sewmech
+from sewmech.cli import app
+from sewmech.design.tolerance_file import (IT_RANGES_MM, IT_TABLE_UM, ToleranceSpec,
+                                           it_tolerance_mm, load_tolerance_file, tolerances_of)
+from sewmech.design.tolerances import allocate, tolerance_analysis
+from sewmech.engine.errors import MachineFileError
+
+runner = CliRunner()
+
+
+def test_it_table_follows_its_formula():
+    """ISO 286-1: IT = k i with i = 0.45 D^(1/3) + 0.001 D (um, D the geometric mean of the size
+    range, mm) and k = 7, 10, 16, 25, 40, 64, 100, 160, 250 for IT5 .. IT13; the table rounds
+    (the first range, below 3 mm, most)."""
+    k = {5: 7, 6: 10, 7: 16, 8: 25, 9: 40, 10: 64, 11: 100, 12: 160, 13: 250}
+    lows = (1,) + IT_RANGES_MM[:-1]
+    for grade, row in IT_TABLE_UM.items():
+        for lo, hi, v in zip(lows, IT_RANGES_MM, row):
+            D = math.sqrt(lo * hi)
+            i = 0.45 * D ** (1 / 3) + 0.001 * D
+            assert abs(k[grade] * i - v) / v < (0.14 if hi == 3 else 0.10), (grade, hi)
+    assert it_tolerance_mm(25.0, 7) == pytest.approx(0.021)
+    assert it_tolerance_mm(-167.5, 9) == pytest.approx(0.100)  # a coordinate: its magnitude
+
+
+def test_rss_agrees_with_monte_carlo_and_worst_case_bounds_every_sample():
+    m = fourbar()
+    spec = ToleranceSpec.model_validate({"defaults": {"it_grade": 7, "angle_deg": 0.05}})
+    r = tolerance_analysis(m, "theta_rocker", spec, phi_deg=40.0, samples=40_000, seed=3)
+    # normal dimensions at sigma = t / 3: the metric's std is RSS / 3 to first order; the
+    # sampling error of a std from n samples is about 1 / sqrt(2 n) = 0.35 %
+    assert r.monte_carlo["std"] == pytest.approx(r.rss / 3.0, rel=0.02)
+    assert r.monte_carlo["assembled"] == 40_000
+    assert sum(r.contributions.values()) == pytest.approx(1.0)
+    uni = ToleranceSpec.model_validate({"defaults": {"it_grade": 7, "angle_deg": 0.05,
+                                                     "distribution": "uniform"}})
+    u = tolerance_analysis(m, "theta_rocker", uni, phi_deg=40.0, samples=20_000, seed=4)
+    # the linear worst case bounds every sample (second-order terms are ~1e-6 of it here)
+    assert max(abs(u.monte_carlo["min"]), abs(u.monte_carlo["max"])) <= u.worst_case * 1.001
+    # and uniform dimensions have std t / sqrt(3): the metric's is RSS / sqrt(3)
+    assert u.monte_carlo["std"] == pytest.approx(u.rss / math.sqrt(3.0), rel=0.02)
+
+
+@pytest.mark.parametrize("distribution", ["normal", "uniform"])
+def test_allocation_is_the_least_cost_within_the_band(distribution):
+    """The closed forms against SLSQP on min sum b_j / t_j subject to the band."""
+    from scipy.optimize import minimize
+
+    m = fourbar()
+    rng = np.random.default_rng(7)
+    n = len(m.parameter_names)
+    d = rng.normal(size=n)
+    b = rng.uniform(0.5, 2.0, size=n)
+    on = np.ones(n, dtype=bool)
+    band = 0.05
+    alloc, rule = allocate(m, d, b, on, band, distribution)
+    t = np.array([alloc[p] for p in m.parameter_names])
+    if distribution == "normal":
+        assert rule == "RSS" and math.sqrt(np.sum((d * t) ** 2)) == pytest.approx(band)
+
+        def con(x):
+            return band ** 2 - np.sum((d * x) ** 2)
+    else:
+        assert rule == "worst case" and np.sum(np.abs(d) * t) == pytest.approx(band)
+
+        def con(x):
+            return band - np.sum(np.abs(d) * x)
+    # in logarithms of the tolerances, which keeps the problem well scaled
+    ref = minimize(lambda y: np.sum(b * np.exp(-y)), np.log(t * 0.5), method="SLSQP",
+                   constraints=[{"type": "ineq", "fun": lambda y: con(np.exp(y))}],
+                   options={"ftol": 1e-12, "maxiter": 1000})
+    assert ref.success, ref.message
+    assert np.sum(b / t) == pytest.approx(ref.fun, rel=1e-6)
+    np.testing.assert_allclose(t, np.exp(ref.x), rtol=1e-3)
+
+
+@pytest.mark.parametrize("text, needle", [
+    ('[parameters]\n"dyad.lenght1" = 0.01\n', "Did you mean dyad.length1"),
+    ('[parameters]\n"dyad.length1" = -0.01\n', "finite number >= 0"),
+    ('[defaults]\nit_grade = 4\n', "IT4 is not tabulated"),
+    ('[defaults]\ndistribution = "triangle"\n', "distribution"),
+    ('[defaults]\nit_grade = "7"\n', "it_grade"),
+    ('[defaultz]\nit_grade = 7\n', "defaultz"),
+    ('[parameters\n', "not valid TOML"),
+])
+def test_bad_tolerance_files_are_located(tmp_path, text, needle):
+    f = tmp_path / "tol.toml"
+    f.write_text(text, encoding="utf-8")
+    with pytest.raises(MachineFileError) as exc:
+        tolerances_of(fourbar(), load_tolerance_file(f), str(f))
+    assert "tol.toml" in str(exc.value) and needle in str(exc.value)
+
+
+def test_tolerance_file_values_in_mm_and_deg(tmp_path):
+    f = tmp_path / "tol.toml"
+    f.write_text('[defaults]\nit_grade = 8\nexclude = ["A.x"]\n[parameters]\n'
+                 '"dyad.length1" = 0.01\n"crank.phase" = 0.5\n', encoding="utf-8")
+    m = fourbar()
+    t = tolerances_of(m, load_tolerance_file(f))
+    names = m.parameter_names
+    assert t[names.index("dyad.length1")] == 0.01
+    assert t[names.index("crank.phase")] == pytest.approx(math.radians(0.5))
+    assert t[names.index("A.x")] == 0.0  # held exact
+    assert t[names.index("dyad.length2")] == pytest.approx(0.5 * it_tolerance_mm(35.0, 8))
+    assert t[names.index("crank.ratio")] == 0.0  # a ratio is not toleranced by default
+
+
+def test_tolerance_command_prints_the_issue_keys(tmp_path):
+    out = runner.invoke(app, ["tolerance", "jb1-3", "--output", "stitch_length",
+                              "--regulator-deg", "25", "--samples", "400", "--band", "0.05",
+                              "--json", "--out", str(tmp_path / "t")])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.output)
+    for key in ("worst_case", "rss", "monte_carlo", "contributions", "allocation"):
+        assert key in data
+    assert {"std", "p99"} <= set(data["monte_carlo"])
+    assert data["rss"] <= data["worst_case"]
+    names = {p.name for p in (tmp_path / "t").iterdir()}
+    assert "jb1-3-tolerance-stitch_length-distribution.png" in names
+    assert "jb1-3-tolerance-stitch_length-pareto.png" in names
+    bad = runner.invoke(app, ["tolerance", "jb1-3", "--output", "stitch_length", "--samples",
+                              "5"])
+    assert bad.exit_code == 2 and "--samples" in bad.output
+    bad = runner.invoke(app, ["tolerance", "jb1-3", "--output", "stitch_length",
+                              "--regulator-deg", "45"])
+    assert bad.exit_code == 2 and "regulator" in bad.output
