@@ -127,7 +127,7 @@ def test_cli_report_writes_page_figures_and_tables(tmp_path):
                "feed-sensitivity", "thread-balance", "take-up-adjustment", "thread-consumption",
                "dyn-torque", "dyn-energy", "dyn-shaking", "dyn-bearings", "dyn-pairs",
                "dyn-pressure", "dyn-regulator", "dyn-needle", "bal-components", "bal-hodograph",
-               "bal-bearings", "bal-front", "comparison")
+               "bal-bearings", "bal-front", "accuracy-stitch", "comparison")
     assert page.count("data:image/png;base64,") == len(figures)
     assert "jb1-3 against jb8-2" in page  # the file's variant, side by side
     for fig in figures:
@@ -151,6 +151,17 @@ def test_cli_report_writes_page_figures_and_tables(tmp_path):
     np.testing.assert_allclose(bal["Qx_after_N"], lib.curves["after"]["F"][:, 0], rtol=1e-9,
                                atol=1e-9)
     assert 'id="balancing"' in page and "The balancing paper's method" in page
+    # the accuracy section: the stitch length's exact derivative at the longest stitch
+    from sewmech.design.tolerance_file import ToleranceSpec, tolerances_of
+    from sewmech.sewing.gradients import stitch_length_gradient
+
+    acc = pd.read_csv(out_dir / "jb1-3-accuracy.csv").set_index("metric")
+    m13 = sewmech.load_machine("jb1-3")
+    g = stitch_length_gradient(m13, 30.0)
+    tol = tolerances_of(m13, ToleranceSpec.model_validate({"defaults": {"it_grade": 9}}))
+    assert acc.loc["stitch_length", "value"] == pytest.approx(g.value, abs=1e-9)
+    assert acc.loc["stitch_length", "RSS +-"] == pytest.approx(
+        float(np.sqrt(np.sum((g.d_dparam * tol) ** 2))), rel=1e-9)
     # the dynamics figures are the library's numbers at the longest forward stitch
     from sewmech.dynamics import inverse_dynamics
 

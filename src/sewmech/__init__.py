@@ -46,8 +46,8 @@ MODULES = {
     **{m: "design" for m in ("balancing", "vibration", "inserts", "tolerances",
                              "tolerance_file")},
     **{m: "app" for m in ("cli", "cli_common", "cli_balancing", "cli_accuracy", "report",
-                          "report_dynamics", "report_balancing", "figures", "plot", "io",
-                          "outdir")},
+                          "report_dynamics", "report_balancing", "report_accuracy", "figures",
+                          "plot", "io", "outdir")},
 }
 
 

@@ -509,6 +509,8 @@ def report_cmd(
         steps.append("dynamics")
     if m.counterweights:
         steps.append("balancing")
+    if s is not None and s.feed_dog and s.regulator:
+        steps.append("accuracy")
     if variants:
         steps.append("comparison")
     steps += ["tables", "page"]

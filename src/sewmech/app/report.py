@@ -75,7 +75,7 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
     names = (["feed"] if has_feed else []) + (["dynamics"] if machine.spec.masses else []) + (
         ["thread"] if machine.spec.thread is not None and machine.spec.thread.bobbin_case_radius
         else []) + (["balancing"] if machine.counterweights else []) + (
-        ["comparison"] if variants else [])
+        ["accuracy"] if has_feed else []) + (["comparison"] if variants else [])
     sections = _Sections(pool, machine, root, variants, names)
     conv = machine.spec.convention
     n = int(round(360.0 / step_deg))
@@ -225,6 +225,10 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
             result["comparison"].to_csv(root / f"{machine.name}-balancing-criteria.csv",
                                         index=False, float_format="%.10g")
             blocks.append(result["html"])
+        elif name == "accuracy":
+            result["table"].to_csv(root / f"{machine.name}-accuracy.csv", index=False,
+                                   float_format="%.10g")
+            blocks.append(result["html"])
         blocks += section_blocks
         if name != "feed":
             step(name)
@@ -301,6 +305,10 @@ def _run_section(name: str):
 
         sec = balancing_section(figs, machine)
         result = {"comparison": sec["comparison"], "html": section_html(machine, sec)}
+    elif name == "accuracy":
+        from .report_accuracy import accuracy_section
+
+        result = accuracy_section(figs, machine)
     else:
         _comparison(figs, [machine] + list(variants))
     return figs.blocks, result
@@ -321,7 +329,8 @@ class _Sections:
         self.lock = threading.Lock()
         # the longest first, so that the last ones to finish are short
         self.queue = collections.deque(sorted(
-            names, key=["dynamics", "feed", "balancing", "thread", "comparison"].index))
+            names, key=["dynamics", "feed", "balancing", "accuracy", "thread",
+                         "comparison"].index))
         if pool is not None:
             for _ in range(min(pool._max_workers, len(self.queue))):
                 self._next()
