@@ -19,7 +19,7 @@ from sewmech.engine.sensitivity import sensitivities
 PHI = np.radians(np.arange(0.37, 360.0, 17.0))
 
 
-def richardson(machine, phi, P0, keep, h_rel=3e-4):
+def richardson(machine, phi, P0, keep, h_rel=3e-4, attrs=("p", "theta", "q")):
     """Central differences of p, theta, q by every parameter with Richardson's extrapolation
     ((4 D(h/2) - D(h)) / 3, error O(h^4)): all 4 n designs in one kinematics call. The step is
     not smaller because the loop solver's tolerance (about 1e-10 mm) divided by the step is the
@@ -32,7 +32,7 @@ def richardson(machine, phi, P0, keep, h_rel=3e-4):
     P[np.arange(4 * n), np.tile(np.arange(n), 4)] += steps
     r = sewmech.kinematics(machine, phi, params=P)
     out = []
-    for arr in (r.p, r.theta, r.q):
+    for arr in (getattr(r, x) for x in attrs):
         a = arr.reshape((4, n) + arr.shape[1:])
         d1 = (a[0] - a[1]) / (2 * h).reshape((n,) + (1,) * (a.ndim - 2))
         d2 = (a[2] - a[3]) / h.reshape((n,) + (1,) * (a.ndim - 2))
@@ -58,6 +58,17 @@ def test_sensitivities_equal_central_differences_on_every_shipped_machine(name):
         worst = (err.max(axis=tuple(range(err.ndim - 1))) / scale).max()
         assert worst < 1e-6, (name, what, worst)
     assert np.abs(S.dp[..., ~keep]).max(initial=0.0) == 0.0
+    # the rates: velocities, angular velocities and joint rates at the file's speed
+    R = sensitivities(m, PHI, rates=True)
+    assert np.array_equal(R.dp, S.dp)
+    fd = richardson(m, PHI, P0, keep, attrs=("v", "omega", "q_dot"))
+    for d, ref, what in ((R.dv, fd[0], "v"), (R.domega, fd[1], "omega"), (R.dqd, fd[2], "qd")):
+        if ref.size == 0:
+            continue
+        err = np.abs(d[..., keep] - ref[..., keep])
+        scale = np.maximum(1.0, np.abs(ref[..., keep]).max(axis=tuple(range(ref.ndim - 1))))
+        worst = (err.max(axis=tuple(range(err.ndim - 1))) / scale).max()
+        assert worst < 1e-6, (name, what, worst)
 
 
 def test_slider_crank_closed_forms():
@@ -123,8 +134,8 @@ def test_sensitivity_command_prints_the_issue_keys(tmp_path):
     assert set(data["d_dparam"]) == set(m.parameter_names)
     j = m.parameter_names.index("needle_bar.length")
     assert data["d_dparam"]["needle_bar.length"] == pytest.approx(float(d[0, j]))
-    bad = CliRunner().invoke(app, ["sensitivity", "jb1-3", "--output", "v_needle.point_y"])
-    assert bad.exit_code == 2 and "position channel" in bad.output
+    bad = CliRunner().invoke(app, ["sensitivity", "jb1-3", "--output", "a_needle.point_y"])
+    assert bad.exit_code == 2 and "not differentiated" in bad.output
     bad = CliRunner().invoke(app, ["sensitivity", "jb1-3", "--output", "p_nothing_y"])
     assert bad.exit_code == 2 and "nothing" in bad.output
 

@@ -43,8 +43,9 @@ def _metric(m, name: str, settings: dict) -> tuple[float, np.ndarray, str, dict]
 @command("sensitivity")
 def sensitivity_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="shipped machine name or TOML file"),
-    output: str = typer.Option(..., help="a position channel: p_POINT_x, p_POINT_y, theta_LINK"
-                               " or q_VAR (as `sewmech kinematics --json` names them), or a"
+    output: str = typer.Option(..., help="a channel: p_POINT_x, p_POINT_y, theta_LINK, q_VAR or"
+                               " the rates v_POINT_x, omega_LINK, qd_VAR (as `sewmech"
+                               " kinematics --json` names them), or a"
                                " metric: stitch_length, feed_lift, dog_height_at_needle_plate"
                                " (at --input regulator=DEG, default the file's setting)"),
     phi_deg: float = typer.Option(0.0, "--phi-deg", help="shaft angle, deg (position"
@@ -73,7 +74,8 @@ def sensitivity_cmd(
         data = {"output": output, "phi_deg": None, "events_deg": events}
     else:
         try:
-            S = sensitivities(m, np.radians([phi_deg]), inputs=settings or None)
+            S = sensitivities(m, np.radians([phi_deg]), inputs=settings or None,
+                              rates=output.split("_")[0] in ("v", "omega", "qd"))
             value, d, unit = S.channel(output)
         except KeyError as exc:
             raise OptionError("--output", exc.args[0], "Give e.g. p_needle.point_y,"

@@ -10,8 +10,11 @@ same terms (points, vectors of parameter or variable length, circular-arc cam co
 kernel's loop solver. The positions come from the kinematics kernel; this module adds the
 tangents, vectorised over designs and angles, in numpy.
 
-Derivatives are in internal units: mm or rad per unit of the parameter (mm, rad, 1).
-Velocities and accelerations are not differentiated here yet.
+With ``rates=True`` the velocities, angular velocities and joint rates follow the same way: each
+unit's velocity relation (for a dyad (C - B_k) . (v_C - v_k) = 0; for a loop J q_dot = -b)
+differentiated with the position tangents known. Accelerations are not differentiated yet.
+
+Derivatives are in internal units: mm, rad, mm/s, rad/s per unit of the parameter (mm, rad, 1).
 """
 
 from __future__ import annotations
@@ -39,39 +42,53 @@ class Sensitivities:
 
     kin : the kinematics the tangents belong to; dp : (batch, n_phi, n_points, 2, n_params)
     d(point position)/d(parameter), mm per parameter unit; dtheta : (batch, n_phi, n_links,
-    n_params) rad per unit; dq : (batch, n_phi, n_variables, n_params) per unit (mm or rad).
+    n_params) rad per unit; dq : (batch, n_phi, n_variables, n_params) per unit (mm or rad);
+    dv, domega, dqd : the same for the velocities (mm/s), angular velocities (rad/s) and joint
+    rates, or None without ``rates``.
     """
 
     kin: KinematicsResult
     dp: np.ndarray
     dtheta: np.ndarray
     dq: np.ndarray
+    dv: np.ndarray | None = None
+    domega: np.ndarray | None = None
+    dqd: np.ndarray | None = None
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
         return self.kin.machine.parameter_names
 
     def channel(self, name: str) -> tuple[np.ndarray, np.ndarray, str]:
-        """A position channel (``p_POINT_x``/``_y``, ``theta_LINK``, ``q_VAR``): its values
-        (batch + (n_phi,)), its derivatives (batch + (n_phi, n_params)) and its unit."""
+        """A channel (``p_POINT_x``/``_y``, ``theta_LINK``, ``q_VAR``; with ``rates``:
+        ``v_POINT_x``/``_y``, ``omega_LINK``, ``qd_VAR``): its values (batch + (n_phi,)), its
+        derivatives (batch + (n_phi, n_params)) and its unit."""
         r = self.kin
         kind, _, rest = name.partition("_")
-        if kind == "p":
+        if kind in ("v", "omega", "qd") and self.dv is None:
+            raise KeyError(f"'{name}' is a rate: ask sensitivities(..., rates=True)")
+        if kind in ("p", "v"):
             pt, _, comp = rest.rpartition("_")
             if comp not in ("x", "y"):
                 raise KeyError(f"channel '{name}': a point channel ends in _x or _y")
             i = name_index(r.point_names, pt, "point")
             c = "xy".index(comp)
-            return r.p[..., i, c], self.dp[..., i, c, :], "mm"
-        if kind == "theta":
+            if kind == "p":
+                return r.p[..., i, c], self.dp[..., i, c, :], "mm"
+            return r.v[..., i, c], self.dv[..., i, c, :], "mm/s"
+        if kind in ("theta", "omega"):
             i = name_index(r.link_names, rest, "link")
-            return r.theta[..., i], self.dtheta[..., i, :], "rad"
-        if kind == "q":
+            if kind == "theta":
+                return r.theta[..., i], self.dtheta[..., i, :], "rad"
+            return r.omega[..., i], self.domega[..., i, :], "rad/s"
+        if kind in ("q", "qd"):
             i = name_index(r.variable_names, rest, "joint variable")
-            return r.q[..., i], self.dq[..., i, :], r.variable_units[i]
-        raise KeyError(f"'{name}' is not a position channel: sensitivities exist for p_POINT_x,"
-                       " p_POINT_y, theta_LINK and q_VAR (velocities and accelerations are not"
-                       " differentiated yet)")
+            if kind == "q":
+                return r.q[..., i], self.dq[..., i, :], r.variable_units[i]
+            return r.q_dot[..., i], self.dqd[..., i, :], f"{r.variable_units[i]}/s"
+        raise KeyError(f"'{name}' is not a channel with sensitivities: p_POINT_x, p_POINT_y,"
+                       " theta_LINK, q_VAR and their rates v_, omega_, qd_ (accelerations are"
+                       " not differentiated yet)")
 
 
 def _rot90(x: np.ndarray) -> np.ndarray:
@@ -81,16 +98,17 @@ def _rot90(x: np.ndarray) -> np.ndarray:
 
 
 def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None = None,
-                  inputs=None) -> Sensitivities:
+                  inputs=None, rates: bool = False) -> Sensitivities:
     """Exact derivatives of every point position, link angle and joint variable with respect
     to every parameter (``machine.parameter_names``), at shaft angles ``phi`` (rad), for the
     designs ``params`` (default: the file's) and setting ``inputs`` (rad, as for
-    :func:`sewmech.kinematics`). A position where the mechanism cannot be assembled raises
-    (the derivatives are not defined there)."""
+    :func:`sewmech.kinematics`). With ``rates`` the velocities, angular velocities and joint
+    rates are differentiated too (at the file's speed). A position where the mechanism cannot
+    be assembled raises (the derivatives are not defined there)."""
     designs = int(np.prod(np.shape(params)[:-1])) if params is not None else 1
     for v in (inputs or {}).values():
         designs = max(designs, int(np.size(v)))
-    _check_size(machine, designs * int(np.size(phi)))
+    _check_size(machine, designs * int(np.size(phi)) * (2 if rates else 1))
     r = kinematics(machine, phi, params=params, inputs=inputs)
     if not r.all_feasible:
         raise AnalysisError(f"machine '{machine.name}'", "cannot be assembled at some of the"
@@ -142,8 +160,17 @@ def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None 
         elif op == OP_LOOP:
             _loop(machine, row[1], P, TH, Q, dP, dTH, dQ, par, eye)
     shape = batch
+    rate_tangents = {}
+    if rates:
+        V = r.v.reshape(P.shape)
+        OM = r.omega.reshape(TH.shape)
+        QD = r.q_dot.reshape(Q.shape)
+        dV, dOM, dQD = _rates(machine, V, OM, QD, P, TH, Q, dP, dTH, dQ, par, eye)
+        rate_tangents = {"dv": dV.reshape(shape + dV.shape[1:]),
+                         "domega": dOM.reshape(shape + dOM.shape[1:]),
+                         "dqd": dQD.reshape(shape + dQD.shape[1:])}
     return Sensitivities(r, dP.reshape(shape + dP.shape[1:]), dTH.reshape(shape + dTH.shape[1:]),
-                         dQ.reshape(shape + dQ.shape[1:]))
+                         dQ.reshape(shape + dQ.shape[1:]), **rate_tangents)
 
 
 def _check_size(machine: Machine, n: int) -> None:
@@ -318,3 +345,192 @@ def _active_arc(machine: Machine, par: np.ndarray, cl, a0: int, na: int, rho: np
         raise AnalysisError(f"machine '{machine.name}'", "a cam contact lies on no arc of its"
                             " profile", "Check the cam's arcs (sewmech check)")
     return out
+
+
+# ---- the rates' derivatives ----------------------------------------------------------------------
+
+
+def _rates(machine: Machine, V, OM, QD, P, TH, Q, dP, dTH, dQ, par, eye):
+    """Derivatives of the velocities (mm/s), angular velocities (rad/s) and joint rates by every
+    parameter, from the velocity relations of each unit differentiated in solve order (the
+    position tangents ``dP``, ``dTH``, ``dQ`` known): returns dV, dOM, dQD."""
+    n, npar = P.shape[0], eye.shape[0]
+    dV = np.zeros_like(dP)
+    dOM = np.zeros_like(dTH)
+    dQD = np.zeros_like(dQ)
+    for row in machine.program:
+        op = row[0]
+        if op == OP_CRANK:
+            L, jra, jset = row[1], row[3], row[4]
+            if jset < 0:  # omega = ratio * omega_shaft
+                dOM[:, L, :] = (OM[:, L] / par[:, jra])[:, None] * eye[jra][None, :]
+        elif op == OP_POINT:
+            i, L, o = row[1], row[2], row[3]
+            rel = P[:, i] - P[:, o]
+            drel = dP[:, i] - dP[:, o]
+            # v = vO + omega J (P - O)
+            dV[:, i] = (dV[:, o] + _rot90v(rel)[:, :, None] * dOM[:, L, None, :]
+                        + OM[:, L, None, None] * _rot90t(drel))
+        elif op == OP_RRR:
+            i1, i2, i, L1, L2, j1, j2 = row[1], row[2], row[3], row[4], row[5], row[6], row[7]
+            r1, r2 = P[:, i] - P[:, i1], P[:, i] - P[:, i2]
+            dr1, dr2 = dP[:, i] - dP[:, i1], dP[:, i] - dP[:, i2]
+            w1, w2 = V[:, i] - V[:, i1], V[:, i] - V[:, i2]
+            # r_k . (vC - v_k) = 0: r_k . dvC = r_k . dv_k - dr_k . (vC - v_k)
+            rhs1 = _dot(r1, dV[:, i1]) - _dot(w1, dr1)
+            rhs2 = _dot(r2, dV[:, i2]) - _dot(w2, dr2)
+            det = r1[:, 0] * r2[:, 1] - r1[:, 1] * r2[:, 0]
+            dV[:, i, 0, :] = (rhs1 * r2[:, 1, None] - rhs2 * r1[:, 1, None]) / det[:, None]
+            dV[:, i, 1, :] = (r1[:, 0, None] * rhs2 - r2[:, 0, None] * rhs1) / det[:, None]
+            for L, r, dr, w, k, j in ((L1, r1, dr1, w1, i1, j1), (L2, r2, dr2, w2, i2, j2)):
+                ll = par[:, j]
+                dOM[:, L, :] = ((_cross_tv(dr, w) + _cross(r, dV[:, i] - dV[:, k])) / (ll * ll)[:, None]
+                                - (2.0 * OM[:, L] / ll)[:, None] * eye[j][None, :])
+        elif op == OP_RRP:
+            _rrp_rates(row, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, par, eye)
+        elif op == OP_RPR:
+            _rpr_rates(row, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, par, eye)
+        elif op == OP_LOOP:
+            _loop_rates(machine, row[1], V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, par,
+                        eye)
+    return dV, dOM, dQD
+
+
+def _rot90v(x):
+    """(x, y) -> (-y, x) for (n, 2)."""
+    return np.stack([-x[:, 1], x[:, 0]], axis=1)
+
+
+def _rot90t(x):
+    """(x, y) -> (-y, x) for tangents (n, 2, k)."""
+    return np.stack([-x[:, 1, :], x[:, 0, :]], axis=1)
+
+
+def _cross_tv(a, b):
+    """a x b for tangents a (n, 2, k) and vectors b (n, 2): (n, k)."""
+    return a[:, 0, :] * b[:, 1, None] - a[:, 1, :] * b[:, 0, None]
+
+
+def _rrp_rates(row, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, par, eye) -> None:
+    b, gp, gl, i, L1, Ls, jl, _, je, _, var = row[1:12]
+    beta = TH[:, Ls]
+    u = np.stack([np.cos(beta), np.sin(beta)], axis=-1)
+    nrm = _rot90v(u)
+    s, sd = Q[:, var], QD[:, var]
+    e, l = par[:, je], par[:, jl]
+    wg = OM[:, gl]
+    dbeta = dTH[:, Ls]
+    du = nrm[:, :, None] * dbeta[:, None, :]
+    dn = -u[:, :, None] * dbeta[:, None, :]
+    r1 = P[:, i] - P[:, b]
+    dr1 = dP[:, i] - dP[:, b]
+    # vC = W + vB + sd u with W = vG - e wg u + s wg n - vB, sd = -r1 . W / (r1 . u)
+    W = V[:, gp] - (e * wg)[:, None] * u + (s * wg)[:, None] * nrm - V[:, b]
+    # dW = dvG - u (de wg + e dwg) - e wg du + n (ds wg + s dwg) + s wg dn - dvB
+    de_wg = wg[:, None] * eye[je][None, :] + e[:, None] * dOM[:, gl, :]
+    ds_wg = wg[:, None] * dQ[:, var, :] + s[:, None] * dOM[:, gl, :]
+    dW = (dV[:, gp] - u[:, :, None] * de_wg[:, None, :] - (e * wg)[:, None, None] * du
+          + nrm[:, :, None] * ds_wg[:, None, :] + (s * wg)[:, None, None] * dn - dV[:, b])
+    ru = np.sum(r1 * u, axis=1)
+    rW = np.sum(r1 * W, axis=1)
+    dsd = (-(_dot(W, dr1) + _dot(r1, dW)) / ru[:, None]
+           + (rW / ru ** 2)[:, None] * (_dot(u, dr1) + _dot(r1, du)))
+    dV[:, i] = dW + dV[:, b] + u[:, :, None] * dsd[:, None, :] + sd[:, None, None] * du
+    dQD[:, var, :] = dsd
+    dOM[:, Ls, :] = dOM[:, gl, :]
+    vrel = V[:, i] - V[:, b]
+    dOM[:, L1, :] = ((_cross_tv(dr1, vrel) + _cross(r1, dV[:, i] - dV[:, b])) / (l * l)[:, None]
+                     - (2.0 * OM[:, L1] / l)[:, None] * eye[jl][None, :])
+
+
+def _rpr_rates(row, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, par, eye) -> None:
+    b, pv, L, Lb, je, _, var = row[1:8]
+    th = TH[:, L]
+    u = np.stack([np.cos(th), np.sin(th)], axis=-1)
+    nrm = _rot90v(u)
+    s, e, w = Q[:, var], par[:, je], OM[:, L]
+    dth = dTH[:, L]
+    du = nrm[:, :, None] * dth[:, None, :]
+    dn = -u[:, :, None] * dth[:, None, :]
+    dv = V[:, b] - V[:, pv]
+    ddv = dV[:, b] - dV[:, pv]
+    # vB - vA = (sd - e w) u + s w n: w = n . dv / s, sd = u . dv + e w
+    dw = (_dot(dv, dn) + _dot(nrm, ddv)) / s[:, None] - (w / s)[:, None] * dQ[:, var, :]
+    dsd = _dot(dv, du) + _dot(u, ddv) + w[:, None] * eye[je][None, :] + e[:, None] * dw
+    dOM[:, L, :] = dw
+    if Lb >= 0:
+        dOM[:, Lb, :] = dw
+    dQD[:, var, :] = dsd
+
+
+def _loop_rates(machine, g, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, par, eye) -> None:
+    """The loop's velocity closure sum_t sign dT_t/dt = 0, differentiated by the parameters:
+    J dqd = -(everything known), J the position Jacobian."""
+    grp, unk, terms = machine.groups, machine.unknowns, machine.terms
+    nq, u0, _, t0, nt = grp[g]
+    n, npar = P.shape[0], eye.shape[0]
+    rows = np.arange(n)
+    J = np.zeros((n, nq, nq))
+    rhs = np.zeros((n, nq, npar))
+    for t in range(t0, t0 + nt):
+        typ, lrow, sign, len_src, len_idx, ang_src, ang_idx, jalpha, cam, joff, lc, ac = terms[t]
+        row = 2 * lrow
+        if typ == TERM_POINT:
+            rhs[:, row:row + 2, :] -= sign * dV[:, len_idx]
+            continue
+        link = ang_src == SRC_LINK
+        psi = (TH[:, ang_idx] if link else Q[:, ang_idx]) + (par[:, jalpha] if jalpha >= 0
+                                                             else 0.0)
+        psid = OM[:, ang_idx] if link else QD[:, ang_idx]
+        dpsi = (dTH[:, ang_idx] if link else dQ[:, ang_idx]) + (eye[jalpha][None, :]
+                                                                if jalpha >= 0 else 0.0)
+        dpsid = 0.0 if ac >= 0 else (dOM[:, ang_idx] if link else dQD[:, ang_idx])
+        e = np.stack([np.cos(psi), np.sin(psi)], axis=-1)
+        ie = _rot90v(e)
+        if typ == TERM_VEC:
+            if len_src == SRC_PARAM:
+                L, Ld = par[:, len_idx], np.zeros(n)
+                dL, dLd = eye[len_idx][None, :], 0.0
+            else:
+                L, Ld = Q[:, len_idx], QD[:, len_idx]
+                dL = dQ[:, len_idx]
+                dLd = 0.0 if lc >= 0 else dQD[:, len_idx]
+            if lc >= 0:
+                J[:, row:row + 2, lc] += sign * e
+            if ac >= 0:
+                J[:, row:row + 2, ac] += sign * L[:, None] * ie
+            known = (e[:, :, None] * _rows(dLd) + (Ld[:, None, None] * ie[:, :, None]) * _rows(dpsi)
+                     + (psid[:, None, None] * ie[:, :, None]) * _rows(dL)
+                     + (L[:, None, None] * ie[:, :, None]) * _rows(dpsid)
+                     - ((L * psid)[:, None, None] * e[:, :, None]) * _rows(dpsi))
+            rhs[:, row:row + 2, :] -= sign * known
+            continue
+        cl, cp, a0, na = machine.cams[cam]
+        tc = TH[:, cl]
+        k = _active_arc(machine, par, cl, a0, na, psi - tc)
+        jcx, jcy, jR = (machine.arcs[k, c] for c in range(3))
+        cx, cy = par[rows, jcx], par[rows, jcy]
+        R = par[rows, jR] + (par[:, joff] if joff >= 0 else 0.0)
+        cc, cs = np.cos(tc), np.sin(tc)
+        rc = np.stack([cc * cx - cs * cy, cs * cx + cc * cy], axis=-1)
+        dcx, dcy = eye[jcx], eye[jcy]
+        dR = eye[jR] + (eye[joff] if joff >= 0 else 0.0)
+        rot_dc = np.stack([cc[:, None] * dcx - cs[:, None] * dcy,
+                           cs[:, None] * dcx + cc[:, None] * dcy], axis=1)
+        drc = _rot90v(rc)[:, :, None] * dTH[:, cl, None, :] + rot_dc
+        wc = OM[:, cl]
+        if ac >= 0:
+            J[:, row:row + 2, ac] += sign * R[:, None] * ie
+        known = (dV[:, cp] + _rot90v(rc)[:, :, None] * dOM[:, cl, None, :]
+                 + wc[:, None, None] * _rot90t(drc)
+                 + (psid[:, None, None] * ie[:, :, None]) * dR[:, None, :]
+                 + (R[:, None, None] * ie[:, :, None]) * _rows(dpsid)
+                 - ((R * psid)[:, None, None] * e[:, :, None]) * _rows(dpsi))
+        rhs[:, row:row + 2, :] -= sign * known
+    sol = np.linalg.inv(J) @ rhs
+    for j in range(nq):
+        kind, idx = unk[u0 + j, 0], unk[u0 + j, 1]
+        if kind == 0:
+            dOM[:, idx, :] = sol[:, j, :]
+        else:
+            dQD[:, idx, :] = sol[:, j, :]
