@@ -21,7 +21,8 @@ from .cli_common import DEFAULT_MACHINE, SET_HELP, _load, _settings, command, co
 
 #: the sewing metrics ``--output`` accepts besides the position channels (the keys of
 #: :data:`sewmech.sewing.gradients.METRICS`)
-METRICS = ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
+METRICS = ("stitch_length", "feed_lift", "dog_height_at_needle_plate", "needle_top_deg",
+           "take_up_lag_deg", "needle_descent_at_take_up_top")
 
 
 def _metric(m, name: str, settings: dict) -> tuple[float, np.ndarray, str, dict]:
@@ -30,10 +31,14 @@ def _metric(m, name: str, settings: dict) -> tuple[float, np.ndarray, str, dict]
     from ..sewing.timing import roles
 
     s = roles(m)
-    if s.regulator is None or s.feed_dog is None:
+    feed = name in ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
+    if feed and (s.regulator is None or s.feed_dog is None):
         raise OptionError("--output", f"machine '{m.name}' has no feed dog and regulator in its"
                           f" [sewing] table: no {name.replace('_', ' ')}",
                           "Choose a position channel")
+    if not feed:
+        g = FUNCTIONS[name](m, None)
+        return g.value, g.d_dparam, g.unit, dict(g.events_deg)
     reg = settings.get(s.regulator)
     deg = m.spec.inputs[s.regulator].default_deg if reg is None else math.degrees(reg)
     g = FUNCTIONS[name](m, deg)
@@ -47,7 +52,9 @@ def sensitivity_cmd(
                                " the rates v_POINT_x, omega_LINK, qd_VAR (as `sewmech"
                                " kinematics --json` names them), or a"
                                " metric: stitch_length, feed_lift, dog_height_at_needle_plate"
-                               " (at --input regulator=DEG, default the file's setting)"),
+                               " (at --input regulator=DEG, default the file's setting),"
+                               " needle_top_deg, take_up_lag_deg,"
+                               " needle_descent_at_take_up_top"),
     phi_deg: float = typer.Option(0.0, "--phi-deg", help="shaft angle, deg (position"
                                   " channels)"),
     inputs: list[str] = typer.Option(None, "--input", help="a setting input NAME=DEG, e.g."

@@ -68,12 +68,17 @@ class ToleranceResult:
                 "allocation_rule": self.allocation_rule}
 
 
+#: the metrics read off the feed (they need a regulator setting)
+FEED = ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
+
+
 def metric_gradient(machine: Machine, metric: str, *, regulator_deg: float | None = None,
                     phi_deg: float = 0.0) -> tuple[float, np.ndarray, str]:
     """A metric (a key of :data:`sewmech.sewing.gradients.METRICS`) or a position channel at
     ``phi_deg``: its value, its derivatives by every parameter and its unit."""
     if metric in METRICS:
-        g = METRICS[metric](machine, _setting(machine, regulator_deg))
+        g = METRICS[metric](machine, _setting(machine, regulator_deg) if metric in FEED
+                            else None)
         return g.value, g.d_dparam, g.unit
     inputs = _inputs(machine, regulator_deg)
     S = sensitivities(machine, np.radians([phi_deg]), inputs=inputs)
@@ -110,8 +115,8 @@ def sample_values(machine: Machine, metric: str, P: np.ndarray, *,
                   regulator_deg: float | None = None, phi_deg: float = 0.0) -> np.ndarray:
     """The metric for a batch of designs ``P`` (n, n_params), one batch call."""
     if metric in METRICS:
-        return metric_values(machine, metric, _setting(machine, regulator_deg), P,
-                             step_deg=MC_STEP_DEG)
+        return metric_values(machine, metric, _setting(machine, regulator_deg) if metric in FEED
+                             else None, P, step_deg=MC_STEP_DEG)
     from ..engine.kinematics import kinematics
 
     r = kinematics(machine, np.radians([phi_deg]), params=P,

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..engine._events import at_rows, crossing_rows
+from ..engine._events import at_rows, crossing_rows, extreme_rows
 from ..engine.errors import AnalysisError
 from ..engine.kinematics import kinematics
 from ..engine.machine import Machine
@@ -151,9 +151,75 @@ def dog_height_at_needle_plate_gradient(machine: Machine, regulator_deg: float, 
                     {"needle_at_plate": float(np.degrees(phi[0])), "regulator": regulator_deg})
 
 
+def _top(machine: Machine, point: str, params) -> tuple[float, np.ndarray, object]:
+    """The shaft angle (rad) of ``point``'s highest position and its derivative by every
+    parameter: at the top v_y = 0, so d phi/dp = -(d v_y/dp) / (d v_y/dphi) = -w (d v_y/dp) / a_y
+    at the file's constant speed w. Also returns the sensitivities there (with rates)."""
+    from ..engine.extremes import extremes
+
+    phi0 = extremes(machine, f"p_{point}_y", params=params).maximum.phi
+    phi = extremum_angle(machine, point, 1, phi0, params=params)
+    S = sensitivities(machine, np.array([phi]), params=params, rates=True)
+    _, dv, _ = S.channel(f"v_{point}_y")
+    w = float(S.kin.omega_shaft[..., 0])
+    a = float(S.kin.point(point).a[..., 0, 1])
+    return phi, -w * dv[0] / a, S
+
+
+def needle_top_gradient(machine: Machine, regulator_deg: float | None = None, *,
+                        params=None) -> Gradient:
+    """The shaft angle of the needle's top dead centre (deg, 0 .. 360) and its derivative by
+    every parameter (deg per unit). (The regulator does not move it; the argument keeps the
+    metrics' signature.)"""
+    s = _roles(machine)
+    phi, dphi, _ = _top(machine, s.needle_point, params)
+    return Gradient("needle_top_deg", math.degrees(phi) % 360.0, "deg", machine.parameter_names,
+                    np.degrees(dphi), {"needle_top": math.degrees(phi) % 360.0})
+
+
+def take_up_lag_gradient(machine: Machine, regulator_deg: float | None = None, *,
+                         params=None) -> Gradient:
+    """How far (deg of shaft) the take-up eye's top follows the needle's top (> 0: lags), and
+    its derivative by every parameter (deg per unit)."""
+    s = _roles(machine)
+    if s.take_up_eye is None:
+        raise AnalysisError(f"machine '{machine.name}'", "has no take_up_eye in [sewing]",
+                            "Name the take-up's thread eye there")
+    pn, dn, _ = _top(machine, s.needle_point, params)
+    pe, de, _ = _top(machine, s.take_up_eye, params)
+    lag = (math.degrees(pe - pn) + 180.0) % 360.0 - 180.0
+    return Gradient("take_up_lag_deg", lag, "deg", machine.parameter_names, np.degrees(de - dn),
+                    {"needle_top": math.degrees(pn) % 360.0,
+                     "take_up_top": math.degrees(pe) % 360.0})
+
+
+def needle_descent_at_take_up_top_gradient(machine: Machine, regulator_deg: float | None = None,
+                                           *, params=None) -> Gradient:
+    """How far (mm) the needle point has come down from its top when the take-up eye is at its
+    highest, and its derivative: the needle's top value moves by dy/dp (an extremum), its
+    height at the eye's top by dy/dp + dy/dphi dphi_eye/dp."""
+    s = _roles(machine)
+    if s.take_up_eye is None:
+        raise AnalysisError(f"machine '{machine.name}'", "has no take_up_eye in [sewing]",
+                            "Name the take-up's thread eye there")
+    pn, _, Sn = _top(machine, s.needle_point, params)
+    pe, de, Se = _top(machine, s.take_up_eye, params)
+    yn, dyn, _ = Sn.channel(f"p_{s.needle_point}_y")
+    ye, dye, _ = Se.channel(f"p_{s.needle_point}_y")
+    w = float(Se.kin.omega_shaft[..., 0])
+    slope = float(Se.kin.point(s.needle_point).v[..., 0, 1]) / w  # dy/dphi at the eye's top
+    d = dyn[0] - (dye[0] + slope * de)
+    return Gradient("needle_descent_at_take_up_top", float(yn[0] - ye[0]), "mm",
+                    machine.parameter_names, d,
+                    {"needle_top": math.degrees(pn) % 360.0,
+                     "take_up_top": math.degrees(pe) % 360.0})
+
+
 #: the metrics with exact derivatives: name -> function(machine, regulator_deg, params=)
 METRICS = {"stitch_length": stitch_length_gradient, "feed_lift": feed_lift_gradient,
-           "dog_height_at_needle_plate": dog_height_at_needle_plate_gradient}
+           "dog_height_at_needle_plate": dog_height_at_needle_plate_gradient,
+           "needle_top_deg": needle_top_gradient, "take_up_lag_deg": take_up_lag_gradient,
+           "needle_descent_at_take_up_top": needle_descent_at_take_up_top_gradient}
 
 
 def metric_values(machine: Machine, name: str, regulator_deg: float, params: np.ndarray,
@@ -168,6 +234,8 @@ def metric_values(machine: Machine, name: str, regulator_deg: float, params: np.
     if name == "feed_lift":
         return feed_cycles(machine, regulator_deg, params=params, step_deg=step_deg,
                            on_failure="mask").lift_mm
+    if name in ("needle_top_deg", "take_up_lag_deg", "needle_descent_at_take_up_top"):
+        return _timing_values(machine, name, params, step_deg)
     if name != "dog_height_at_needle_plate":
         raise KeyError(f"unknown metric {name!r}; metrics: {', '.join(METRICS)}")
     s = _roles(machine)
@@ -189,3 +257,37 @@ def metric_values(machine: Machine, name: str, regulator_deg: float, params: np.
     y = at_rows(D.p[..., 1].reshape(m, n), D.v[..., 1].reshape(m, n), k,
                 t[np.arange(m), k], h) - s.plate_y
     return np.where(ok, y, np.nan).reshape(params.shape[:-1])
+
+
+def _timing_values(machine: Machine, name: str, params: np.ndarray, step_deg: float
+                   ) -> np.ndarray:
+    """The needle-top and take-up timing metrics for a batch of designs, from a ``step_deg``
+    grid with each top refined on the Hermite interpolant of its slope."""
+    s = _roles(machine)
+    n = round(360.0 / step_deg)
+    h = 2.0 * math.pi / n
+    pts = [s.needle_point] + ([s.take_up_eye] if s.take_up_eye else [])
+    r = kinematics(machine, np.arange(n) * h, params=params, omega=1.0, points=pts, links=[],
+                   variables=[], on_failure="mask")
+    m = int(np.prod(params.shape[:-1]))
+    ok = r.feasible.reshape(m, n).all(axis=1)
+
+    def rows(point):
+        pm = r.point(point)
+        return (pm.p[..., 1].reshape(m, n), pm.v[..., 1].reshape(m, n),
+                pm.a[..., 1].reshape(m, n))
+
+    Yn, Vn, An = rows(s.needle_point)
+    top_n, y_top = extreme_rows(Yn, Vn, An, h, +1)
+    if name == "needle_top_deg":
+        out = np.degrees(top_n) % 360.0
+    else:
+        Ye, Ve, Ae = rows(s.take_up_eye)
+        top_e, _ = extreme_rows(Ye, Ve, Ae, h, +1)
+        if name == "take_up_lag_deg":
+            out = (np.degrees(top_e - top_n) + 180.0) % 360.0 - 180.0
+        else:
+            x = (top_e % (2.0 * math.pi)) / h
+            k = np.floor(x).astype(np.int64) % n
+            out = y_top - at_rows(Yn, Vn, k, x - np.floor(x), h)
+    return np.where(ok, out, np.nan).reshape(params.shape[:-1])
