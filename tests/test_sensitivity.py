@@ -224,7 +224,8 @@ def test_a_batch_of_designs_equals_each_alone_and_a_huge_one_is_refused():
 
 
 @pytest.mark.parametrize("metric", ["feed_lift", "dog_height_at_needle_plate", "needle_top_deg",
-                                    "take_up_lag_deg", "needle_descent_at_take_up_top"])
+                                    "take_up_lag_deg", "needle_descent_at_take_up_top",
+                                    "loop_lift", "shuttle_swing_deg"])
 def test_metric_gradients_against_differences_of_located_events(metric):
     """The lift (a value at an extremum) and the dog's height when the needle reaches the plate
     (a value at another point's crossing): against central differences of the metric located
@@ -247,11 +248,26 @@ def test_metric_gradients_against_differences_of_located_events(metric):
         assert g.value == pytest.approx(timing.take_up_lag_deg(m), abs=1e-9)
     elif metric == "needle_descent_at_take_up_top":
         assert g.value == pytest.approx(timing.needle_descent_at_take_up_top(m), abs=1e-9)
+    elif metric == "loop_lift":
+        assert g.value == pytest.approx(timing.loop_lift(m).rise_mm, abs=1e-9)
+    elif metric == "shuttle_swing_deg":
+        assert g.value == pytest.approx(timing.shuttle_swing(m).swing_deg, abs=1e-9)
     else:  # the check at the longest stitch reads the same quantity
         at30 = f(m, 30.0).value
         check = next(c for c in check_feed(m) if c.name.startswith("dog height"))
         assert at30 == pytest.approx(check.value, abs=1e-6)
     located_differences_agree(m, f, g, 6)
+    # the Monte Carlo's batch values (a 5 deg grid) against the located metric, for the
+    # nominal and a changed design
+    from sewmech.sewing.gradients import metric_values
+
+    P = np.tile(m.defaults, (2, 1))
+    j = int(np.argmax(np.abs(g.d_dparam) * (~np.array([n.endswith(".ratio") or n.startswith(
+        "input.") for n in m.parameter_names]))))
+    P[1, j] += 0.01 * max(1.0, abs(P[1, j]))
+    batch = metric_values(m, metric, 25.0, P, step_deg=5.0)
+    exact = [f(m, 25.0, params=P[k]).value for k in range(2)]
+    np.testing.assert_allclose(batch, exact, atol=3e-4 if metric.endswith("deg") else 2e-5)
 
 
 def test_the_command_line_offers_every_metric():

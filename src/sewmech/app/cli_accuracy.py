@@ -22,7 +22,7 @@ from .cli_common import DEFAULT_MACHINE, SET_HELP, _load, _settings, command, co
 #: the sewing metrics ``--output`` accepts besides the position channels (the keys of
 #: :data:`sewmech.sewing.gradients.METRICS`)
 METRICS = ("stitch_length", "feed_lift", "dog_height_at_needle_plate", "needle_top_deg",
-           "take_up_lag_deg", "needle_descent_at_take_up_top")
+           "take_up_lag_deg", "needle_descent_at_take_up_top", "loop_lift", "shuttle_swing_deg")
 
 
 def _metric(m, name: str, settings: dict) -> tuple[float, np.ndarray, str, dict]:
@@ -54,7 +54,7 @@ def sensitivity_cmd(
                                " metric: stitch_length, feed_lift, dog_height_at_needle_plate"
                                " (at --input regulator=DEG, default the file's setting),"
                                " needle_top_deg, take_up_lag_deg,"
-                               " needle_descent_at_take_up_top"),
+                               " needle_descent_at_take_up_top, loop_lift, shuttle_swing_deg"),
     phi_deg: float = typer.Option(0.0, "--phi-deg", help="shaft angle, deg (position"
                                   " channels)"),
     inputs: list[str] = typer.Option(None, "--input", help="a setting input NAME=DEG, e.g."

@@ -215,11 +215,70 @@ def needle_descent_at_take_up_top_gradient(machine: Machine, regulator_deg: floa
                      "take_up_top": math.degrees(pe) % 360.0})
 
 
+def _extreme(machine: Machine, channel: str, which: str, params) -> tuple[float, object]:
+    """The shaft angle (rad) of a channel's maximum or minimum (``which``), located to 1e-9 rad
+    (:func:`sewmech.extremes`), and the sensitivities there."""
+    from ..engine.extremes import extremes
+
+    ex = extremes(machine, channel, params=params)
+    phi = (ex.maximum if which == "max" else ex.minimum).phi
+    return phi, sensitivities(machine, np.array([phi]), params=params, rates=True)
+
+
+def loop_lift_gradient(machine: Machine, regulator_deg: float | None = None, *,
+                       params=None) -> Gradient:
+    """The loop lift (mm): the needle's rise from its bottom dead centre when the shuttle point
+    passes the needle line (:func:`sewmech.sewing.timing.loop_lift`), and its derivative. The
+    needle line X (the needle point's x at the bottom) and the meeting angle both move:
+    X' = dx/dp + x_dot dphi_bdc/dp, dphi_meet/dp = -(dx_sp/dp - X') / (dx_sp/dphi), and the rise
+    = y(phi_meet) - y(phi_bdc) moves by dy/dp + y' dphi_meet/dp - dy/dp(bdc) (an extremum)."""
+    from .timing import loop_lift, roles
+
+    s = roles(machine)
+    ll = loop_lift(machine, params)
+    needle, sp = s.needle_point, s.shuttle_point
+    pb, Sb = _extreme(machine, f"p_{needle}_y", "min", params)
+    w = float(Sb.kin.omega_shaft[..., 0])
+    _, dvb, _ = Sb.channel(f"v_{needle}_y")
+    dphi_b = -w * dvb[0] / float(Sb.kin.point(needle).a[..., 0, 1])
+    _, dxb, _ = Sb.channel(f"p_{needle}_x")
+    dX = dxb[0] + float(Sb.kin.point(needle).v[..., 0, 0]) / w * dphi_b
+    _, dyb, _ = Sb.channel(f"p_{needle}_y")
+    pm = math.radians(ll.phi_deg)
+    # the meeting angle as the march reaches it (after the bottom)
+    pm = pb + ((pm - pb) % (2.0 * math.pi))
+    Sm = sensitivities(machine, np.array([pm]), params=params, rates=True)
+    _, dxs, _ = Sm.channel(f"p_{sp}_x")
+    dphi_m = -(dxs[0] - dX) / (float(Sm.kin.point(sp).v[..., 0, 0]) / w)
+    _, dym, _ = Sm.channel(f"p_{needle}_y")
+    d = dym[0] + float(Sm.kin.point(needle).v[..., 0, 1]) / w * dphi_m - dyb[0]
+    return Gradient("loop_lift", ll.rise_mm, "mm", machine.parameter_names, d,
+                    {"needle_bottom": math.degrees(pb) % 360.0, "meet": ll.phi_deg})
+
+
+def shuttle_swing_gradient(machine: Machine, regulator_deg: float | None = None, *,
+                           params=None) -> Gradient:
+    """The shuttle's swing (deg, between its two reversals) and its derivative: the reversals'
+    angles move, the values at them do not to first order."""
+    from .timing import roles, shuttle_swing
+
+    link = roles(machine).shuttle_link
+    sw = shuttle_swing(machine, params)
+    _, Shi = _extreme(machine, f"theta_{link}", "max", params)
+    _, Slo = _extreme(machine, f"theta_{link}", "min", params)
+    d = np.degrees(Shi.channel(f"theta_{link}")[1][0] - Slo.channel(f"theta_{link}")[1][0])
+    if abs(((sw.max_deg - sw.min_deg) - sw.swing_deg + 180.0) % 360.0 - 180.0) > 1e-6:
+        d = -d  # the swing runs from the maximum down to the minimum across the wrap
+    return Gradient("shuttle_swing_deg", sw.swing_deg, "deg", machine.parameter_names, d,
+                    {"max": sw.max_phi_deg, "min": sw.min_phi_deg})
+
+
 #: the metrics with exact derivatives: name -> function(machine, regulator_deg, params=)
 METRICS = {"stitch_length": stitch_length_gradient, "feed_lift": feed_lift_gradient,
            "dog_height_at_needle_plate": dog_height_at_needle_plate_gradient,
            "needle_top_deg": needle_top_gradient, "take_up_lag_deg": take_up_lag_gradient,
-           "needle_descent_at_take_up_top": needle_descent_at_take_up_top_gradient}
+           "needle_descent_at_take_up_top": needle_descent_at_take_up_top_gradient,
+           "loop_lift": loop_lift_gradient, "shuttle_swing_deg": shuttle_swing_gradient}
 
 
 def metric_values(machine: Machine, name: str, regulator_deg: float, params: np.ndarray,
@@ -236,6 +295,8 @@ def metric_values(machine: Machine, name: str, regulator_deg: float, params: np.
                            on_failure="mask").lift_mm
     if name in ("needle_top_deg", "take_up_lag_deg", "needle_descent_at_take_up_top"):
         return _timing_values(machine, name, params, step_deg)
+    if name in ("loop_lift", "shuttle_swing_deg"):
+        return _hook_values(machine, name, params, step_deg)
     if name != "dog_height_at_needle_plate":
         raise KeyError(f"unknown metric {name!r}; metrics: {', '.join(METRICS)}")
     s = _roles(machine)
@@ -291,3 +352,66 @@ def _timing_values(machine: Machine, name: str, params: np.ndarray, step_deg: fl
             k = np.floor(x).astype(np.int64) % n
             out = y_top - at_rows(Yn, Vn, k, x - np.floor(x), h)
     return np.where(ok, out, np.nan).reshape(params.shape[:-1])
+
+
+def _hook_values(machine: Machine, name: str, params: np.ndarray, step_deg: float) -> np.ndarray:
+    """The loop lift and the shuttle's swing for a batch of designs, from a ``step_deg`` grid
+    refined on the Hermite interpolants (as :func:`sewmech.sewing.timing.loop_lift` and
+    :func:`~sewmech.sewing.timing.shuttle_swing` locate them on one design)."""
+    from .timing import _shuttle_axis
+
+    s = _roles(machine)
+    n = round(360.0 / step_deg)
+    h = 2.0 * math.pi / n
+    m = int(np.prod(params.shape[:-1]))
+    link = s.shuttle_link
+    if name == "shuttle_swing_deg":
+        r = kinematics(machine, np.arange(n) * h, params=params, omega=1.0, points=[],
+                       links=[link], variables=[], on_failure="mask")
+        lm = r.link(link)
+        th = np.unwrap(lm.theta.reshape(m, n), axis=1)
+        w, e = lm.omega.reshape(m, n), lm.epsilon.reshape(m, n)
+        # (a closed turn: the unwrapped angle comes back, so the rows are periodic)
+        _, hi = extreme_rows(th, w, e, h, +1)
+        _, lo = extreme_rows(th, w, e, h, -1)
+        ok = r.feasible.reshape(m, n).all(axis=1)
+        return np.where(ok, np.degrees(hi - lo), np.nan).reshape(params.shape[:-1])
+    needle, sp, axis = s.needle_point, s.shuttle_point, _shuttle_axis(machine)
+    r = kinematics(machine, np.arange(n) * h, params=params, omega=1.0,
+                   points=[needle, sp, axis], links=[], variables=[], on_failure="mask")
+    N, S, A = r.point(needle), r.point(sp), r.point(axis)
+    rows = np.arange(m)
+
+    def g(pm, c):
+        return (pm.p[..., c].reshape(m, n), pm.v[..., c].reshape(m, n),
+                pm.a[..., c].reshape(m, n))
+
+    Yn, Vn, An = g(N, 1)
+    Xn, VXn, _ = g(N, 0)
+    bdc, y_bdc = extreme_rows(Yn, Vn, An, h, -1)
+    xb = bdc / h
+    kb = np.floor(xb).astype(np.int64) % n
+    X = at_rows(Xn, VXn, kb, xb - np.floor(xb), h)
+    Xs, VXs, _ = g(S, 0)
+    ph, _, t = crossing_rows(Xs - X[:, None], VXs, h)
+    k = np.arange(n)[None, :].repeat(m, axis=0)
+    Ys, VYs, _ = g(S, 1)
+    Ya, VYa, _ = g(A, 1)
+    above = (at_rows_all(Ys, VYs, k, t, h) > at_rows_all(Ya, VYa, k, t, h))
+    after = np.where(np.isfinite(ph) & above, (ph - bdc[:, None]) % (2.0 * math.pi), np.inf)
+    j = np.argmin(after, axis=1)
+    found = np.isfinite(after[rows, j])
+    y_meet = at_rows(Yn, Vn, j, t[rows, j], h)
+    ok = found & r.feasible.reshape(m, n).all(axis=1)
+    return np.where(ok, y_meet - y_bdc, np.nan).reshape(params.shape[:-1])
+
+
+def at_rows_all(V: np.ndarray, S: np.ndarray, k: np.ndarray, t: np.ndarray, h: float
+                ) -> np.ndarray:
+    """Hermite values of periodic rows V (m, n) (slopes S) in every interval k (m, n) at
+    fractions t (m, n)."""
+    from ..engine._events import herm
+
+    r = np.arange(V.shape[0])[:, None]
+    k1 = (k + 1) % V.shape[-1]
+    return herm(V[r, k], V[r, k1], S[r, k], S[r, k1], h, t)
