@@ -19,7 +19,7 @@ from sewmech.engine.sensitivity import sensitivities
 PHI = np.radians(np.arange(0.37, 360.0, 17.0))
 
 
-def richardson(machine, phi, P0, keep, h_rel=3e-4, attrs=("p", "theta", "q")):
+def richardson(machine, phi, P0, keep, h_rel=3e-4, attrs=("p", "theta", "q"), mask=False):
     """Central differences of p, theta, q by every parameter with Richardson's extrapolation
     ((4 D(h/2) - D(h)) / 3, error O(h^4)): all 4 n designs in one kinematics call. The step is
     not smaller because the loop solver's tolerance (about 1e-10 mm) divided by the step is the
@@ -30,7 +30,7 @@ def richardson(machine, phi, P0, keep, h_rel=3e-4, attrs=("p", "theta", "q")):
     h = np.where(keep, h, 1.0)
     P = np.tile(P0, (4 * n, 1))
     P[np.arange(4 * n), np.tile(np.arange(n), 4)] += steps
-    r = sewmech.kinematics(machine, phi, params=P)
+    r = sewmech.kinematics(machine, phi, params=P, on_failure="mask" if mask else "raise")
     out = []
     for arr in (getattr(r, x) for x in attrs):
         a = arr.reshape((4, n) + arr.shape[1:])
@@ -58,8 +58,28 @@ def test_sensitivities_equal_central_differences_on_every_shipped_machine(name):
         worst = (err.max(axis=tuple(range(err.ndim - 1))) / scale).max()
         assert worst < 1e-6, (name, what, worst)
     assert np.abs(S.dp[..., ~keep]).max(initial=0.0) == 0.0
-    # the rates: velocities, angular velocities and joint rates at the file's speed
+    # the rates: velocities, angular velocities and joint rates at the file's speed, and the
+    # accelerations (their differences need a longer step: the loop solver's tolerance over
+    # the step is amplified by the speed squared; a step that makes the mechanism fail to
+    # assemble leaves that parameter out)
     R = sensitivities(m, PHI, rates=True)
+    # two steps, each limited by another error (truncation at the long one, the solver's
+    # tolerance at the short one): the derivative must meet one of them; a speed ratio is no
+    # dimension (its step turns the cams by whole degrees over the march) and stays out
+    dims = keep & np.array([not p.endswith(".ratio") for p in m.parameter_names])
+    fds = [richardson(m, PHI, P0, dims, h_rel=h, attrs=("a", "epsilon", "q_ddot"), mask=True)
+           for h in (3e-4, 3e-3)]
+    for k, (d, what) in enumerate(((R.da, "a"), (R.depsilon, "epsilon"), (R.dqdd, "qdd"))):
+        if fds[0][k].size == 0:
+            continue
+        errs = []
+        for fd in fds:
+            ref = fd[k]
+            axes = tuple(range(ref.ndim - 1))
+            err = np.abs(d - ref).max(axis=axes) / np.maximum(1.0, np.abs(ref).max(axis=axes))
+            errs.append(np.where(np.isfinite(err), err, np.inf))
+        worst = np.minimum(*errs)[dims]
+        assert np.isfinite(worst).all() and worst.max() < 1e-6, (name, what, worst.max())
     assert np.array_equal(R.dp, S.dp)
     fd = richardson(m, PHI, P0, keep, attrs=("v", "omega", "q_dot"))
     for d, ref, what in ((R.dv, fd[0], "v"), (R.domega, fd[1], "omega"), (R.dqd, fd[2], "qd")):
@@ -134,8 +154,14 @@ def test_sensitivity_command_prints_the_issue_keys(tmp_path):
     assert set(data["d_dparam"]) == set(m.parameter_names)
     j = m.parameter_names.index("needle_bar.length")
     assert data["d_dparam"]["needle_bar.length"] == pytest.approx(float(d[0, j]))
-    bad = CliRunner().invoke(app, ["sensitivity", "jb1-3", "--output", "a_needle.point_y"])
-    assert bad.exit_code == 2 and "not differentiated" in bad.output
+    acc = CliRunner().invoke(app, ["sensitivity", "jb1-3", "--output", "a_needle.point_y",
+                                   "--phi-deg", "30", "--json"])
+    assert acc.exit_code == 0, acc.output
+    R = sensitivities(m, np.radians([30.0]), rates=True)
+    assert json.loads(acc.output)["d_dparam"]["needle_bar.length"] == pytest.approx(
+        float(R.channel("a_needle.point_y")[1][0, j]))
+    bad = CliRunner().invoke(app, ["sensitivity", "jb1-3", "--output", "j_needle.point_y"])
+    assert bad.exit_code == 2 and "not a channel" in bad.output
     bad = CliRunner().invoke(app, ["sensitivity", "jb1-3", "--output", "p_nothing_y"])
     assert bad.exit_code == 2 and "nothing" in bad.output
 

@@ -48,9 +48,10 @@ def _metric(m, name: str, settings: dict) -> tuple[float, np.ndarray, str, dict]
 @command("sensitivity")
 def sensitivity_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="shipped machine name or TOML file"),
-    output: str = typer.Option(..., help="a channel: p_POINT_x, p_POINT_y, theta_LINK, q_VAR or"
-                               " the rates v_POINT_x, omega_LINK, qd_VAR (as `sewmech"
-                               " kinematics --json` names them), or a"
+    output: str = typer.Option(..., help="a channel: p_POINT_x, p_POINT_y, theta_LINK, q_VAR,"
+                               " the rates v_POINT_x, omega_LINK, qd_VAR or the accelerations"
+                               " a_POINT_x, epsilon_LINK, qdd_VAR (as `sewmech kinematics"
+                               " --json` names them), or a"
                                " metric: stitch_length, feed_lift, dog_height_at_needle_plate"
                                " (at --input regulator=DEG, default the file's setting),"
                                " needle_top_deg, take_up_lag_deg,"
@@ -82,7 +83,8 @@ def sensitivity_cmd(
     else:
         try:
             S = sensitivities(m, np.radians([phi_deg]), inputs=settings or None,
-                              rates=output.split("_")[0] in ("v", "omega", "qd"))
+                              rates=output.split("_")[0] in ("v", "omega", "qd", "a", "epsilon",
+                                                             "qdd"))
             value, d, unit = S.channel(output)
         except KeyError as exc:
             raise OptionError("--output", exc.args[0], "Give e.g. p_needle.point_y,"

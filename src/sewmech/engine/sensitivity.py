@@ -12,7 +12,8 @@ tangents, vectorised over designs and angles, in numpy.
 
 With ``rates=True`` the velocities, angular velocities and joint rates follow the same way: each
 unit's velocity relation (for a dyad (C - B_k) . (v_C - v_k) = 0; for a loop J q_dot = -b)
-differentiated with the position tangents known. Accelerations are not differentiated yet.
+differentiated with the position tangents known; then the accelerations from the acceleration
+relations (for a dyad (C - B_k) . (a_C - a_k) + |v_C - v_k|^2 = 0) with both known.
 
 Derivatives are in internal units: mm, rad, mm/s, rad/s per unit of the parameter (mm, rad, 1).
 """
@@ -43,8 +44,8 @@ class Sensitivities:
     kin : the kinematics the tangents belong to; dp : (batch, n_phi, n_points, 2, n_params)
     d(point position)/d(parameter), mm per parameter unit; dtheta : (batch, n_phi, n_links,
     n_params) rad per unit; dq : (batch, n_phi, n_variables, n_params) per unit (mm or rad);
-    dv, domega, dqd : the same for the velocities (mm/s), angular velocities (rad/s) and joint
-    rates, or None without ``rates``.
+    dv, domega, dqd, da, depsilon, dqdd : the same for the velocities (mm/s), angular
+    velocities (rad/s), joint rates and their accelerations, or None without ``rates``.
     """
 
     kin: KinematicsResult
@@ -54,6 +55,9 @@ class Sensitivities:
     dv: np.ndarray | None = None
     domega: np.ndarray | None = None
     dqd: np.ndarray | None = None
+    da: np.ndarray | None = None
+    depsilon: np.ndarray | None = None
+    dqdd: np.ndarray | None = None
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
@@ -65,9 +69,9 @@ class Sensitivities:
         derivatives (batch + (n_phi, n_params)) and its unit."""
         r = self.kin
         kind, _, rest = name.partition("_")
-        if kind in ("v", "omega", "qd") and self.dv is None:
+        if kind in ("v", "omega", "qd", "a", "epsilon", "qdd") and self.dv is None:
             raise KeyError(f"'{name}' is a rate: ask sensitivities(..., rates=True)")
-        if kind in ("p", "v"):
+        if kind in ("p", "v", "a"):
             pt, _, comp = rest.rpartition("_")
             if comp not in ("x", "y"):
                 raise KeyError(f"channel '{name}': a point channel ends in _x or _y")
@@ -75,20 +79,23 @@ class Sensitivities:
             c = "xy".index(comp)
             if kind == "p":
                 return r.p[..., i, c], self.dp[..., i, c, :], "mm"
-            return r.v[..., i, c], self.dv[..., i, c, :], "mm/s"
-        if kind in ("theta", "omega"):
+            if kind == "v":
+                return r.v[..., i, c], self.dv[..., i, c, :], "mm/s"
+            return r.a[..., i, c], self.da[..., i, c, :], "mm/s^2"
+        if kind in ("theta", "omega", "epsilon"):
             i = name_index(r.link_names, rest, "link")
-            if kind == "theta":
-                return r.theta[..., i], self.dtheta[..., i, :], "rad"
-            return r.omega[..., i], self.domega[..., i, :], "rad/s"
-        if kind in ("q", "qd"):
+            value, d, unit = {"theta": (r.theta, self.dtheta, "rad"),
+                              "omega": (r.omega, self.domega, "rad/s"),
+                              "epsilon": (r.epsilon, self.depsilon, "rad/s^2")}[kind]
+            return value[..., i], d[..., i, :], unit
+        if kind in ("q", "qd", "qdd"):
             i = name_index(r.variable_names, rest, "joint variable")
-            if kind == "q":
-                return r.q[..., i], self.dq[..., i, :], r.variable_units[i]
-            return r.q_dot[..., i], self.dqd[..., i, :], f"{r.variable_units[i]}/s"
-        raise KeyError(f"'{name}' is not a channel with sensitivities: p_POINT_x, p_POINT_y,"
-                       " theta_LINK, q_VAR and their rates v_, omega_, qd_ (accelerations are"
-                       " not differentiated yet)")
+            base = r.variable_units[i]
+            value, d, unit = {"q": (r.q, self.dq, base), "qd": (r.q_dot, self.dqd, f"{base}/s"),
+                              "qdd": (r.q_ddot, self.dqdd, f"{base}/s^2")}[kind]
+            return value[..., i], d[..., i, :], unit
+        raise KeyError(f"'{name}' is not a channel: p_POINT_x, p_POINT_y, theta_LINK, q_VAR,"
+                       " their rates v_, omega_, qd_ and accelerations a_, epsilon_, qdd_")
 
 
 def _rot90(x: np.ndarray) -> np.ndarray:
@@ -102,13 +109,13 @@ def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None 
     """Exact derivatives of every point position, link angle and joint variable with respect
     to every parameter (``machine.parameter_names``), at shaft angles ``phi`` (rad), for the
     designs ``params`` (default: the file's) and setting ``inputs`` (rad, as for
-    :func:`sewmech.kinematics`). With ``rates`` the velocities, angular velocities and joint
-    rates are differentiated too (at the file's speed). A position where the mechanism cannot
+    :func:`sewmech.kinematics`). With ``rates`` the velocities, angular velocities, joint
+    rates and the accelerations are differentiated too (at the file's speed). A position where the mechanism cannot
     be assembled raises (the derivatives are not defined there)."""
     designs = int(np.prod(np.shape(params)[:-1])) if params is not None else 1
     for v in (inputs or {}).values():
         designs = max(designs, int(np.size(v)))
-    _check_size(machine, designs * int(np.size(phi)) * (2 if rates else 1))
+    _check_size(machine, designs * int(np.size(phi)) * (3 if rates else 1))
     r = kinematics(machine, phi, params=params, inputs=inputs)
     if not r.all_feasible:
         raise AnalysisError(f"machine '{machine.name}'", "cannot be assembled at some of the"
@@ -166,9 +173,17 @@ def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None 
         OM = r.omega.reshape(TH.shape)
         QD = r.q_dot.reshape(Q.shape)
         dV, dOM, dQD = _rates(machine, V, OM, QD, P, TH, Q, dP, dTH, dQ, par, eye)
+        A = r.a.reshape(P.shape)
+        EP = r.epsilon.reshape(TH.shape)
+        QDD = r.q_ddot.reshape(Q.shape)
+        dA, dEP, dQDD = _accels(machine, A, EP, QDD, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM,
+                                dQD, par, eye)
         rate_tangents = {"dv": dV.reshape(shape + dV.shape[1:]),
                          "domega": dOM.reshape(shape + dOM.shape[1:]),
-                         "dqd": dQD.reshape(shape + dQD.shape[1:])}
+                         "dqd": dQD.reshape(shape + dQD.shape[1:]),
+                         "da": dA.reshape(shape + dA.shape[1:]),
+                         "depsilon": dEP.reshape(shape + dEP.shape[1:]),
+                         "dqdd": dQDD.reshape(shape + dQDD.shape[1:])}
     return Sensitivities(r, dP.reshape(shape + dP.shape[1:]), dTH.reshape(shape + dTH.shape[1:]),
                          dQ.reshape(shape + dQ.shape[1:]), **rate_tangents)
 
@@ -534,3 +549,224 @@ def _loop_rates(machine, g, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, par,
             dOM[:, idx, :] = sol[:, j, :]
         else:
             dQD[:, idx, :] = sol[:, j, :]
+
+
+# ---- the accelerations' derivatives --------------------------------------------------------------
+
+
+def _accels(machine: Machine, A, EP, QDD, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, par,
+            eye):
+    """Derivatives of the accelerations (mm/s^2), angular accelerations (rad/s^2) and joint
+    accelerations by every parameter: each unit's acceleration relation differentiated with the
+    position and rate tangents known. Returns dA, dEP, dQDD."""
+    dA = np.zeros_like(dP)
+    dEP = np.zeros_like(dTH)
+    dQDD = np.zeros_like(dQ)
+    for row in machine.program:
+        op = row[0]
+        if op == OP_CRANK:
+            L, jra, jset = row[1], row[3], row[4]
+            if jset < 0:  # epsilon = ratio * epsilon_shaft
+                dEP[:, L, :] = (EP[:, L] / par[:, jra])[:, None] * eye[jra][None, :]
+        elif op == OP_POINT:
+            i, L, o = row[1], row[2], row[3]
+            rel = P[:, i] - P[:, o]
+            drel = dP[:, i] - dP[:, o]
+            w, e = OM[:, L], EP[:, L]
+            # a = aO + eps J rel - w^2 rel
+            dA[:, i] = (dA[:, o] + _rot90v(rel)[:, :, None] * dEP[:, L, None, :]
+                        + e[:, None, None] * _rot90t(drel)
+                        - (2.0 * w)[:, None, None] * rel[:, :, None] * dOM[:, L, None, :]
+                        - (w * w)[:, None, None] * drel)
+        elif op == OP_RRR:
+            i1, i2, i, L1, L2, j1, j2 = row[1], row[2], row[3], row[4], row[5], row[6], row[7]
+            r1, r2 = P[:, i] - P[:, i1], P[:, i] - P[:, i2]
+            dr1, dr2 = dP[:, i] - dP[:, i1], dP[:, i] - dP[:, i2]
+            w1, w2 = V[:, i] - V[:, i1], V[:, i] - V[:, i2]
+            dw1, dw2 = dV[:, i] - dV[:, i1], dV[:, i] - dV[:, i2]
+            b1, b2 = A[:, i] - A[:, i1], A[:, i] - A[:, i2]
+            # r_k . (aC - a_k) + |w_k|^2 = 0
+            rhs1 = _dot(r1, dA[:, i1]) - _dot(b1, dr1) - 2.0 * _dot(w1, dw1)
+            rhs2 = _dot(r2, dA[:, i2]) - _dot(b2, dr2) - 2.0 * _dot(w2, dw2)
+            det = r1[:, 0] * r2[:, 1] - r1[:, 1] * r2[:, 0]
+            dA[:, i, 0, :] = (rhs1 * r2[:, 1, None] - rhs2 * r1[:, 1, None]) / det[:, None]
+            dA[:, i, 1, :] = (r1[:, 0, None] * rhs2 - r2[:, 0, None] * rhs1) / det[:, None]
+            for L, r, dr, bk, k, j in ((L1, r1, dr1, b1, i1, j1), (L2, r2, dr2, b2, i2, j2)):
+                ll = par[:, j]
+                dEP[:, L, :] = ((_cross_tv(dr, bk) + _cross(r, dA[:, i] - dA[:, k]))
+                                / (ll * ll)[:, None]
+                                - (2.0 * EP[:, L] / ll)[:, None] * eye[j][None, :])
+        elif op == OP_RRP:
+            _rrp_accels(row, A, EP, QDD, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, dA,
+                        dEP, dQDD, par, eye)
+        elif op == OP_RPR:
+            _rpr_accels(row, A, EP, QDD, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, dA,
+                        dEP, dQDD, par, eye)
+        elif op == OP_LOOP:
+            _loop_accels(machine, row[1], A, EP, QDD, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM,
+                         dQD, dA, dEP, dQDD, par, eye)
+    return dA, dEP, dQDD
+
+
+def _rrp_accels(row, A, EP, QDD, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, dA, dEP, dQDD,
+                par, eye) -> None:
+    b, gp, gl, i, L1, Ls, jl, _, je, _, var = row[1:12]
+    beta = TH[:, Ls]
+    u = np.stack([np.cos(beta), np.sin(beta)], axis=-1)
+    nrm = _rot90v(u)
+    s, sd, sdd = Q[:, var], QD[:, var], QDD[:, var]
+    e, l = par[:, je], par[:, jl]
+    wg, eg = OM[:, gl], EP[:, gl]
+    dbeta = dTH[:, Ls]
+    du = nrm[:, :, None] * dbeta[:, None, :]
+    dn = -u[:, :, None] * dbeta[:, None, :]
+    ds, dsd = dQ[:, var, :], dQD[:, var, :]
+    dwg, deg_ = dOM[:, gl, :], dEP[:, gl, :]
+    de = eye[je][None, :]
+
+    # aC = K + aB + sdd u with K = aG - e (eg u + wg^2 n) + 2 sd wg n + s (eg n - wg^2 u) - aB
+    K = (A[:, gp] - e[:, None] * (eg[:, None] * u + (wg * wg)[:, None] * nrm)
+         + (2.0 * sd * wg)[:, None] * nrm + s[:, None] * (eg[:, None] * nrm
+                                                           - (wg * wg)[:, None] * u) - A[:, b])
+    dK = (dA[:, gp]
+          - (eg[:, None] * u + (wg * wg)[:, None] * nrm)[:, :, None] * de[:, None, :]
+          - e[:, None, None] * (u[:, :, None] * deg_[:, None, :] + eg[:, None, None] * du
+                                + (2.0 * wg)[:, None, None] * nrm[:, :, None] * dwg[:, None, :]
+                                + (wg * wg)[:, None, None] * dn)
+          + 2.0 * (nrm[:, :, None] * (dsd * wg[:, None] + sd[:, None] * dwg)[:, None, :]
+                   + (sd * wg)[:, None, None] * dn)
+          + (eg[:, None] * nrm - (wg * wg)[:, None] * u)[:, :, None] * ds[:, None, :]
+          + s[:, None, None] * (nrm[:, :, None] * deg_[:, None, :] + eg[:, None, None] * dn
+                                - (2.0 * wg)[:, None, None] * u[:, :, None] * dwg[:, None, :]
+                                - (wg * wg)[:, None, None] * du)
+          - dA[:, b])
+    r1 = P[:, i] - P[:, b]
+    dr1 = dP[:, i] - dP[:, b]
+    w = V[:, i] - V[:, b]
+    dw = dV[:, i] - dV[:, b]
+    ru = np.sum(r1 * u, axis=1)
+    num = np.sum(r1 * K, axis=1) + np.sum(w * w, axis=1)
+    dsdd = (-(_dot(K, dr1) + _dot(r1, dK) + 2.0 * _dot(w, dw)) / ru[:, None]
+            + (num / ru ** 2)[:, None] * (_dot(u, dr1) + _dot(r1, du)))
+    dA[:, i] = dK + dA[:, b] + u[:, :, None] * dsdd[:, None, :] + sdd[:, None, None] * du
+    dQDD[:, var, :] = dsdd
+    dEP[:, Ls, :] = deg_
+    arel = A[:, i] - A[:, b]
+    dEP[:, L1, :] = ((_cross_tv(dr1, arel) + _cross(r1, dA[:, i] - dA[:, b])) / (l * l)[:, None]
+                     - (2.0 * EP[:, L1] / l)[:, None] * eye[jl][None, :])
+
+
+def _rpr_accels(row, A, EP, QDD, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, dA, dEP, dQDD,
+                par, eye) -> None:
+    b, pv, L, Lb, je, _, var = row[1:8]
+    th = TH[:, L]
+    u = np.stack([np.cos(th), np.sin(th)], axis=-1)
+    nrm = _rot90v(u)
+    s, sd = Q[:, var], QD[:, var]
+    e, w, ep = par[:, je], OM[:, L], EP[:, L]
+    dth = dTH[:, L]
+    du = nrm[:, :, None] * dth[:, None, :]
+    dn = -u[:, :, None] * dth[:, None, :]
+    da = A[:, b] - A[:, pv]
+    dda = dA[:, b] - dA[:, pv]
+    ds, dsd, dw = dQ[:, var, :], dQD[:, var, :], dOM[:, L, :]
+    de = eye[je][None, :]
+    # aB - aA = (sdd - e eps - s w^2) u + (2 sd w - e w^2 + s eps) n
+    dep = ((_dot(da, dn) + _dot(nrm, dda) - 2.0 * (dsd * w[:, None] + sd[:, None] * dw)
+            + de * (w * w)[:, None] + (2.0 * e * w)[:, None] * dw) / s[:, None]
+           - (ep / s)[:, None] * ds)
+    dsdd = (_dot(da, du) + _dot(u, dda) + de * ep[:, None] + e[:, None] * dep
+            + ds * (w * w)[:, None] + (2.0 * s * w)[:, None] * dw)
+    dEP[:, L, :] = dep
+    if Lb >= 0:
+        dEP[:, Lb, :] = dep
+    dQDD[:, var, :] = dsdd
+
+
+def _loop_accels(machine, g, A, EP, QDD, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, dA,
+                 dEP, dQDD, par, eye) -> None:
+    """The loop's acceleration closure differentiated: J dqdd = -(everything known)."""
+    grp, unk, terms = machine.groups, machine.unknowns, machine.terms
+    nq, u0, _, t0, nt = grp[g]
+    n, npar = P.shape[0], eye.shape[0]
+    rows = np.arange(n)
+    J = np.zeros((n, nq, nq))
+    rhs = np.zeros((n, nq, npar))
+    for t in range(t0, t0 + nt):
+        typ, lrow, sign, len_src, len_idx, ang_src, ang_idx, jalpha, cam, joff, lc, ac = terms[t]
+        row = 2 * lrow
+        if typ == TERM_POINT:
+            rhs[:, row:row + 2, :] -= sign * dA[:, len_idx]
+            continue
+        link = ang_src == SRC_LINK
+        psi = (TH[:, ang_idx] if link else Q[:, ang_idx]) + (par[:, jalpha] if jalpha >= 0
+                                                             else 0.0)
+        psid = OM[:, ang_idx] if link else QD[:, ang_idx]
+        psidd = EP[:, ang_idx] if link else QDD[:, ang_idx]
+        dpsi = (dTH[:, ang_idx] if link else dQ[:, ang_idx]) + (eye[jalpha][None, :]
+                                                                if jalpha >= 0 else 0.0)
+        dpsid = dOM[:, ang_idx] if link else dQD[:, ang_idx]
+        dpsidd = 0.0 if ac >= 0 else (dEP[:, ang_idx] if link else dQDD[:, ang_idx])
+        e = np.stack([np.cos(psi), np.sin(psi)], axis=-1)
+        ie = _rot90v(e)
+        E, IE = e[:, :, None], ie[:, :, None]
+        if typ == TERM_VEC:
+            if len_src == SRC_PARAM:
+                L, Ld, Ldd = par[:, len_idx], np.zeros(n), np.zeros(n)
+                dL, dLd, dLdd = eye[len_idx][None, :], 0.0, 0.0
+            else:
+                L, Ld, Ldd = Q[:, len_idx], QD[:, len_idx], QDD[:, len_idx]
+                dL, dLd = dQ[:, len_idx], dQD[:, len_idx]
+                dLdd = 0.0 if lc >= 0 else dQDD[:, len_idx]
+            if lc >= 0:
+                J[:, row:row + 2, lc] += sign * e
+            if ac >= 0:
+                J[:, row:row + 2, ac] += sign * L[:, None] * ie
+            # Tdd = Ldd e + 2 Ld psid ie + L psidd ie - L psid^2 e, differentiated
+            known = (E * _rows(dLdd) + (Ldd[:, None, None] * IE) * _rows(dpsi)
+                     + 2.0 * IE * (_rows(dLd) * psid[:, None, None]
+                                   + Ld[:, None, None] * _rows(dpsid))
+                     - 2.0 * ((Ld * psid)[:, None, None] * E) * _rows(dpsi)
+                     + IE * (_rows(dL) * psidd[:, None, None] + L[:, None, None]
+                             * _rows(dpsidd))
+                     - ((L * psidd)[:, None, None] * E) * _rows(dpsi)
+                     - E * (_rows(dL) * (psid * psid)[:, None, None]
+                            + (2.0 * L * psid)[:, None, None] * _rows(dpsid))
+                     - ((L * psid * psid)[:, None, None] * IE) * _rows(dpsi))
+            rhs[:, row:row + 2, :] -= sign * known
+            continue
+        cl, cp, a0, na = machine.cams[cam]
+        tc = TH[:, cl]
+        k = _active_arc(machine, par, cl, a0, na, psi - tc)
+        jcx, jcy, jR = (machine.arcs[k, c] for c in range(3))
+        cx, cy = par[rows, jcx], par[rows, jcy]
+        R = par[rows, jR] + (par[:, joff] if joff >= 0 else 0.0)
+        cc, cs = np.cos(tc), np.sin(tc)
+        rc = np.stack([cc * cx - cs * cy, cs * cx + cc * cy], axis=-1)
+        dcx, dcy = eye[jcx], eye[jcy]
+        dR = eye[jR] + (eye[joff] if joff >= 0 else 0.0)
+        rot_dc = np.stack([cc[:, None] * dcx - cs[:, None] * dcy,
+                           cs[:, None] * dcx + cc[:, None] * dcy], axis=1)
+        drc = _rot90v(rc)[:, :, None] * dTH[:, cl, None, :] + rot_dc
+        wc, ec = OM[:, cl], EP[:, cl]
+        if ac >= 0:
+            J[:, row:row + 2, ac] += sign * R[:, None] * ie
+        # Tdd = a_cp + ec J rc - wc^2 rc + R (psidd ie - psid^2 e), differentiated
+        known = (dA[:, cp] + _rot90v(rc)[:, :, None] * dEP[:, cl, None, :]
+                 + ec[:, None, None] * _rot90t(drc)
+                 - (2.0 * wc)[:, None, None] * rc[:, :, None] * dOM[:, cl, None, :]
+                 - (wc * wc)[:, None, None] * drc
+                 + (psidd[:, None, None] * IE - (psid * psid)[:, None, None] * E)
+                 * dR[:, None, :]
+                 + R[:, None, None] * (IE * _rows(dpsidd)
+                                       - (psidd[:, None, None] * E) * _rows(dpsi)
+                                       - (2.0 * psid)[:, None, None] * E * _rows(dpsid)
+                                       - ((psid * psid)[:, None, None] * IE) * _rows(dpsi)))
+        rhs[:, row:row + 2, :] -= sign * known
+    sol = np.linalg.inv(J) @ rhs
+    for j in range(nq):
+        kind, idx = unk[u0 + j, 0], unk[u0 + j, 1]
+        if kind == 0:
+            dEP[:, idx, :] = sol[:, j, :]
+        else:
+            dQDD[:, idx, :] = sol[:, j, :]
