@@ -165,7 +165,7 @@ def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None 
         elif op == OP_RPR:
             _rpr(row, P, TH, Q, dP, dTH, dQ, par, eye)
         elif op == OP_LOOP:
-            _loop(machine, row[1], P, TH, Q, dP, dTH, dQ, par, eye)
+            _loop(machine, row[1], 0, _State(P, TH, Q, dP, dTH, dQ), par, eye)
     shape = batch
     rate_tangents = {}
     if rates:
@@ -273,71 +273,6 @@ def _rpr(row, P, TH, Q, dP, dTH, dQ, par, eye) -> None:
     dQ[:, var, :] = ds
 
 
-def _loop(machine: Machine, g: int, P, TH, Q, dP, dTH, dQ, par, eye) -> None:
-    """J_q dq = -(the closure's derivative by everything known): each term's tangent split into
-    the unknowns' columns and the rest."""
-    grp, unk, terms = machine.groups, machine.unknowns, machine.terms
-    nq, u0, _, t0, nt = grp[g]
-    n = P.shape[0]
-    npar = eye.shape[0]
-    J = np.zeros((n, nq, nq))
-    rhs = np.zeros((n, nq, npar))
-    for t in range(t0, t0 + nt):
-        typ, lrow, sign, len_src, len_idx, ang_src, ang_idx, jalpha, cam, joff, lc, ac = terms[t]
-        row = 2 * lrow
-        if typ == TERM_POINT:
-            rhs[:, row:row + 2, :] -= sign * dP[:, len_idx]
-            continue
-        psi = (TH[:, ang_idx] if ang_src == SRC_LINK else Q[:, ang_idx]) + (
-            par[:, jalpha] if jalpha >= 0 else 0.0)
-        e = np.stack([np.cos(psi), np.sin(psi)], axis=-1)
-        ie = _rot90(e)
-        dpsi_known = 0.0 if ac >= 0 else (dTH[:, ang_idx, :] if ang_src == SRC_LINK
-                                          else dQ[:, ang_idx, :])
-        dalpha = eye[jalpha][None, :] if jalpha >= 0 else 0.0
-        if typ == TERM_VEC:
-            if len_src == SRC_PARAM:
-                L = par[:, len_idx]
-                dL = eye[len_idx][None, :]
-            else:
-                L = Q[:, len_idx]
-                dL = 0.0 if lc >= 0 else dQ[:, len_idx, :]
-            if lc >= 0:
-                J[:, row:row + 2, lc] += sign * e
-            if ac >= 0:
-                J[:, row:row + 2, ac] += sign * L[:, None] * ie
-            known = e[:, :, None] * _rows(dL) + (L[:, None, None] * ie[:, :, None]) * _rows(
-                dpsi_known + dalpha)
-            rhs[:, row:row + 2, :] -= sign * known
-            continue
-        # TERM_CAM: p_cp + R(theta_c) c_k + (R_k + off) e^{i psi}
-        cl, cp, a0, na = machine.cams[cam]
-        tc = TH[:, cl]
-        k = _active_arc(machine, par, cl, a0, na, psi - tc)
-        jcx, jcy, jR = (machine.arcs[k, c] for c in range(3))
-        cx = par[np.arange(n), jcx]
-        cy = par[np.arange(n), jcy]
-        R = par[np.arange(n), jR] + (par[:, joff] if joff >= 0 else 0.0)
-        cc, cs = np.cos(tc), np.sin(tc)
-        rc = np.stack([cc * cx - cs * cy, cs * cx + cc * cy], axis=-1)
-        dcx, dcy, dR = eye[jcx], eye[jcy], eye[jR] + (eye[joff] if joff >= 0 else 0.0)
-        rot_dc = np.stack([cc[:, None] * dcx - cs[:, None] * dcy,
-                           cs[:, None] * dcx + cc[:, None] * dcy], axis=1)
-        if ac >= 0:
-            J[:, row:row + 2, ac] += sign * R[:, None] * ie
-        known = (dP[:, cp] + rot_dc + _rot90(rc)[:, :, None] * dTH[:, cl, None, :]
-                 + e[:, :, None] * dR[:, None, :]
-                 + (R[:, None, None] * ie[:, :, None]) * _rows(dpsi_known + dalpha))
-        rhs[:, row:row + 2, :] -= sign * known
-    sol = np.linalg.inv(J) @ rhs  # (n, nq, npar): one small inverse per position
-    for j in range(nq):
-        kind, idx = unk[u0 + j, 0], unk[u0 + j, 1]
-        if kind == 0:
-            dTH[:, idx, :] = sol[:, j, :]
-        else:
-            dQ[:, idx, :] = sol[:, j, :]
-
-
 def _rows(x):
     """A tangent (positions, n_params) as (positions, 1, n_params) to multiply a vector; a
     constant 0 stays 0."""
@@ -369,7 +304,6 @@ def _rates(machine: Machine, V, OM, QD, P, TH, Q, dP, dTH, dQ, par, eye):
     """Derivatives of the velocities (mm/s), angular velocities (rad/s) and joint rates by every
     parameter, from the velocity relations of each unit differentiated in solve order (the
     position tangents ``dP``, ``dTH``, ``dQ`` known): returns dV, dOM, dQD."""
-    n, npar = P.shape[0], eye.shape[0]
     dV = np.zeros_like(dP)
     dOM = np.zeros_like(dTH)
     dQD = np.zeros_like(dQ)
@@ -406,8 +340,8 @@ def _rates(machine: Machine, V, OM, QD, P, TH, Q, dP, dTH, dQ, par, eye):
         elif op == OP_RPR:
             _rpr_rates(row, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, par, eye)
         elif op == OP_LOOP:
-            _loop_rates(machine, row[1], V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, par,
-                        eye)
+            _loop(machine, row[1], 1, _State(P, TH, Q, dP, dTH, dQ, V, OM, QD, dV, dOM, dQD),
+                  par, eye)
     return dV, dOM, dQD
 
 
@@ -478,77 +412,7 @@ def _rpr_rates(row, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, par, eye) ->
     dQD[:, var, :] = dsd
 
 
-def _loop_rates(machine, g, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, par, eye) -> None:
-    """The loop's velocity closure sum_t sign dT_t/dt = 0, differentiated by the parameters:
-    J dqd = -(everything known), J the position Jacobian."""
-    grp, unk, terms = machine.groups, machine.unknowns, machine.terms
-    nq, u0, _, t0, nt = grp[g]
-    n, npar = P.shape[0], eye.shape[0]
-    rows = np.arange(n)
-    J = np.zeros((n, nq, nq))
-    rhs = np.zeros((n, nq, npar))
-    for t in range(t0, t0 + nt):
-        typ, lrow, sign, len_src, len_idx, ang_src, ang_idx, jalpha, cam, joff, lc, ac = terms[t]
-        row = 2 * lrow
-        if typ == TERM_POINT:
-            rhs[:, row:row + 2, :] -= sign * dV[:, len_idx]
-            continue
-        link = ang_src == SRC_LINK
-        psi = (TH[:, ang_idx] if link else Q[:, ang_idx]) + (par[:, jalpha] if jalpha >= 0
-                                                             else 0.0)
-        psid = OM[:, ang_idx] if link else QD[:, ang_idx]
-        dpsi = (dTH[:, ang_idx] if link else dQ[:, ang_idx]) + (eye[jalpha][None, :]
-                                                                if jalpha >= 0 else 0.0)
-        dpsid = 0.0 if ac >= 0 else (dOM[:, ang_idx] if link else dQD[:, ang_idx])
-        e = np.stack([np.cos(psi), np.sin(psi)], axis=-1)
-        ie = _rot90v(e)
-        if typ == TERM_VEC:
-            if len_src == SRC_PARAM:
-                L, Ld = par[:, len_idx], np.zeros(n)
-                dL, dLd = eye[len_idx][None, :], 0.0
-            else:
-                L, Ld = Q[:, len_idx], QD[:, len_idx]
-                dL = dQ[:, len_idx]
-                dLd = 0.0 if lc >= 0 else dQD[:, len_idx]
-            if lc >= 0:
-                J[:, row:row + 2, lc] += sign * e
-            if ac >= 0:
-                J[:, row:row + 2, ac] += sign * L[:, None] * ie
-            known = (e[:, :, None] * _rows(dLd) + (Ld[:, None, None] * ie[:, :, None]) * _rows(dpsi)
-                     + (psid[:, None, None] * ie[:, :, None]) * _rows(dL)
-                     + (L[:, None, None] * ie[:, :, None]) * _rows(dpsid)
-                     - ((L * psid)[:, None, None] * e[:, :, None]) * _rows(dpsi))
-            rhs[:, row:row + 2, :] -= sign * known
-            continue
-        cl, cp, a0, na = machine.cams[cam]
-        tc = TH[:, cl]
-        k = _active_arc(machine, par, cl, a0, na, psi - tc)
-        jcx, jcy, jR = (machine.arcs[k, c] for c in range(3))
-        cx, cy = par[rows, jcx], par[rows, jcy]
-        R = par[rows, jR] + (par[:, joff] if joff >= 0 else 0.0)
-        cc, cs = np.cos(tc), np.sin(tc)
-        rc = np.stack([cc * cx - cs * cy, cs * cx + cc * cy], axis=-1)
-        dcx, dcy = eye[jcx], eye[jcy]
-        dR = eye[jR] + (eye[joff] if joff >= 0 else 0.0)
-        rot_dc = np.stack([cc[:, None] * dcx - cs[:, None] * dcy,
-                           cs[:, None] * dcx + cc[:, None] * dcy], axis=1)
-        drc = _rot90v(rc)[:, :, None] * dTH[:, cl, None, :] + rot_dc
-        wc = OM[:, cl]
-        if ac >= 0:
-            J[:, row:row + 2, ac] += sign * R[:, None] * ie
-        known = (dV[:, cp] + _rot90v(rc)[:, :, None] * dOM[:, cl, None, :]
-                 + wc[:, None, None] * _rot90t(drc)
-                 + (psid[:, None, None] * ie[:, :, None]) * dR[:, None, :]
-                 + (R[:, None, None] * ie[:, :, None]) * _rows(dpsid)
-                 - ((R * psid)[:, None, None] * e[:, :, None]) * _rows(dpsi))
-        rhs[:, row:row + 2, :] -= sign * known
-    sol = np.linalg.inv(J) @ rhs
-    for j in range(nq):
-        kind, idx = unk[u0 + j, 0], unk[u0 + j, 1]
-        if kind == 0:
-            dOM[:, idx, :] = sol[:, j, :]
-        else:
-            dQD[:, idx, :] = sol[:, j, :]
+
 
 
 # ---- the accelerations' derivatives --------------------------------------------------------------
@@ -603,8 +467,8 @@ def _accels(machine: Machine, A, EP, QDD, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, 
             _rpr_accels(row, A, EP, QDD, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, dA,
                         dEP, dQDD, par, eye)
         elif op == OP_LOOP:
-            _loop_accels(machine, row[1], A, EP, QDD, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM,
-                         dQD, dA, dEP, dQDD, par, eye)
+            _loop(machine, row[1], 2, _State(P, TH, Q, dP, dTH, dQ, V, OM, QD, dV, dOM, dQD,
+                                             A, EP, QDD, dA, dEP, dQDD), par, eye)
     return dA, dEP, dQDD
 
 
@@ -683,90 +547,139 @@ def _rpr_accels(row, A, EP, QDD, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD,
     dQDD[:, var, :] = dsdd
 
 
-def _loop_accels(machine, g, A, EP, QDD, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, dA,
-                 dEP, dQDD, par, eye) -> None:
-    """The loop's acceleration closure differentiated: J dqdd = -(everything known)."""
+# ---- loop units: one closure, three levels -------------------------------------------------------
+
+
+@dataclass
+class _State:
+    """The solved state (positions; rates; accelerations) and their tangents so far, shared by
+    the loop levels (a level reads those up to its own and writes its own)."""
+
+    P: np.ndarray
+    TH: np.ndarray
+    Q: np.ndarray
+    dP: np.ndarray
+    dTH: np.ndarray
+    dQ: np.ndarray
+    V: np.ndarray | None = None
+    OM: np.ndarray | None = None
+    QD: np.ndarray | None = None
+    dV: np.ndarray | None = None
+    dOM: np.ndarray | None = None
+    dQD: np.ndarray | None = None
+    A: np.ndarray | None = None
+    EP: np.ndarray | None = None
+    QDD: np.ndarray | None = None
+    dA: np.ndarray | None = None
+    dEP: np.ndarray | None = None
+    dQDD: np.ndarray | None = None
+
+
+def _loop(machine: Machine, g: int, level: int, st: _State, par, eye) -> None:
+    """A loop's closure sum_t sign T_t = 0 differentiated by the parameters at ``level`` (0: the
+    positions, 1: the rates, 2: the accelerations): J d(q, q_dot or q_ddot) = -(every part
+    already known), J the position Jacobian at every level (the unknowns enter each level's
+    closure linearly with the same coefficients)."""
     grp, unk, terms = machine.groups, machine.unknowns, machine.terms
     nq, u0, _, t0, nt = grp[g]
-    n, npar = P.shape[0], eye.shape[0]
+    n, npar = st.P.shape[0], eye.shape[0]
     rows = np.arange(n)
     J = np.zeros((n, nq, nq))
     rhs = np.zeros((n, nq, npar))
+    dpoint = (st.dP, st.dV, st.dA)[level]
     for t in range(t0, t0 + nt):
         typ, lrow, sign, len_src, len_idx, ang_src, ang_idx, jalpha, cam, joff, lc, ac = terms[t]
         row = 2 * lrow
         if typ == TERM_POINT:
-            rhs[:, row:row + 2, :] -= sign * dA[:, len_idx]
+            rhs[:, row:row + 2, :] -= sign * dpoint[:, len_idx]
             continue
         link = ang_src == SRC_LINK
-        psi = (TH[:, ang_idx] if link else Q[:, ang_idx]) + (par[:, jalpha] if jalpha >= 0
-                                                             else 0.0)
-        psid = OM[:, ang_idx] if link else QD[:, ang_idx]
-        psidd = EP[:, ang_idx] if link else QDD[:, ang_idx]
-        dpsi = (dTH[:, ang_idx] if link else dQ[:, ang_idx]) + (eye[jalpha][None, :]
-                                                                if jalpha >= 0 else 0.0)
-        dpsid = dOM[:, ang_idx] if link else dQD[:, ang_idx]
-        dpsidd = 0.0 if ac >= 0 else (dEP[:, ang_idx] if link else dQDD[:, ang_idx])
+        # the term's angle psi and its rates, values and tangents; the unknown's own tangent at
+        # this level is 0 here (it is J's column)
+        ang = [(st.TH, st.OM, st.EP), (st.Q, st.QD, st.QDD)][0 if link else 1]
+        dang = [(st.dTH, st.dOM, st.dEP), (st.dQ, st.dQD, st.dQDD)][0 if link else 1]
+        psi = ang[0][:, ang_idx] + (par[:, jalpha] if jalpha >= 0 else 0.0)
+        rate = [np.zeros(n) if a is None else a[:, ang_idx] for a in ang[1:]]
+        dalpha = eye[jalpha][None, :] if jalpha >= 0 else 0.0
+        dpsi = []
+        for k in range(3):
+            own = 0.0 if k > level or (k == level and ac >= 0) else dang[k][:, ang_idx]
+            dpsi.append(own + dalpha if k == 0 else own)
         e = np.stack([np.cos(psi), np.sin(psi)], axis=-1)
-        ie = _rot90v(e)
-        E, IE = e[:, :, None], ie[:, :, None]
+        E, IE = e[:, :, None], _rot90v(e)[:, :, None]
         if typ == TERM_VEC:
             if len_src == SRC_PARAM:
-                L, Ld, Ldd = par[:, len_idx], np.zeros(n), np.zeros(n)
-                dL, dLd, dLdd = eye[len_idx][None, :], 0.0, 0.0
+                Ls = [par[:, len_idx], np.zeros(n), np.zeros(n)]
+                dLs = [eye[len_idx][None, :], 0.0, 0.0]
             else:
-                L, Ld, Ldd = Q[:, len_idx], QD[:, len_idx], QDD[:, len_idx]
-                dL, dLd = dQ[:, len_idx], dQD[:, len_idx]
-                dLdd = 0.0 if lc >= 0 else dQDD[:, len_idx]
+                vals = (st.Q, st.QD, st.QDD)
+                tans = (st.dQ, st.dQD, st.dQDD)
+                Ls = [np.zeros(n) if vals[k] is None else vals[k][:, len_idx] for k in range(3)]
+                dLs = [0.0 if (k == level and lc >= 0) or tans[k] is None
+                       else tans[k][:, len_idx] for k in range(3)]
             if lc >= 0:
                 J[:, row:row + 2, lc] += sign * e
             if ac >= 0:
-                J[:, row:row + 2, ac] += sign * L[:, None] * ie
-            # Tdd = Ldd e + 2 Ld psid ie + L psidd ie - L psid^2 e, differentiated
-            known = (E * _rows(dLdd) + (Ldd[:, None, None] * IE) * _rows(dpsi)
-                     + 2.0 * IE * (_rows(dLd) * psid[:, None, None]
-                                   + Ld[:, None, None] * _rows(dpsid))
-                     - 2.0 * ((Ld * psid)[:, None, None] * E) * _rows(dpsi)
-                     + IE * (_rows(dL) * psidd[:, None, None] + L[:, None, None]
-                             * _rows(dpsidd))
-                     - ((L * psidd)[:, None, None] * E) * _rows(dpsi)
-                     - E * (_rows(dL) * (psid * psid)[:, None, None]
-                            + (2.0 * L * psid)[:, None, None] * _rows(dpsid))
-                     - ((L * psid * psid)[:, None, None] * IE) * _rows(dpsi))
-            rhs[:, row:row + 2, :] -= sign * known
-            continue
-        cl, cp, a0, na = machine.cams[cam]
-        tc = TH[:, cl]
-        k = _active_arc(machine, par, cl, a0, na, psi - tc)
-        jcx, jcy, jR = (machine.arcs[k, c] for c in range(3))
-        cx, cy = par[rows, jcx], par[rows, jcy]
-        R = par[rows, jR] + (par[:, joff] if joff >= 0 else 0.0)
-        cc, cs = np.cos(tc), np.sin(tc)
-        rc = np.stack([cc * cx - cs * cy, cs * cx + cc * cy], axis=-1)
-        dcx, dcy = eye[jcx], eye[jcy]
-        dR = eye[jR] + (eye[joff] if joff >= 0 else 0.0)
-        rot_dc = np.stack([cc[:, None] * dcx - cs[:, None] * dcy,
-                           cs[:, None] * dcx + cc[:, None] * dcy], axis=1)
-        drc = _rot90v(rc)[:, :, None] * dTH[:, cl, None, :] + rot_dc
-        wc, ec = OM[:, cl], EP[:, cl]
-        if ac >= 0:
-            J[:, row:row + 2, ac] += sign * R[:, None] * ie
-        # Tdd = a_cp + ec J rc - wc^2 rc + R (psidd ie - psid^2 e), differentiated
-        known = (dA[:, cp] + _rot90v(rc)[:, :, None] * dEP[:, cl, None, :]
-                 + ec[:, None, None] * _rot90t(drc)
-                 - (2.0 * wc)[:, None, None] * rc[:, :, None] * dOM[:, cl, None, :]
-                 - (wc * wc)[:, None, None] * drc
-                 + (psidd[:, None, None] * IE - (psid * psid)[:, None, None] * E)
-                 * dR[:, None, :]
-                 + R[:, None, None] * (IE * _rows(dpsidd)
-                                       - (psidd[:, None, None] * E) * _rows(dpsi)
-                                       - (2.0 * psid)[:, None, None] * E * _rows(dpsid)
-                                       - ((psid * psid)[:, None, None] * IE) * _rows(dpsi)))
+                J[:, row:row + 2, ac] += sign * Ls[0][:, None] * _rot90v(e)
+            known = _vec_known(level, E, IE, Ls, dLs, rate, dpsi)
+        else:
+            cl, cp, a0, na = machine.cams[cam]
+            tc = st.TH[:, cl]
+            k = _active_arc(machine, par, cl, a0, na, psi - tc)
+            jcx, jcy, jR = (machine.arcs[k, c] for c in range(3))
+            cx, cy = par[rows, jcx], par[rows, jcy]
+            R = par[rows, jR] + (par[:, joff] if joff >= 0 else 0.0)
+            cc, cs = np.cos(tc), np.sin(tc)
+            rc = np.stack([cc * cx - cs * cy, cs * cx + cc * cy], axis=-1)
+            dcx, dcy = eye[jcx], eye[jcy]
+            dR = eye[jR] + (eye[joff] if joff >= 0 else 0.0)
+            rot_dc = np.stack([cc[:, None] * dcx - cs[:, None] * dcy,
+                               cs[:, None] * dcx + cc[:, None] * dcy], axis=1)
+            drc = _rot90v(rc)[:, :, None] * st.dTH[:, cl, None, :] + rot_dc
+            if ac >= 0:
+                J[:, row:row + 2, ac] += sign * R[:, None] * _rot90v(e)
+            known = _cam_known(level, st, cl, cp, rc, drc, R, dR, E, IE, rate, dpsi)
         rhs[:, row:row + 2, :] -= sign * known
-    sol = np.linalg.inv(J) @ rhs
+    sol = np.linalg.inv(J) @ rhs  # (n, nq, npar): one small inverse per position
+    out = [(st.dTH, st.dQ), (st.dOM, st.dQD), (st.dEP, st.dQDD)][level]
     for j in range(nq):
         kind, idx = unk[u0 + j, 0], unk[u0 + j, 1]
-        if kind == 0:
-            dEP[:, idx, :] = sol[:, j, :]
-        else:
-            dQDD[:, idx, :] = sol[:, j, :]
+        out[0 if kind == 0 else 1][:, idx, :] = sol[:, j, :]
+
+
+def _vec_known(level, E, IE, Ls, dLs, rate, dpsi):
+    """The known part of d(T), d(T_dot) or d(T_ddot) of a term T = L e^{i psi}: T_dot =
+    L_dot e + L psi_dot ie, T_ddot = L_ddot e + 2 L_dot psi_dot ie + L psi_ddot ie - L psi_dot^2
+    e (the unknown's part, its column of J, is 0 in ``dLs``/``dpsi``)."""
+    L, Ld, Ldd = (x[:, None, None] for x in Ls)
+    dL, dLd, dLdd = (_rows(x) for x in dLs)
+    w, a = (x[:, None, None] for x in rate)
+    p0, p1, p2 = (_rows(x) for x in dpsi)
+    if level == 0:
+        return E * dL + L * IE * p0
+    if level == 1:
+        return E * dLd + Ld * IE * p0 + w * IE * dL + L * IE * p1 - L * w * E * p0
+    return (E * dLdd + Ldd * IE * p0 + 2.0 * IE * (dLd * w + Ld * p1) - 2.0 * Ld * w * E * p0
+            + IE * (dL * a + L * p2) - L * a * E * p0 - E * (dL * w * w + 2.0 * L * w * p1)
+            - L * w * w * IE * p0)
+
+
+def _cam_known(level, st, cl, cp, rc, drc, R, dR, E, IE, rate, dpsi):
+    """The known part of d(T), d(T_dot) or d(T_ddot) of a cam contact T = p_cp + R(theta_c) c
+    + R e^{i psi}: T_dot = v_cp + w_c J rc + R psi_dot ie, T_ddot = a_cp + eps_c J rc - w_c^2 rc
+    + R (psi_ddot ie - psi_dot^2 e)."""
+    Rr, dRr = R[:, None, None], dR[:, None, :]
+    w, a = (x[:, None, None] for x in rate)
+    p0, p1, p2 = (_rows(x) for x in dpsi)
+    Jrc = _rot90v(rc)[:, :, None]
+    if level == 0:
+        return st.dP[:, cp] + drc + E * dRr + Rr * IE * p0
+    wc = st.OM[:, cl][:, None, None]
+    if level == 1:
+        return (st.dV[:, cp] + Jrc * st.dOM[:, cl, None, :] + wc * _rot90t(drc)
+                + w * IE * dRr + Rr * IE * p1 - Rr * w * E * p0)
+    ec = st.EP[:, cl][:, None, None]
+    return (st.dA[:, cp] + Jrc * st.dEP[:, cl, None, :] + ec * _rot90t(drc)
+            - 2.0 * wc * rc[:, :, None] * st.dOM[:, cl, None, :] - wc * wc * drc
+            + (a * IE - w * w * E) * dRr
+            + Rr * (IE * p2 - a * E * p0 - 2.0 * w * E * p1 - w * w * IE * p0))
