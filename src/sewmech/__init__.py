@@ -44,7 +44,7 @@ MODULES = {
     **{m: "sewing" for m in ("timing", "checks", "feed", "thread", "transmission",
                              "embroidery", "gradients")},
     **{m: "design" for m in ("balancing", "vibration", "inserts", "tolerances",
-                             "tolerance_file")},
+                             "tolerance_file", "methods")},
     **{m: "app" for m in ("cli", "cli_common", "cli_balancing", "cli_accuracy", "report",
                           "report_dynamics", "report_balancing", "report_accuracy", "figures",
                           "plot", "io", "outdir")},
