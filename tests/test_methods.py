@@ -10,8 +10,16 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq, minimize, minimize_scalar
 
-from sewmech.design.methods import (GOLDEN, cyclic_coordinate, golden_section, golden_trials,
-                                    interior_penalty, powell, weighted_sum, weighted_uniform)
+from sewmech.design.methods import (
+    GOLDEN,
+    cyclic_coordinate,
+    golden_section,
+    golden_trials,
+    interior_penalty,
+    powell,
+    weighted_sum,
+    weighted_uniform,
+)
 
 
 def unimodal(x):
@@ -86,8 +94,8 @@ def test_interior_penalty_on_a_constrained_quadratic(inner):
 
 
 def test_weighting_forms():
-    f1 = lambda x: (x[0] - 1.0) ** 2 + 1.0  # noqa: E731
-    f2 = lambda x: (x[0] + 1.0) ** 2 + 1.0  # noqa: E731
+    f1 = lambda x: (x[0] - 1.0) ** 2 + 1.0
+    f2 = lambda x: (x[0] + 1.0) ** 2 + 1.0
     x0 = np.array([3.0])
     s = weighted_sum([f1, f2], [1.0, 1.0], x0)
     # normalised by the start values 5 and 17: the optimum of f1/5 + f2/17 is x = (17 - 5)/22

@@ -20,7 +20,14 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.optimize import OptimizeResult
+
+def _result(**fields):
+    """A :class:`scipy.optimize.OptimizeResult` (imported here: scipy.optimize costs 0.3 s to
+    import, which no command that does not optimise should pay)."""
+    from scipy.optimize import OptimizeResult
+
+    return OptimizeResult(**fields)
+
 
 #: the golden section ratio (sqrt(5) - 1) / 2 = 0.618...
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
@@ -29,7 +36,7 @@ GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 def golden_trials(a: float, b: float, tol: float) -> int:
     """The report's estimate of the trial points the 0.618 method needs to shrink [a, b] to
     ``tol``: n >= lg(tol / (b - a)) / lg 0.618 + 1."""
-    return int(math.ceil(math.log10(tol / (b - a)) / math.log10(GOLDEN) + 1.0))
+    return math.ceil(math.log10(tol / (b - a)) / math.log10(GOLDEN) + 1.0)
 
 
 def golden_section(f: Callable[[float], float], a: float, b: float, *, tol: float = 1e-8
@@ -57,7 +64,7 @@ def golden_section(f: Callable[[float], float], a: float, b: float, *, tol: floa
         nfev += 1
         history.append(min(f1, f2))
     x, fx = (x1, f1) if f1 <= f2 else (x2, f2)
-    return OptimizeResult(x=np.array([x]), fun=fx, nfev=nfev, nit=len(history), status=0,
+    return _result(x=np.array([x]), fun=fx, nfev=nfev, nit=len(history), status=0,
                           success=True, message=f"interval shorter than {tol:g}",
                           history=history)
 
@@ -142,7 +149,7 @@ def cyclic_coordinate(f: Callable[[np.ndarray], float], x0: ArrayLike, *,
                 and np.all(np.abs(x - x_start) <= tol * np.maximum(steps, 1e-300) * 1e3)):
             status = 0
             break
-    return OptimizeResult(x=x, fun=fx, nfev=calls[0], nit=it, status=status,
+    return _result(x=x, fun=fx, nfev=calls[0], nit=it, status=status,
                           success=status == 0,
                           message="converged" if status == 0 else "maximum rounds reached",
                           history=history)
@@ -187,7 +194,7 @@ def powell(f: Callable[[np.ndarray], float], x0: ArrayLike, *, step: float | Arr
                 x = x + t * move
                 fx = ft
             D = np.vstack([np.delete(D, best_k, axis=0), move])
-    return OptimizeResult(x=x, fun=fx, nfev=calls[0], nit=it, status=status,
+    return _result(x=x, fun=fx, nfev=calls[0], nit=it, status=status,
                           success=status == 0,
                           message="converged" if status == 0 else "maximum rounds reached",
                           history=history)
@@ -245,7 +252,7 @@ def interior_penalty(f: Callable[[np.ndarray], float],
             break
         r *= c
     gx = np.atleast_1d(np.asarray(constraints(x), dtype=float))
-    return OptimizeResult(x=x, fun=f_x, nfev=fcalls[0], nit=k, status=status,
+    return _result(x=x, fun=f_x, nfev=fcalls[0], nit=k, status=status,
                           success=status == 0 and bool(np.all(gx >= 0)),
                           message=("converged" if status == 0 else "maximum outer iterations"
                                    " reached") + f" ({method} inside, last r = {r:.3g})",
