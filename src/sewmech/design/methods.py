@@ -17,9 +17,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:  # (imported for the annotations only; see _result)
+    from scipy.optimize import OptimizeResult
 
 def _result(**fields):
     """A :class:`scipy.optimize.OptimizeResult` (imported here: scipy.optimize costs 0.3 s to
