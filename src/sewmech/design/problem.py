@@ -1,0 +1,385 @@
+"""Design problems: which dimensions to choose, what they should achieve, what they must keep
+(a TOML file), and their solution by the JB report's methods or scipy's.
+
+```toml
+[problem]
+name = "four-bar swing"
+machine = "fourbar-benchmark"      # a shipped machine or a file (relative to this one)
+
+[[variables]]                      # values in the parameter's file unit: mm, or deg for angles
+parameter = "B.u"
+lower = 10.0
+upper = 20.0                       # start: the machine's value unless given
+
+[objective]
+form = "weighted_sum"              # or "weighted_uniform" (needs targets)
+[[objective.parts]]
+metric = "range:theta_rocker"      # a sewing metric, a channel at phi_deg, or range:CHANNEL
+target = 0.9                       # (the metric's unit: mm, rad, deg for the *_deg metrics)
+weight = 1.0
+
+[[constraints]]
+metric = "p_C_y"
+phi_deg = 90.0
+min = 0.0                          # and/or max
+```
+
+Metrics: the exact-derivative sewing metrics (:data:`sewmech.sewing.gradients.METRICS`, at
+``regulator_deg`` where they read the feed), a channel (``p_POINT_x``, ``theta_LINK``, ...) at
+``phi_deg``, or ``range:CHANNEL``, the channel's travel over a turn (its maximum minus its
+minimum). Every one comes with its derivative by every parameter, so SLSQP gets exact
+gradients. The mechanism must assemble over the whole turn: a design that does not is
+infeasible (infinite for the derivative-free methods, a violated constraint for SLSQP).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from ..engine.errors import MachineFileError, OptionError, SewmechError
+from ..engine.machine import Machine, load_machine
+
+
+class _Spec(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True)
+
+
+class ProblemInfo(_Spec):
+    name: str
+    machine: str
+    description: str = ""
+
+
+class Variable(_Spec):
+    parameter: str
+    lower: float
+    upper: float
+    start: float | None = None
+
+    @model_validator(mode="after")
+    def _order(self):
+        if not (math.isfinite(self.lower) and math.isfinite(self.upper)
+                and self.lower < self.upper):
+            raise ValueError(f"need lower < upper, got {self.lower} .. {self.upper}")
+        if self.start is not None and not self.lower <= self.start <= self.upper:
+            raise ValueError(f"start {self.start} is outside {self.lower} .. {self.upper}")
+        return self
+
+
+class MetricRef(_Spec):
+    metric: str
+    regulator_deg: float | None = None
+    phi_deg: float = 0.0
+
+
+class Part(MetricRef):
+    target: float | None = None
+    sense: Literal["target", "min", "max"] = "target"
+    weight: float = Field(1.0, ge=0.0)
+    scale: float | None = Field(None, gt=0.0)
+
+    @model_validator(mode="after")
+    def _target(self):
+        if self.sense == "target" and self.target is None:
+            raise ValueError("give a target, or sense = \"min\" or \"max\"")
+        return self
+
+
+class Objective(_Spec):
+    form: Literal["weighted_sum", "weighted_uniform"] = "weighted_sum"
+    parts: list[Part] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _uniform(self):
+        if self.form == "weighted_uniform" and any(p.sense != "target" for p in self.parts):
+            raise ValueError("weighted_uniform needs a target for every part")
+        return self
+
+
+class Constraint(MetricRef):
+    min: float | None = None
+    max: float | None = None
+
+    @model_validator(mode="after")
+    def _bound(self):
+        if self.min is None and self.max is None:
+            raise ValueError("give min, max or both")
+        return self
+
+
+class ProblemSpec(_Spec):
+    problem: ProblemInfo
+    variables: list[Variable] = Field(min_length=1)
+    objective: Objective
+    constraints: list[Constraint] = Field(default_factory=list)
+
+
+def load_problem(path: str | Path) -> tuple[ProblemSpec, Machine]:
+    """Read and validate a problem file and load its machine; errors name the file and key."""
+    path = Path(path).expanduser()
+    where = str(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise MachineFileError(where, "", "", f"not valid TOML: {exc}",
+                               "Fix the syntax at that line (https://toml.io)") from None
+    try:
+        spec = ProblemSpec.model_validate(data)
+    except ValidationError as exc:
+        e = exc.errors()[0]
+        loc = [str(x) for x in e["loc"]]
+        raise MachineFileError(where, loc[0] if loc else "", ".".join(loc[1:]), e["msg"],
+                               "See docs/design.md for the problem file") from None
+    ref = spec.problem.machine
+    local = (path.parent / ref)
+    machine = load_machine(str(local) if local.is_file() else ref)
+    names = machine.parameter_names
+    for k, v in enumerate(spec.variables):
+        if v.parameter not in names:
+            import difflib
+
+            near = difflib.get_close_matches(v.parameter, names, n=3)
+            raise MachineFileError(where, "variables", f"{k}.parameter", f"'{v.parameter}' is"
+                                   f" not a parameter of '{machine.name}'",
+                                   f"Did you mean {', '.join(near)}?" if near else
+                                   f"`sewmech check {machine.name} --parameters` lists them")
+    return spec, machine
+
+
+class Problem:
+    """A problem ready to evaluate: the variables x in file units (mm, deg), the metrics and
+    their derivatives by x, the objective and the constraints g(x) >= 0.
+
+    ``evaluations`` counts the designs evaluated."""
+
+    def __init__(self, spec: ProblemSpec, machine: Machine):
+        self.spec, self.machine = spec, machine
+        names = machine.parameter_names
+        self.index = np.array([names.index(v.parameter) for v in spec.variables])
+        units = [machine.parameter_units[j] for j in self.index]
+        #: internal units per file unit of each variable (deg -> rad)
+        self.factor = np.array([math.pi / 180.0 if u == "rad" else 1.0 for u in units])
+        self.units = tuple("deg" if u == "rad" else u for u in units)
+        self.lower = np.array([v.lower for v in spec.variables])
+        self.upper = np.array([v.upper for v in spec.variables])
+        defaults = np.asarray(machine.defaults)[self.index] / self.factor
+        self.start = np.array([v.start if v.start is not None else d
+                               for v, d in zip(spec.variables, defaults)])
+        self.names = tuple(v.parameter for v in spec.variables)
+        self.evaluations = 0
+        self._memo: dict = {}
+        self._scales = None
+
+    # ---- metrics -------------------------------------------------------------------------------
+    def params(self, x: np.ndarray) -> np.ndarray:
+        P = np.array(self.machine.defaults, dtype=float)
+        P[self.index] = np.asarray(x, dtype=float) * self.factor
+        return P
+
+    def metric(self, ref: MetricRef, x: np.ndarray) -> tuple[float, np.ndarray]:
+        """A metric's value and its derivative by the variables (per file unit) at x; raises
+        SewmechError where the design cannot be evaluated (it does not assemble)."""
+        key = (ref.metric, ref.regulator_deg, ref.phi_deg, tuple(np.asarray(x, dtype=float)))
+        if key not in self._memo:
+            if len(self._memo) > 256:
+                self._memo.clear()
+            value, d = _metric(self.machine, ref, self.params(x))
+            self._memo[key] = (value, d[self.index] * self.factor)
+        return self._memo[key]
+
+    def design_ok(self, x: np.ndarray) -> bool:
+        """The design assembles over the whole turn (the kinematics on a 1 deg grid)."""
+        from ..engine.kinematics import kinematics
+
+        r = kinematics(self.machine, np.radians(np.arange(360.0)), params=self.params(x),
+                       on_failure="mask")
+        return bool(r.feasible.all())
+
+    # ---- the objective and the constraints -----------------------------------------------------
+    def _part_scales(self) -> np.ndarray:
+        if self._scales is None:
+            out = []
+            for p in self.spec.objective.parts:
+                if p.scale is not None:
+                    out.append(p.scale)
+                elif p.sense == "target":
+                    out.append(abs(p.target) if p.target else 1.0)
+                else:
+                    v, _ = self.metric(p, self.start)
+                    out.append(abs(v) if v else 1.0)
+            self._scales = np.array(out)
+        return self._scales
+
+    def objective(self, x: np.ndarray) -> tuple[float, np.ndarray]:
+        """The objective (dimensionless) and its gradient by x."""
+        x = np.asarray(x, dtype=float)
+        self.evaluations += 1
+        parts = self.spec.objective.parts
+        s = self._part_scales()
+        terms, grads = [], []
+        for p, sc in zip(parts, s):
+            v, d = self.metric(p, x)
+            if p.sense == "target":
+                if self.spec.objective.form == "weighted_uniform":
+                    terms.append(p.weight * abs(v - p.target) / sc)
+                    grads.append(p.weight * np.sign(v - p.target) * d / sc)
+                else:
+                    terms.append(p.weight * ((v - p.target) / sc) ** 2)
+                    grads.append(p.weight * 2.0 * (v - p.target) / sc ** 2 * d)
+            else:
+                sign = 1.0 if p.sense == "min" else -1.0
+                terms.append(sign * p.weight * v / sc)
+                grads.append(sign * p.weight * d / sc)
+        if self.spec.objective.form == "weighted_uniform":
+            k = int(np.argmax(terms))
+            return float(terms[k]), grads[k]
+        return float(sum(terms)), np.sum(grads, axis=0)
+
+    def constraints(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
+        """g(x) >= 0 for every bound of every constraint: values, their gradients (m, n) and
+        names."""
+        g, J, names = [], [], []
+        for c in self.spec.constraints:
+            v, d = self.metric(c, x)
+            if c.min is not None:
+                g.append(v - c.min)
+                J.append(d)
+                names.append(f"{c.metric} >= {c.min:g}")
+            if c.max is not None:
+                g.append(c.max - v)
+                J.append(-d)
+                names.append(f"{c.metric} <= {c.max:g}")
+        return np.array(g), np.array(J).reshape(len(g), len(x)), names
+
+    def report(self, x: np.ndarray) -> dict:
+        """Each constraint's value and whether it holds (to 1e-9 of its scale)."""
+        out = {}
+        for c in self.spec.constraints:
+            v, _ = self.metric(c, x)
+            ok = (c.min is None or v >= c.min - 1e-9 * max(1.0, abs(c.min))) and (
+                c.max is None or v <= c.max + 1e-9 * max(1.0, abs(c.max)))
+            name = c.metric if c.metric not in out else f"{c.metric} ({len(out)})"
+            out[name] = {"value": v, "satisfied": bool(ok), "min": c.min, "max": c.max}
+        return out
+
+
+def _metric(machine: Machine, ref: MetricRef, P: np.ndarray) -> tuple[float, np.ndarray]:
+    """A metric's value and its derivative by every parameter, for the design P."""
+    from ..sewing.gradients import METRICS
+
+    name = ref.metric
+    if name in METRICS:
+        feed = name in ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
+        reg = ref.regulator_deg
+        if feed and reg is None:
+            s = machine.spec.sewing
+            if s is None or s.regulator is None:
+                raise OptionError("metric", f"{name} needs a machine with a stitch regulator")
+            reg = machine.spec.inputs[s.regulator].default_deg
+        g = METRICS[name](machine, reg, params=P)
+        return g.value, g.d_dparam
+    from ..engine.sensitivity import sensitivities
+
+    if name.startswith("range:"):
+        from ..engine.extremes import extremes
+
+        channel = name.split(":", 1)[1]
+        ex = extremes(machine, channel, params=P)
+        phi = np.array([ex.maximum.phi, ex.minimum.phi])
+        S = sensitivities(machine, phi, params=P)
+        v, d, _ = S.channel(channel)
+        return float(v[0] - v[1]), d[0] - d[1]
+    S = sensitivities(machine, np.radians([ref.phi_deg]), params=P)
+    try:
+        v, d, _ = S.channel(name)
+    except KeyError as exc:
+        raise OptionError("metric", exc.args[0]) from None
+    return float(v[0]), d[0]
+
+
+# ---- solving --------------------------------------------------------------------------------------
+
+METHODS = ("golden", "cyclic", "powell", "slsqp")
+
+
+def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7):
+    """Solve ``problem`` by ``method`` (:data:`METHODS`): golden (one variable, bounds only),
+    cyclic or powell (the JB report's interior penalty over the constraints and the bounds,
+    variables scaled to their ranges), slsqp (scipy, with the metrics' exact gradients).
+    Returns an OptimizeResult with x (file units), fun, objective_start, constraints (name ->
+    value, satisfied), status ("success" when converged with every constraint met, else
+    "failed"), n_evaluations, history."""
+    from scipy.optimize import OptimizeResult, minimize
+
+    from .methods import golden_section, interior_penalty
+
+    if method not in METHODS:
+        raise OptionError("--method", f"unknown method {method!r}",
+                          f"Choose one of {', '.join(METHODS)}")
+    lo, hi = problem.lower, problem.upper
+    span = hi - lo
+
+    def to_x(u):
+        return lo + np.asarray(u, dtype=float) * span
+
+    def f_of(x):
+        try:
+            return problem.objective(x)[0]
+        except SewmechError:
+            return math.inf
+
+    f0 = f_of(problem.start)
+    converged = True
+    message = ""
+    history: list[float] = []
+    if method == "golden":
+        if len(problem.names) != 1 or problem.spec.constraints:
+            raise OptionError("--method", "golden searches one variable within its bounds,"
+                              " without constraints", "Use powell, cyclic or slsqp")
+        r = golden_section(lambda t: f_of(np.array([t])), lo[0], hi[0], tol=tol * span[0])
+        x, history, message = np.array(r.x), r.history, r.message
+    elif method in ("cyclic", "powell"):
+        def g_all(u):
+            x = to_x(u)
+            try:
+                g = problem.constraints(x)[0] if problem.spec.constraints else np.zeros(0)
+            except SewmechError:
+                return np.array([-1.0])
+            return np.concatenate([g, u, 1.0 - u])
+
+        u0 = (problem.start - lo) / span
+        if not np.all(g_all(u0) > 0):
+            raise OptionError("problem", "the start is not strictly inside every constraint"
+                              " and bound, which the interior penalty needs",
+                              "Give a start (variables' start) that meets every constraint")
+        r = interior_penalty(lambda u: f_of(to_x(u)), g_all, u0, method=method, tol=tol)
+        x, history, message, converged = to_x(r.x), r.history, r.message, r.status == 0
+    else:
+        cons = []
+        if problem.spec.constraints:
+            cons = [{"type": "ineq", "fun": lambda x: problem.constraints(x)[0],
+                     "jac": lambda x: problem.constraints(x)[1]}]
+
+        def fg(x):
+            try:
+                return problem.objective(x)
+            except SewmechError:
+                return math.inf, np.zeros(len(x))
+
+        r = minimize(fg, problem.start, jac=True, method="SLSQP", bounds=list(zip(lo, hi)),
+                     constraints=cons, options={"ftol": tol * 1e-2, "maxiter": 300},
+                     callback=lambda xk: history.append(f_of(xk)))
+        x, message, converged = r.x, r.message, bool(r.success)
+    x = np.clip(x, lo, hi)
+    fx = f_of(x)
+    report = problem.report(x) if problem.spec.constraints else {}
+    ok = converged and math.isfinite(fx) and all(c["satisfied"] for c in report.values())
+    return OptimizeResult(x=x, fun=fx, objective_start=f0, constraints=report,
+                          status="success" if ok else "failed", success=ok, message=message,
+                          n_evaluations=problem.evaluations, history=history, method=method)

@@ -1,0 +1,114 @@
+"""Design problems (sewmech.design.problem): a four-bar whose rocker swing has a closed-form
+crank length, a constrained one whose optimum sits on its constraint, bad problem files, and
+`sewmech optimize`'s JSON keys."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+from scipy.optimize import brentq
+from typer.testing import CliRunner
+
+from sewmech.cli import app
+from sewmech.design.problem import Problem, load_problem, optimize
+from sewmech.engine.errors import MachineFileError, OptionError
+
+ROOT = Path(__file__).resolve().parent.parent
+SWING = ROOT / "examples" / "problems" / "fourbar-swing.toml"
+
+
+def closed_form_crank(target: float, b=40.0, c=35.0, d=38.0) -> float:
+    """The rocker's extremes are where crank and coupler line up (A to C = b + a or b - a):
+    cos t = (d^2 + c^2 - (b +- a)^2) / (2 d c) at the rocker's pivot; the swing is the
+    difference of the two angles."""
+    def swing(a):
+        t1 = math.acos((d * d + c * c - (b + a) ** 2) / (2 * d * c))
+        t2 = math.acos((d * d + c * c - (b - a) ** 2) / (2 * d * c))
+        return abs(t1 - t2)
+
+    return brentq(lambda a: swing(a) - target, 8.0, 18.0, xtol=1e-14)
+
+
+@pytest.mark.parametrize("method, tol", [("golden", 1e-5), ("powell", 1e-5), ("cyclic", 1e-5),
+                                         ("slsqp", 1e-5)])
+def test_every_method_finds_the_closed_form_crank_length(method, tol):
+    spec, m = load_problem(SWING)
+    r = optimize(Problem(spec, m), method)
+    assert r.status == "success", r.message
+    assert r.x[0] == pytest.approx(closed_form_crank(0.9), abs=tol)
+    assert r.fun < 1e-10 < r.objective_start
+
+
+def write(tmp_path, text):
+    f = tmp_path / "p.toml"
+    f.write_text(text, encoding="utf-8")
+    return f
+
+
+CONSTRAINED = """
+[problem]
+name = "largest swing with a short crank"
+machine = "fourbar-benchmark"
+[[variables]]
+parameter = "B.u"
+lower = 8.0
+upper = 18.0
+start = 10.0
+[objective]
+[[objective.parts]]
+metric = "range:theta_rocker"
+sense = "max"
+[[constraints]]
+metric = "p_B_x"       # the crank pin at phi = 0 (the crank along +x): the crank's length
+phi_deg = 0.0
+max = 14.0
+"""
+
+
+@pytest.mark.parametrize("method", ["powell", "cyclic", "slsqp"])
+def test_the_optimum_on_a_constraint(tmp_path, method):
+    """The swing grows with the crank, so the largest swing with a crank of at most 14 mm is at
+    14 mm exactly; the interior penalty approaches it from inside."""
+    spec, m = load_problem(write(tmp_path, CONSTRAINED))
+    r = optimize(Problem(spec, m), method)
+    assert r.status == "success", r.message
+    assert r.x[0] == pytest.approx(14.0, abs=2e-4)
+    c = r.constraints["p_B_x"]
+    assert c["satisfied"] and c["value"] <= 14.0 + 1e-9
+
+
+@pytest.mark.parametrize("edit, needle", [
+    (("B.u", "B.uu"), "Did you mean B.u"),
+    (("upper = 18.0", "upper = 5.0"), "lower < upper"),
+    (('sense = "max"', 'sense = "most"'), "sense"),
+    (("max = 14.0", "mx = 14.0"), "mx"),
+])
+def test_bad_problem_files_are_located(tmp_path, edit, needle):
+    with pytest.raises(MachineFileError) as exc:
+        load_problem(write(tmp_path, CONSTRAINED.replace(*edit, 1)))
+    assert "p.toml" in str(exc.value) and needle in str(exc.value)
+
+
+def test_golden_refuses_constraints(tmp_path):
+    spec, m = load_problem(write(tmp_path, CONSTRAINED))
+    with pytest.raises(OptionError, match="golden searches one variable"):
+        optimize(Problem(spec, m), "golden")
+    with pytest.raises(OptionError, match="unknown method"):
+        optimize(Problem(spec, m), "annealing")
+
+
+def test_optimize_command_prints_the_issue_keys(tmp_path):
+    out = CliRunner().invoke(app, ["optimize", str(SWING), "--method", "slsqp", "--json",
+                                   "--out", str(tmp_path / "o")])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.output)
+    for key in ("status", "x", "objective", "objective_start", "constraints", "n_evaluations"):
+        assert key in data
+    assert data["status"] == "success"
+    assert data["x"]["B.u"] == pytest.approx(closed_form_crank(0.9), abs=1e-5)
+    assert (tmp_path / "o" / "convergence.png").is_file()
+    bad = CliRunner().invoke(app, ["optimize", str(SWING), "--method", "annealing"])
+    assert bad.exit_code == 2 and "--method" in bad.output
