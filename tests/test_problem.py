@@ -112,3 +112,19 @@ def test_optimize_command_prints_the_issue_keys(tmp_path):
     assert (tmp_path / "o" / "convergence.png").is_file()
     bad = CliRunner().invoke(app, ["optimize", str(SWING), "--method", "annealing"])
     assert bad.exit_code == 2 and "--method" in bad.output
+
+
+def test_the_shipped_feed_lift_problem_by_slsqp():
+    """The JB1-3 feed lift: SLSQP with exact gradients meets every constraint and lowers the
+    dog further at needle entry. A larger throw lifts the dog higher and drops it lower; a
+    smaller radius lowers its whole path: so the throw goes to its bound and the radius comes
+    down until the lift meets its band's lower edge."""
+    spec, m = load_problem(ROOT / "examples" / "problems" / "feed-lift.toml")
+    p = Problem(spec, m)
+    r = optimize(p, "slsqp")
+    assert r.status == "success", r.message
+    assert r.fun < r.objective_start
+    assert all(c["satisfied"] for c in r.constraints.values())
+    assert r.constraints["feed_lift"]["value"] == pytest.approx(1.3, abs=1e-6)
+    assert r.x[0] == pytest.approx(1.8)
+    assert r.n_evaluations < 60
