@@ -128,3 +128,15 @@ def test_the_shipped_feed_lift_problem_by_slsqp():
     assert r.constraints["feed_lift"]["value"] == pytest.approx(1.3, abs=1e-6)
     assert r.x[0] == pytest.approx(1.8)
     assert r.n_evaluations < 60
+
+
+def test_an_answer_always_assembles_over_the_whole_turn(tmp_path):
+    """Maximising the swing pushes the crank toward the length where the four-bar stops
+    turning over (Grashof: a + 40 <= 35 + 38, a <= 33 mm); the search never returns a design
+    beyond it, and says the answer assembles."""
+    text = CONSTRAINED.replace("upper = 18.0", "upper = 36.0").split("[[constraints]]")[0]
+    spec, m = load_problem(write(tmp_path, text))
+    r = optimize(Problem(spec, m), "golden")
+    assert r.x[0] <= 33.0
+    assert r.constraints["assembles over the whole turn"]["satisfied"]
+    assert r.status == "success"

@@ -28,8 +28,9 @@ Metrics: the exact-derivative sewing metrics (:data:`sewmech.sewing.gradients.ME
 ``regulator_deg`` where they read the feed), a channel (``p_POINT_x``, ``theta_LINK``, ...) at
 ``phi_deg``, or ``range:CHANNEL``, the channel's travel over a turn (its maximum minus its
 minimum). Every one comes with its derivative by every parameter, so SLSQP gets exact
-gradients. The mechanism must assemble over the whole turn: a design that does not is
-infeasible (infinite for the derivative-free methods, a violated constraint for SLSQP).
+gradients. The mechanism must assemble over the whole turn (at both ends of every setting
+input): a design that does not is infinitely bad to the derivative-free methods, and an answer
+that does not is reported failed whatever the method.
 """
 
 from __future__ import annotations
@@ -194,12 +195,24 @@ class Problem:
         return self._memo[key]
 
     def design_ok(self, x: np.ndarray) -> bool:
-        """The design assembles over the whole turn (the kinematics on a 1 deg grid)."""
+        """The design assembles over the whole turn (the kinematics on a 1 deg grid; at the
+        setting inputs' extremes where the machine has them, e.g. both ends of the stitch
+        regulator)."""
         from ..engine.kinematics import kinematics
 
-        r = kinematics(self.machine, np.radians(np.arange(360.0)), params=self.params(x),
-                       on_failure="mask")
-        return bool(r.feasible.all())
+        key = ("assembles", tuple(np.asarray(x, dtype=float)))
+        if key not in self._memo:
+            inputs = None
+            if self.machine.spec.inputs:
+                lo = {n: math.radians(i.min_deg if i.min_deg is not None else i.default_deg)
+                      for n, i in self.machine.spec.inputs.items()}
+                hi = {n: math.radians(i.max_deg if i.max_deg is not None else i.default_deg)
+                      for n, i in self.machine.spec.inputs.items()}
+                inputs = {n: np.array([lo[n], hi[n]]) for n in lo}
+            r = kinematics(self.machine, np.radians(np.arange(360.0)), params=self.params(x),
+                           inputs=inputs, on_failure="mask")
+            self._memo[key] = bool(r.feasible.all())
+        return self._memo[key]
 
     # ---- the objective and the constraints -----------------------------------------------------
     def _part_scales(self) -> np.ndarray:
@@ -258,8 +271,11 @@ class Problem:
         return np.array(g), np.array(J).reshape(len(g), len(x)), names
 
     def report(self, x: np.ndarray) -> dict:
-        """Each constraint's value and whether it holds (to 1e-9 of its scale)."""
-        out = {}
+        """Each constraint's value and whether it holds (to 1e-9 of its scale), and whether the
+        design assembles over the whole turn (always a constraint)."""
+        ok = self.design_ok(x)
+        out = {"assembles over the whole turn": {"value": float(ok), "satisfied": ok,
+                                                 "min": 1.0, "max": None}}
         for c in self.spec.constraints:
             v, _ = self.metric(c, x)
             ok = (c.min is None or v >= c.min - 1e-9 * max(1.0, abs(c.min))) and (
@@ -328,8 +344,10 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7):
     def to_x(u):
         return lo + np.asarray(u, dtype=float) * span
 
-    def f_of(x):
+    def f_of(x):  # a design that does not assemble over the whole turn is infinitely bad
         try:
+            if not problem.design_ok(x):
+                return math.inf
             return problem.objective(x)[0]
         except SewmechError:
             return math.inf
@@ -378,7 +396,7 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7):
         x, message, converged = r.x, r.message, bool(r.success)
     x = np.clip(x, lo, hi)
     fx = f_of(x)
-    report = problem.report(x) if problem.spec.constraints else {}
+    report = problem.report(x)
     ok = converged and math.isfinite(fx) and all(c["satisfied"] for c in report.values())
     return OptimizeResult(x=x, fun=fx, objective_start=f0, constraints=report,
                           status="success" if ok else "failed", success=ok, message=message,
