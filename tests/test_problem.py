@@ -33,7 +33,7 @@ def closed_form_crank(target: float, b=40.0, c=35.0, d=38.0) -> float:
 
 
 @pytest.mark.parametrize("method, tol", [("golden", 1e-5), ("powell", 1e-5), ("cyclic", 1e-5),
-                                         ("slsqp", 1e-5)])
+                                         ("slsqp", 1e-5), ("de", 1e-6)])
 def test_every_method_finds_the_closed_form_crank_length(method, tol):
     spec, m = load_problem(SWING)
     r = optimize(Problem(spec, m), method)
@@ -68,7 +68,7 @@ max = 14.0
 """
 
 
-@pytest.mark.parametrize("method", ["powell", "cyclic", "slsqp"])
+@pytest.mark.parametrize("method", ["powell", "cyclic", "slsqp", "de"])
 def test_the_optimum_on_a_constraint(tmp_path, method):
     """The swing grows with the crank, so the largest swing with a crank of at most 14 mm is at
     14 mm exactly; the interior penalty approaches it from inside."""
@@ -140,3 +140,27 @@ def test_an_answer_always_assembles_over_the_whole_turn(tmp_path):
     assert r.x[0] <= 33.0
     assert r.constraints["assembles over the whole turn"]["satisfied"]
     assert r.status == "success"
+
+
+def test_differential_evolution_evaluates_a_population_per_batch_call(tmp_path):
+    """batch_values: the metrics of several designs in one call equal each design's exact
+    metric; a design that does not assemble is masked (NaN value, never used), and the
+    penalised objective gives it 1e12, never NaN."""
+    import numpy as np
+
+    from sewmech.design.problem import _penalised, batch_values
+
+    text = CONSTRAINED.replace("upper = 18.0", "upper = 36.0")
+    spec, m = load_problem(write(tmp_path, text))
+    p = Problem(spec, m)
+    X = np.array([[10.0], [14.0], [35.0]])  # the last is beyond the Grashof limit (33 mm)
+    vals, ok = batch_values(p, X)
+    assert list(ok) == [True, True, False]
+    for k in range(2):
+        for ref in [*spec.objective.parts, *spec.constraints]:
+            exact, _ = p.metric(ref, X[k])
+            got = vals[(ref.metric, ref.regulator_deg, ref.phi_deg)][k]
+            assert got == pytest.approx(exact, abs=1e-7), ref.metric
+    assert np.isnan(vals[("p_B_x", None, 0.0)][2])
+    f = _penalised(p, X)
+    assert np.all(np.isfinite(f)) and f[2] == 1e12

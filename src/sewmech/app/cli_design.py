@@ -21,7 +21,8 @@ def optimize_cmd(
     problem: Path = typer.Argument(..., help="problem file (TOML, docs/design.md)"),
     method: str = typer.Option("powell", help="golden (one variable), cyclic or powell (the"
                                " JB report's, with the interior penalty), slsqp (exact"
-                               " gradients)"),
+                               " gradients), de (differential evolution, one batch call per"
+                               " generation)"),
     seed: int = typer.Option(0, help="random seed (for the methods that draw; the others are"
                              " deterministic)"),
     as_json: bool = typer.Option(False, "--json", help="print status, x, objective,"
@@ -43,7 +44,7 @@ def optimize_cmd(
         preflight(out, command="optimize")
     with Progress(console=console, transient=True) as progress:
         progress.add_task(f"{spec.problem.name}: {method}", total=None)
-        r = optimize(p, method)
+        r = optimize(p, method, seed=seed)
     data = {"problem": spec.problem.name, "machine": machine.name, "method": method,
             "seed": seed, "status": r.status, "message": str(r.message),
             "x": {n: float(v) for n, v in zip(p.names, r.x)},

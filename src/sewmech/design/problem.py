@@ -319,19 +319,82 @@ def _metric(machine: Machine, ref: MetricRef, P: np.ndarray) -> tuple[float, np.
     return float(v[0]), d[0]
 
 
+def _channel_rates(channel: str) -> tuple[str, str]:
+    """The rate and acceleration channels of a position channel (for locating its extremes)."""
+    kind, _, rest = channel.partition("_")
+    pairs = {"p": ("v", "a"), "theta": ("omega", "epsilon"), "q": ("qd", "qdd")}
+    if kind not in pairs:
+        raise OptionError("metric", f"range:{channel}: a range is of a position channel"
+                          " (p_POINT_x, theta_LINK, q_VAR)")
+    return f"{pairs[kind][0]}_{rest}", f"{pairs[kind][1]}_{rest}"
+
+
+def batch_values(problem: Problem, X: np.ndarray) -> tuple[dict, np.ndarray]:
+    """Every metric of the problem for a batch of designs X (m, n_variables; file units), one
+    kinematics batch call per metric, and which designs assemble over the whole turn (at both
+    ends of every setting input): ({(metric, regulator_deg, phi_deg): values (m,)}, (m,) bool).
+    Values of designs that do not assemble are NaN (masked by the caller, never used)."""
+    from ..engine._events import extreme_rows
+    from ..engine.kinematics import kinematics
+    from ..sewing.gradients import METRICS, metric_values
+
+    m = problem.machine
+    X = np.atleast_2d(np.asarray(X, dtype=float))
+    P = np.tile(np.asarray(m.defaults, dtype=float), (len(X), 1))
+    P[:, problem.index] = X * problem.factor
+    phi = np.radians(np.arange(360.0))
+    inputs = None
+    if m.spec.inputs:
+        inputs = {n: np.array([math.radians(i.min_deg if i.min_deg is not None else
+                                            i.default_deg),
+                               math.radians(i.max_deg if i.max_deg is not None else
+                                            i.default_deg)])[:, None]
+                  for n, i in m.spec.inputs.items()}
+    # (every unit solved: asking for no outputs would solve none)
+    r = kinematics(m, phi, params=P if inputs is None else P[None, :, :], inputs=inputs,
+                   on_failure="mask")
+    ok = r.feasible.reshape(-1, len(X), len(phi)).all(axis=(0, 2))
+    out = {}
+    for ref in [*problem.spec.objective.parts, *problem.spec.constraints]:
+        key = (ref.metric, ref.regulator_deg, ref.phi_deg)
+        if key in out:
+            continue
+        name = ref.metric
+        if name in METRICS:
+            reg = ref.regulator_deg
+            if reg is None and m.spec.sewing is not None and m.spec.sewing.regulator:
+                reg = m.spec.inputs[m.spec.sewing.regulator].default_deg
+            vals = metric_values(m, name, reg, P)
+        elif name.startswith("range:"):
+            channel = name.split(":", 1)[1]
+            rate, acc = _channel_rates(channel)
+            k = kinematics(m, phi, params=P, omega=1.0, on_failure="mask")
+            V, S, C = (k.channel(c)[0].reshape(len(X), len(phi)) for c in (channel, rate, acc))
+            if channel.startswith("theta_"):
+                V = np.unwrap(V, axis=1)
+            h = 2.0 * math.pi / len(phi)
+            vals = extreme_rows(V, S, C, h, +1)[1] - extreme_rows(V, S, C, h, -1)[1]
+        else:
+            k = kinematics(m, np.radians([ref.phi_deg]), params=P, on_failure="mask")
+            vals = k.channel(name)[0][..., 0]
+        out[key] = np.where(ok, vals, np.nan)
+    return out, ok
+
+
 # ---- solving --------------------------------------------------------------------------------------
 
-METHODS = ("golden", "cyclic", "powell", "slsqp")
+METHODS = ("golden", "cyclic", "powell", "slsqp", "de")
 
 
-def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7):
+def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, seed: int = 0):
     """Solve ``problem`` by ``method`` (:data:`METHODS`): golden (one variable, bounds only),
     cyclic or powell (the JB report's interior penalty over the constraints and the bounds,
-    variables scaled to their ranges), slsqp (scipy, with the metrics' exact gradients).
+    variables scaled to their ranges), slsqp (scipy, with the metrics' exact gradients), de
+    (scipy's differential evolution, a whole population per batch call, ``seed``).
     Returns an OptimizeResult with x (file units), fun, objective_start, constraints (name ->
     value, satisfied), status ("success" when converged with every constraint met, else
     "failed"), n_evaluations, history."""
-    from scipy.optimize import OptimizeResult, minimize
+    from scipy.optimize import OptimizeResult
 
     from .methods import golden_section, interior_penalty
 
@@ -378,22 +441,17 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7):
                               "Give a start (variables' start) that meets every constraint")
         r = interior_penalty(lambda u: f_of(to_x(u)), g_all, u0, method=method, tol=tol)
         x, history, message, converged = to_x(r.x), r.history, r.message, r.status == 0
+    elif method == "de":
+        x, history, message, converged = _differential_evolution(problem, seed, tol)
+        # polished like scipy's own polish, but with the constraints and exact gradients
+        xp, ok_p = _slsqp(problem, x, lo, hi, tol, [])
+        if ok_p and f_of(xp) <= f_of(x) and all(
+                c["satisfied"] for c in problem.report(xp).values()):
+            x = xp
+            message += "; polished by SLSQP"
     else:
-        cons = []
-        if problem.spec.constraints:
-            cons = [{"type": "ineq", "fun": lambda x: problem.constraints(x)[0],
-                     "jac": lambda x: problem.constraints(x)[1]}]
-
-        def fg(x):
-            try:
-                return problem.objective(x)
-            except SewmechError:
-                return math.inf, np.zeros(len(x))
-
-        r = minimize(fg, problem.start, jac=True, method="SLSQP", bounds=list(zip(lo, hi)),
-                     constraints=cons, options={"ftol": tol * 1e-2, "maxiter": 300},
-                     callback=lambda xk: history.append(f_of(xk)))
-        x, message, converged = r.x, r.message, bool(r.success)
+        x, converged = _slsqp(problem, problem.start, lo, hi, tol, history)
+        message = "SLSQP " + ("converged" if converged else "did not converge")
     x = np.clip(x, lo, hi)
     fx = f_of(x)
     report = problem.report(x)
@@ -401,3 +459,76 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7):
     return OptimizeResult(x=x, fun=fx, objective_start=f0, constraints=report,
                           status="success" if ok else "failed", success=ok, message=message,
                           n_evaluations=problem.evaluations, history=history, method=method)
+
+
+def _slsqp(problem: Problem, x0, lo, hi, tol: float, history: list) -> tuple[np.ndarray, bool]:
+    """SLSQP from x0 with the metrics' exact gradients, the bounds and the constraints."""
+    from scipy.optimize import minimize
+
+    cons = []
+    if problem.spec.constraints:
+        cons = [{"type": "ineq", "fun": lambda x: problem.constraints(x)[0],
+                 "jac": lambda x: problem.constraints(x)[1]}]
+
+    def fg(x):
+        try:
+            return problem.objective(x)
+        except SewmechError:
+            return math.inf, np.zeros(len(x))
+
+    r = minimize(fg, x0, jac=True, method="SLSQP", bounds=list(zip(lo, hi)), constraints=cons,
+                 options={"ftol": tol * 1e-2, "maxiter": 300},
+                 callback=lambda xk: history.append(fg(xk)[0]))
+    return np.array(r.x), bool(r.success)
+
+
+def _penalised(problem: Problem, X: np.ndarray) -> np.ndarray:
+    """The objective of a batch of designs, a design that violates a constraint valued
+    1e6 (1 + its violations in units of their bounds' sizes), one that does not assemble 1e12:
+    the population never holds a NaN."""
+    vals, ok = batch_values(problem, X)
+    spec = problem.spec
+    s = problem._part_scales()
+    terms = []
+    for p, sc in zip(spec.objective.parts, s):
+        v = vals[(p.metric, p.regulator_deg, p.phi_deg)]
+        if p.sense == "target":
+            t = np.abs(v - p.target) / sc if spec.objective.form == "weighted_uniform" \
+                else ((v - p.target) / sc) ** 2
+            terms.append(p.weight * t)
+        else:
+            terms.append((1.0 if p.sense == "min" else -1.0) * p.weight * v / sc)
+    f = np.max(terms, axis=0) if spec.objective.form == "weighted_uniform" \
+        else np.sum(terms, axis=0)
+    # Deb's rule: any design that meets every constraint beats any that does not, and of two
+    # that do not, the one that violates less wins
+    viol = np.zeros(len(f))
+    for c in spec.constraints:
+        v = vals[(c.metric, c.regulator_deg, c.phi_deg)]
+        for bound, sign in ((c.min, 1.0), (c.max, -1.0)):
+            if bound is not None:
+                viol = viol + np.maximum(0.0, sign * (bound - v)) / max(abs(bound), 1.0)
+    f = np.where(viol > 0, 1e6 * (1.0 + viol), f)
+    return np.where(ok & np.isfinite(f), f, 1e12)
+
+
+def _differential_evolution(problem: Problem, seed: int, tol: float):
+    """scipy's differential evolution over the variables' box, each generation one batch call
+    (``vectorized``), the constraints as penalties; polished by nothing (the caller reports
+    the answer's constraints exactly)."""
+    from scipy.optimize import differential_evolution
+
+    history: list[float] = []
+    n = len(problem.names)
+
+    def f(Xt):  # scipy passes (n_variables, population)
+        vals = _penalised(problem, Xt.T)
+        problem.evaluations += Xt.shape[1]
+        history.append(float(np.min(vals)))
+        return vals
+
+    r = differential_evolution(f, list(zip(problem.lower, problem.upper)), seed=seed,
+                               vectorized=True, updating="deferred", tol=1e-8,
+                               popsize=max(8, 4 * n), maxiter=300, polish=False,
+                               x0=problem.start)
+    return np.array(r.x), history, str(r.message), bool(r.success)
