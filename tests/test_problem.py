@@ -164,3 +164,43 @@ def test_differential_evolution_evaluates_a_population_per_batch_call(tmp_path):
     assert np.isnan(vals[("p_B_x", None, 0.0)][2])
     f = _penalised(p, X)
     assert np.all(np.isfinite(f)) and f[2] == 1e12
+
+
+TWO_PARTS = """
+[problem]
+name = "swing against crank length"
+machine = "fourbar-benchmark"
+[[variables]]
+parameter = "B.u"
+lower = 8.0
+upper = 18.0
+[objective]
+[[objective.parts]]
+metric = "range:theta_rocker"
+target = 0.9
+[[objective.parts]]
+metric = "p_B_x"          # the crank's length (the pin at phi = 0): as short as may be
+phi_deg = 0.0
+sense = "min"
+"""
+
+
+def test_nsga2_front_between_two_objectives(tmp_path):
+    """The swing grows with the crank: the front runs from the shortest crank (8 mm) to the
+    crank of the exact swing (13.43 mm), every design on it not dominated, each assembling."""
+    import numpy as np
+
+    spec, m = load_problem(write(tmp_path, TWO_PARTS))
+    r = optimize(Problem(spec, m), "nsga2", seed=3)
+    assert r.status == "success", r.message
+    X = np.array(r.front["x"])[:, 0]
+    F = np.array(r.front["f"])
+    a_star = closed_form_crank(0.9)
+    assert X.min() < 8.3 and X.max() == pytest.approx(a_star, abs=0.05)
+    assert np.all(X <= a_star + 0.05)
+    for i in range(len(F)):  # no design of the front dominates another
+        dominated = np.all(F <= F[i], axis=1) & np.any(F < F[i], axis=1)
+        assert not dominated.any()
+    assert 8.0 <= r.x[0] <= a_star + 0.05
+    with pytest.raises(OptionError, match="at least two objective parts"):
+        optimize(Problem(*load_problem(SWING)), "nsga2")

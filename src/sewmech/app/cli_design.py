@@ -22,7 +22,8 @@ def optimize_cmd(
     method: str = typer.Option("powell", help="golden (one variable), cyclic or powell (the"
                                " JB report's, with the interior penalty), slsqp (exact"
                                " gradients), de (differential evolution, one batch call per"
-                               " generation)"),
+                               " generation), nsga2 (the Pareto front between the objective's"
+                               " parts, and its compromise)"),
     seed: int = typer.Option(0, help="random seed (for the methods that draw; the others are"
                              " deterministic)"),
     as_json: bool = typer.Option(False, "--json", help="print status, x, objective,"
@@ -53,8 +54,10 @@ def optimize_cmd(
             "objective": float(r.fun), "objective_start": float(r.objective_start),
             "constraints": r.constraints, "n_evaluations": int(r.n_evaluations),
             "history": [float(h) for h in r.history]}
+    if "front" in r:
+        data["front"] = r.front
     if out is not None:
-        _write(out, spec.problem.name, data)
+        _write(out, spec.problem.name, data, p.names)
     if as_json:
         json.dump(data, sys.stdout)
         sys.stdout.write("\n")
@@ -72,7 +75,7 @@ def optimize_cmd(
         console.print(f"  {escape(name)} = {c['value']:.6g} {mark}")
 
 
-def _write(out: Path, name: str, data: dict) -> None:
+def _write(out: Path, name: str, data: dict, names) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -96,5 +99,24 @@ def _write(out: Path, name: str, data: dict) -> None:
             render(fig, root, "convergence")
         finally:
             plt.close(fig)
+        front = data.get("front")
+        if front and front["f"]:
+            F = np.array(front["f"])
+            fig, ax = plt.subplots(figsize=(6.5, 5), constrained_layout=True)
+            sc = ax.scatter(F[:, 0], F[:, 1], c=F[:, 2] if F.shape[1] > 2 else "C0", s=18)
+            k = front["compromise"]
+            ax.scatter([F[k, 0]], [F[k, 1]], marker="*", s=200, color="C3",
+                       label="compromise (nearest the ideal point)")
+            if F.shape[1] > 2:
+                fig.colorbar(sc, ax=ax, label=front["parts"][2])
+            ax.set_xlabel(front["parts"][0] + " (normalised)")
+            ax.set_ylabel(front["parts"][1] + " (normalised)")
+            ax.grid(True, alpha=0.3)
+            ax.legend(fontsize=8)
+            ax.set_title(f"{name}: Pareto front ({len(F)} designs)")
+            try:
+                render(fig, root, "front")
+            finally:
+                plt.close(fig)
         with atomic_write(root / "optimize.json") as fh:
             json.dump(data, fh, indent=1)

@@ -383,14 +383,16 @@ def batch_values(problem: Problem, X: np.ndarray) -> tuple[dict, np.ndarray]:
 
 # ---- solving --------------------------------------------------------------------------------------
 
-METHODS = ("golden", "cyclic", "powell", "slsqp", "de")
+METHODS = ("golden", "cyclic", "powell", "slsqp", "de", "nsga2")
 
 
 def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, seed: int = 0):
     """Solve ``problem`` by ``method`` (:data:`METHODS`): golden (one variable, bounds only),
     cyclic or powell (the JB report's interior penalty over the constraints and the bounds,
     variables scaled to their ranges), slsqp (scipy, with the metrics' exact gradients), de
-    (scipy's differential evolution, a whole population per batch call, ``seed``).
+    (scipy's differential evolution, a whole population per batch call, ``seed``), nsga2
+    (pymoo's NSGA-II over the objective's parts as separate objectives, a whole population per
+    batch call; the compromise nearest the ideal point is the answer, the front in ``front``).
     Returns an OptimizeResult with x (file units), fun, objective_start, constraints (name ->
     value, satisfied), status ("success" when converged with every constraint met, else
     "failed"), n_evaluations, history."""
@@ -441,6 +443,8 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
                               "Give a start (variables' start) that meets every constraint")
         r = interior_penalty(lambda u: f_of(to_x(u)), g_all, u0, method=method, tol=tol)
         x, history, message, converged = to_x(r.x), r.history, r.message, r.status == 0
+    elif method == "nsga2":
+        x, history, message, converged, front = _nsga2(problem, seed)
     elif method == "de":
         x, history, message, converged = _differential_evolution(problem, seed, tol)
         # polished like scipy's own polish, but with the constraints and exact gradients
@@ -456,9 +460,12 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
     fx = f_of(x)
     report = problem.report(x)
     ok = converged and math.isfinite(fx) and all(c["satisfied"] for c in report.values())
-    return OptimizeResult(x=x, fun=fx, objective_start=f0, constraints=report,
-                          status="success" if ok else "failed", success=ok, message=message,
-                          n_evaluations=problem.evaluations, history=history, method=method)
+    res = OptimizeResult(x=x, fun=fx, objective_start=f0, constraints=report,
+                         status="success" if ok else "failed", success=ok, message=message,
+                         n_evaluations=problem.evaluations, history=history, method=method)
+    if method == "nsga2":
+        res.front = front
+    return res
 
 
 def _slsqp(problem: Problem, x0, lo, hi, tol: float, history: list) -> tuple[np.ndarray, bool]:
@@ -532,3 +539,75 @@ def _differential_evolution(problem: Problem, seed: int, tol: float):
                                popsize=max(8, 4 * n), maxiter=300, polish=False,
                                x0=problem.start)
     return np.array(r.x), history, str(r.message), bool(r.success)
+
+
+def _part_values(problem: Problem, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each objective part as its own objective (to minimise: the normalised deviation from a
+    target, or -+ the normalised value), the constraints as g <= 0 (pymoo's sign), and which
+    designs assemble, for a batch of designs."""
+    vals, ok = batch_values(problem, X)
+    spec = problem.spec
+    F = []
+    for p, sc in zip(spec.objective.parts, problem._part_scales()):
+        v = vals[(p.metric, p.regulator_deg, p.phi_deg)]
+        if p.sense == "target":
+            F.append(np.abs(v - p.target) / sc)
+        else:
+            F.append((1.0 if p.sense == "min" else -1.0) * v / sc)
+    G = []
+    for c in spec.constraints:
+        v = vals[(c.metric, c.regulator_deg, c.phi_deg)]
+        if c.min is not None:
+            G.append((c.min - v) / max(abs(c.min), 1.0))
+        if c.max is not None:
+            G.append((v - c.max) / max(abs(c.max), 1.0))
+    F = np.column_stack(F)
+    G = np.column_stack(G) if G else np.zeros((len(X), 0))
+    # a design that does not assemble: every objective and constraint very bad, never NaN
+    F = np.where(ok[:, None] & np.isfinite(F), F, 1e12)
+    G = np.where(ok[:, None] & np.isfinite(G), G, 1e12)
+    return F, G, ok
+
+
+def _nsga2(problem: Problem, seed: int):
+    """pymoo's NSGA-II over the parts of the objective, each generation one batch call; the
+    answer is the front's design nearest the ideal point in objectives scaled to the front's
+    ranges. Returns (x, history, message, converged, front)."""
+    from pymoo.algorithms.moo.nsga2 import NSGA2
+    from pymoo.core.problem import Problem as PymooProblem
+    from pymoo.optimize import minimize as pymoo_minimize
+
+    parts = problem.spec.objective.parts
+    if len(parts) < 2:
+        raise OptionError("--method", "nsga2 needs at least two objective parts (it finds the"
+                          " front between them)", "Use slsqp or de for one objective")
+    n_con = sum((c.min is not None) + (c.max is not None) for c in problem.spec.constraints)
+    history: list[float] = []
+
+    class Wrapped(PymooProblem):
+        def __init__(self):
+            super().__init__(n_var=len(problem.names), n_obj=len(parts), n_ieq_constr=n_con,
+                             xl=problem.lower, xu=problem.upper)
+
+        def _evaluate(self, X, out, *args, **kwargs):
+            F, G, _ = _part_values(problem, X)
+            problem.evaluations += len(X)
+            out["F"] = F
+            if n_con:
+                out["G"] = G
+            history.append(float(np.min(F.sum(axis=1))))
+
+    pop = max(24, 12 * len(problem.names))
+    r = pymoo_minimize(Wrapped(), NSGA2(pop_size=pop), ("n_gen", 60), seed=seed, verbose=False)
+    if r.X is None:
+        return problem.start.copy(), history, "NSGA-II found no design that meets every" \
+            " constraint", False, {"x": [], "f": [], "parts": [p.metric for p in parts]}
+    X = np.atleast_2d(r.X)
+    F = np.atleast_2d(r.F)
+    lo, hi = F.min(axis=0), F.max(axis=0)
+    z = (F - lo) / np.where(hi > lo, hi - lo, 1.0)
+    k = int(np.argmin(np.linalg.norm(z, axis=1)))
+    front = {"x": X.tolist(), "f": F.tolist(), "parts": [p.metric for p in parts],
+             "compromise": k}
+    return X[k], history, f"NSGA-II, {len(X)} designs on the front; the compromise nearest" \
+        " the ideal point", True, front
