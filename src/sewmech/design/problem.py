@@ -600,8 +600,9 @@ def _nsga2(problem: Problem, seed: int):
     pop = max(24, 12 * len(problem.names))
     r = pymoo_minimize(Wrapped(), NSGA2(pop_size=pop), ("n_gen", 60), seed=seed, verbose=False)
     if r.X is None:
-        return problem.start.copy(), history, "NSGA-II found no design that meets every" \
-            " constraint", False, {"x": [], "f": [], "parts": [p.metric for p in parts]}
+        return (problem.start.copy(), history,
+                "NSGA-II found no design that meets every constraint", False,
+                {"x": [], "f": [], "parts": [p.metric for p in parts]})
     X = np.atleast_2d(r.X)
     F = np.atleast_2d(r.F)
     lo, hi = F.min(axis=0), F.max(axis=0)
@@ -609,5 +610,5 @@ def _nsga2(problem: Problem, seed: int):
     k = int(np.argmin(np.linalg.norm(z, axis=1)))
     front = {"x": X.tolist(), "f": F.tolist(), "parts": [p.metric for p in parts],
              "compromise": k}
-    return X[k], history, f"NSGA-II, {len(X)} designs on the front; the compromise nearest" \
-        " the ideal point", True, front
+    message = f"NSGA-II, {len(X)} designs on the front; the compromise nearest the ideal point"
+    return X[k], history, message, True, front
