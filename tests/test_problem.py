@@ -204,3 +204,22 @@ def test_nsga2_front_between_two_objectives(tmp_path):
     assert 8.0 <= r.x[0] <= a_star + 0.05
     with pytest.raises(OptionError, match="at least two objective parts"):
         optimize(Problem(*load_problem(SWING)), "nsga2")
+
+
+def test_jb13_toward_jb82_hits_both_targets():
+    """The weighted uniform form by SLSQP (as its smooth epigraph problem): two dimensions of
+    the JB1-3's feed give the JB8-2's stitch length and dog height at regulator 25 deg, both
+    computed from jb8-2.toml."""
+    import sewmech
+    from sewmech.sewing.gradients import METRICS
+
+    spec, m = load_problem(ROOT / "examples" / "problems" / "jb13-toward-jb82.toml")
+    p = Problem(spec, m)
+    r = optimize(p, "slsqp")
+    assert r.status == "success", r.message
+    assert r.fun < 1e-8 < r.objective_start
+    jb82 = sewmech.load_machine("jb8-2")
+    for part in spec.objective.parts:
+        got, _ = p.metric(part, r.x)
+        theirs = METRICS[part.metric](jb82, 25.0).value
+        assert got == pytest.approx(theirs, abs=1e-4), part.metric

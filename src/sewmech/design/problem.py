@@ -157,7 +157,7 @@ class Problem:
     """A problem ready to evaluate: the variables x in file units (mm, deg), the metrics and
     their derivatives by x, the objective and the constraints g(x) >= 0.
 
-    ``evaluations`` counts the designs evaluated."""
+    ``evaluations`` counts the distinct designs evaluated (one at a time, or in batches)."""
 
     def __init__(self, spec: ProblemSpec, machine: Machine):
         self.spec, self.machine = spec, machine
@@ -174,6 +174,7 @@ class Problem:
                                for v, d in zip(spec.variables, defaults)])
         self.names = tuple(v.parameter for v in spec.variables)
         self.evaluations = 0
+        self._designs: set = set()
         self._memo: dict = {}
         self._scales = None
 
@@ -186,8 +187,12 @@ class Problem:
     def metric(self, ref: MetricRef, x: np.ndarray) -> tuple[float, np.ndarray]:
         """A metric's value and its derivative by the variables (per file unit) at x; raises
         SewmechError where the design cannot be evaluated (it does not assemble)."""
-        key = (ref.metric, ref.regulator_deg, ref.phi_deg, tuple(np.asarray(x, dtype=float)))
+        design = tuple(np.asarray(x, dtype=float))
+        key = (ref.metric, ref.regulator_deg, ref.phi_deg, design)
         if key not in self._memo:
+            if design not in self._designs:
+                self._designs.add(design)
+                self.evaluations += 1
             if len(self._memo) > 256:
                 self._memo.clear()
             value, d = _metric(self.machine, ref, self.params(x))
@@ -232,7 +237,6 @@ class Problem:
     def objective(self, x: np.ndarray) -> tuple[float, np.ndarray]:
         """The objective (dimensionless) and its gradient by x."""
         x = np.asarray(x, dtype=float)
-        self.evaluations += 1
         parts = self.spec.objective.parts
         s = self._part_scales()
         terms, grads = [], []
@@ -483,10 +487,48 @@ def _slsqp(problem: Problem, x0, lo, hi, tol: float, history: list) -> tuple[np.
         except SewmechError:
             return math.inf, np.zeros(len(x))
 
+    if problem.spec.objective.form == "weighted_uniform":
+        return _slsqp_uniform(problem, x0, lo, hi, tol, history, cons)
     r = minimize(fg, x0, jac=True, method="SLSQP", bounds=list(zip(lo, hi)), constraints=cons,
                  options={"ftol": tol * 1e-2, "maxiter": 300},
                  callback=lambda xk: history.append(fg(xk)[0]))
     return np.array(r.x), bool(r.success)
+
+
+def _slsqp_uniform(problem: Problem, x0, lo, hi, tol: float, history: list, cons: list
+                   ) -> tuple[np.ndarray, bool]:
+    """The weighted uniform form (a maximum, not smooth where two parts are equal) as SLSQP's
+    smooth epigraph problem: minimise t over (x, t) subject to
+    t >= +-w_i (f_i(x) - t_i) / s_i for every part, besides the problem's constraints."""
+    from scipy.optimize import minimize
+
+    parts = problem.spec.objective.parts
+    scales = problem._part_scales()
+    n = len(x0)
+
+    def part_rows(z):
+        x = z[:n]
+        g, J = [], []
+        for p, sc in zip(parts, scales):
+            v, d = problem.metric(p, x)
+            for sign in (1.0, -1.0):
+                g.append(z[n] - sign * p.weight * (v - p.target) / sc)
+                J.append(np.concatenate([-sign * p.weight * d / sc, [1.0]]))
+        return np.array(g), np.array(J)
+
+    zcons = [{"type": "ineq", "fun": lambda z: part_rows(z)[0],
+              "jac": lambda z: part_rows(z)[1]}]
+    for c in cons:
+        zcons.append({"type": "ineq", "fun": (lambda z, c=c: c["fun"](z[:n])),
+                      "jac": (lambda z, c=c: np.hstack([c["jac"](z[:n]),
+                                                        np.zeros((len(c["fun"](z[:n])), 1))]))})
+    t0 = problem.objective(np.asarray(x0, dtype=float))[0]
+    r = minimize(lambda z: (z[n], np.concatenate([np.zeros(n), [1.0]])),
+                 np.concatenate([x0, [t0]]), jac=True, method="SLSQP",
+                 bounds=list(zip(lo, hi)) + [(0.0, None)], constraints=zcons,
+                 options={"ftol": tol * 1e-2, "maxiter": 300},
+                 callback=lambda zk: history.append(float(zk[n])))
+    return np.array(r.x[:n]), bool(r.success)
 
 
 def _penalised(problem: Problem, X: np.ndarray) -> np.ndarray:
