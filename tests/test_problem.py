@@ -223,3 +223,29 @@ def test_jb13_toward_jb82_hits_both_targets():
         got, _ = p.metric(part, r.x)
         theirs = METRICS[part.metric](jb82, 25.0).value
         assert got == pytest.approx(theirs, abs=1e-4), part.metric
+
+
+def test_the_take_up_problem_uses_value_only_thread_metrics():
+    """The thread balance's figures have no exact derivatives: SLSQP refuses the problem with
+    the way out; the batch values equal the thread balance of each design; the start meets the
+    constraints (the penalty methods need that)."""
+    import numpy as np
+
+    import sewmech
+    from sewmech.design.problem import batch_values
+    from sewmech.sewing.thread import thread_balance
+
+    spec, m = load_problem(ROOT / "examples" / "problems" / "take-up.toml")
+    p = Problem(spec, m)
+    with pytest.raises(OptionError, match="no exact derivatives yet"):
+        optimize(p, "slsqp")
+    X = np.array([p.start, p.start + [0.3, -0.2, 0.4]])
+    vals, ok = batch_values(p, X)
+    assert ok.all()
+    for k in range(2):
+        b = thread_balance(m, params=p.params(X[k]))
+        assert vals[("thread_min_overfeed", None, 0.0)][k] == pytest.approx(
+            b.min_overfeed_while_loop_grows)
+    g, _, _ = p.constraints(p.start)
+    assert np.all(g > 0)
+    assert sewmech.load_machine("jb1-3").name == m.name

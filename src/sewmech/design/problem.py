@@ -196,7 +196,7 @@ class Problem:
             if len(self._memo) > 256:
                 self._memo.clear()
             value, d = _metric(self.machine, ref, self.params(x))
-            self._memo[key] = (value, d[self.index] * self.factor)
+            self._memo[key] = (value, None if d is None else d[self.index] * self.factor)
         return self._memo[key]
 
     def design_ok(self, x: np.ndarray) -> bool:
@@ -242,6 +242,8 @@ class Problem:
         terms, grads = [], []
         for p, sc in zip(parts, s):
             v, d = self.metric(p, x)
+            if d is None:  # a value-only metric: no gradient of the whole
+                d = np.full(len(x), np.nan)
             if p.sense == "target":
                 if self.spec.objective.form == "weighted_uniform":
                     terms.append(p.weight * abs(v - p.target) / sc)
@@ -264,6 +266,8 @@ class Problem:
         g, J, names = [], [], []
         for c in self.spec.constraints:
             v, d = self.metric(c, x)
+            if d is None:
+                d = np.full(len(x), np.nan)
             if c.min is not None:
                 g.append(v - c.min)
                 J.append(d)
@@ -289,11 +293,23 @@ class Problem:
         return out
 
 
-def _metric(machine: Machine, ref: MetricRef, P: np.ndarray) -> tuple[float, np.ndarray]:
-    """A metric's value and its derivative by every parameter, for the design P."""
+#: the needle-thread balance's figures (:func:`sewmech.sewing.thread.thread_balance`), values
+#: only: no exact derivatives yet, so the derivative-free methods solve problems that use them
+THREAD_METRICS = {"thread_min_overfeed": "min_overfeed_while_loop_grows",
+                  "thread_overfeed_at_needle_entry": "overfeed_at_needle_entry",
+                  "thread_reserve": "reserve_after_cast_off"}
+
+
+def _metric(machine: Machine, ref: MetricRef, P: np.ndarray) -> tuple[float, np.ndarray | None]:
+    """A metric's value and its derivative by every parameter (None for a value-only metric),
+    for the design P."""
     from ..sewing.gradients import METRICS
 
     name = ref.metric
+    if name in THREAD_METRICS:
+        from ..sewing.thread import thread_balance
+
+        return float(getattr(thread_balance(machine, params=P), THREAD_METRICS[name])), None
     if name in METRICS:
         feed = name in ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
         reg = ref.regulator_deg
@@ -364,7 +380,14 @@ def batch_values(problem: Problem, X: np.ndarray) -> tuple[dict, np.ndarray]:
         if key in out:
             continue
         name = ref.metric
-        if name in METRICS:
+        if name in THREAD_METRICS:  # (one design at a time: the thread balance has no batch)
+            vals = np.full(len(X), np.nan)
+            for k in np.nonzero(ok)[0]:
+                try:
+                    vals[k] = _metric(m, ref, P[k])[0]
+                except SewmechError:
+                    pass
+        elif name in METRICS:
             reg = ref.regulator_deg
             if reg is None and m.spec.sewing is not None and m.spec.sewing.regulator:
                 reg = m.spec.inputs[m.spec.sewing.regulator].default_deg
@@ -475,6 +498,13 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
 def _slsqp(problem: Problem, x0, lo, hi, tol: float, history: list) -> tuple[np.ndarray, bool]:
     """SLSQP from x0 with the metrics' exact gradients, the bounds and the constraints."""
     from scipy.optimize import minimize
+
+    value_only = [r.metric for r in [*problem.spec.objective.parts, *problem.spec.constraints]
+                  if r.metric in THREAD_METRICS]
+    if value_only:
+        raise OptionError("--method", f"{', '.join(sorted(set(value_only)))} have no exact"
+                          " derivatives yet, which SLSQP needs",
+                          "Use powell, cyclic, de or nsga2 for this problem")
 
     cons = []
     if problem.spec.constraints:
