@@ -110,6 +110,7 @@ def test_optimize_command_prints_the_issue_keys(tmp_path):
     assert data["status"] == "success"
     assert data["x"]["B.u"] == pytest.approx(closed_form_crank(0.9), abs=1e-5)
     assert (tmp_path / "o" / "convergence.png").is_file()
+    assert (tmp_path / "o" / "mechanism.png").is_file()  # before and after
     bad = CliRunner().invoke(app, ["optimize", str(SWING), "--method", "annealing"])
     assert bad.exit_code == 2 and "--method" in bad.output
 

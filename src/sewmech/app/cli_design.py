@@ -28,8 +28,8 @@ def optimize_cmd(
                              " deterministic)"),
     as_json: bool = typer.Option(False, "--json", help="print status, x, objective,"
                                  " objective_start, constraints, n_evaluations as JSON"),
-    out: Path = typer.Option(None, help="also write the convergence plot (PNG, SVG) and the"
-                             " result (JSON) here"),
+    out: Path = typer.Option(None, help="also write the convergence plot, the mechanism before"
+                             " and after (PNG, SVG) and the result (JSON) here"),
 ):
     """Choose the dimensions of a design problem: the variables within their bounds that best
     meet the objective while every constraint holds."""
@@ -57,7 +57,8 @@ def optimize_cmd(
     if "front" in r:
         data["front"] = r.front
     if out is not None:
-        _write(out, spec.problem.name, data, p.names)
+        _write(out, spec.problem.name, data, p.names,
+               (p.params(p.start), p.params(np.asarray(r.x)), machine))
     if as_json:
         json.dump(data, sys.stdout)
         sys.stdout.write("\n")
@@ -75,7 +76,53 @@ def optimize_cmd(
         console.print(f"  {escape(name)} = {c['value']:.6g} {mark}")
 
 
-def _write(out: Path, name: str, data: dict, names) -> None:
+def _paths_figure(name: str, before: np.ndarray, after: np.ndarray, machine):
+    """Every point's path over a turn for the start (grey) and the answer (colour): the
+    mechanism before and after, as the machine's own frame shows it (mm)."""
+    import matplotlib.pyplot as plt
+
+    from ..engine.kinematics import kinematics
+
+    phi = np.radians(np.arange(0.0, 361.0, 2.0))
+    fig, ax = plt.subplots(figsize=(7.5, 7), constrained_layout=True)
+    for params, style, label in ((before, dict(color="0.6", lw=0.8), "start"),
+                                 (after, dict(lw=1.3), "answer")):
+        r = kinematics(machine, phi, params=params, on_failure="mask")
+        labelled = False
+        for i in range(len(r.point_names)):
+            xy = r.p[:, i]
+            if np.ptp(xy[:, 0]) + np.ptp(xy[:, 1]) < 1e-9:  # a fixed point: a dot
+                ax.plot(xy[0, 0], xy[0, 1], "k.", ms=3)
+                continue
+            ax.plot(xy[:, 0], xy[:, 1], label=None if labelled else label, **style)
+            labelled = True
+        k = 0  # the mechanism at phi = 0, links as lines between their points
+        for link, pts in _link_points(machine).items():
+            idx = [r.point_names.index(q) for q in pts]
+            if len(idx) > 1:
+                ax.plot(r.p[k, idx, 0], r.p[k, idx, 1], "-o", ms=2, lw=0.6,
+                        color=style.get("color", "C3"))
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(f"{name}: point paths over a turn, start and answer (links at phi = 0)",
+                 fontsize=9)
+    return fig
+
+
+def _link_points(machine) -> dict:
+    """The points of each moving link (from the machine's pairs of points and links)."""
+    out: dict = {}
+    for pt, links in machine.point_links.items():
+        for link in links:
+            if link != "frame":
+                out.setdefault(link, []).append(pt)
+    return out
+
+
+def _write(out: Path, name: str, data: dict, names, designs=None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -116,6 +163,12 @@ def _write(out: Path, name: str, data: dict, names) -> None:
             ax.set_title(f"{name}: Pareto front ({len(F)} designs)")
             try:
                 render(fig, root, "front")
+            finally:
+                plt.close(fig)
+        if designs is not None:
+            fig = _paths_figure(name, *designs)
+            try:
+                render(fig, root, "mechanism")
             finally:
                 plt.close(fig)
         with atomic_write(root / "optimize.json") as fh:
