@@ -36,15 +36,15 @@ that does not is reported failed whatever the method.
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from ..engine.errors import MachineFileError, OptionError, SewmechError
 from ..engine.machine import Machine, load_machine
+from ..engine.spec import load_toml_model
 
 
 class _Spec(BaseModel):
@@ -125,18 +125,7 @@ def load_problem(path: str | Path) -> tuple[ProblemSpec, Machine]:
     """Read and validate a problem file and load its machine; errors name the file and key."""
     path = Path(path).expanduser()
     where = str(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise MachineFileError(where, "", "", f"not valid TOML: {exc}",
-                               "Fix the syntax at that line (https://toml.io)") from None
-    try:
-        spec = ProblemSpec.model_validate(data)
-    except ValidationError as exc:
-        e = exc.errors()[0]
-        loc = [str(x) for x in e["loc"]]
-        raise MachineFileError(where, loc[0] if loc else "", ".".join(loc[1:]), e["msg"],
-                               "See docs/design.md for the problem file") from None
+    spec = load_toml_model(path, ProblemSpec, "problem file", "docs/design.md")
     ref = spec.problem.machine
     local = (path.parent / ref)
     machine = load_machine(str(local) if local.is_file() else ref)

@@ -24,15 +24,15 @@ from __future__ import annotations
 
 import difflib
 import math
-import tomllib
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from ..engine.errors import MachineFileError, OptionError
 from ..engine.machine import Machine
+from ..engine.spec import load_toml_model
 
 #: ISO 286-1 nominal size ranges (upper limits, mm) and standard tolerances IT5 .. IT13 (um)
 #: (ISO 286-1:2010, "Geometrical product specifications - ISO code system for tolerances on
@@ -109,22 +109,7 @@ class ToleranceSpec(_Spec):
 
 def load_tolerance_file(path: str | Path) -> ToleranceSpec:
     """Read and validate a tolerance file; errors name the file and the key."""
-    path = Path(path).expanduser()
-    where = str(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise MachineFileError(where, "", "", f"not valid TOML: {exc}",
-                               "Fix the syntax at that line (https://toml.io)") from None
-    try:
-        return ToleranceSpec.model_validate(data)
-    except ValidationError as exc:
-        e = exc.errors()[0]
-        loc = [str(x) for x in e["loc"]]
-        table = loc[0] if loc else ""
-        key = ".".join(loc[1:])
-        raise MachineFileError(where, table, key, e["msg"],
-                               "See docs/accuracy.md for the tolerance file") from None
+    return load_toml_model(path, ToleranceSpec, "tolerance file", "docs/accuracy.md")
 
 
 def _is_dimension(machine: Machine, j: int) -> bool:

@@ -839,8 +839,8 @@ def _short(value, limit: int = 60) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
-def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpec
-             ) -> MachineFileError:
+def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpec,
+             doc: str = "docs/machine-files.md") -> MachineFileError:
     loc = tuple(err["loc"])
     model, path, n_model, rest = _model_at(loc, raw, root)
     etype = err["type"]
@@ -860,12 +860,12 @@ def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpe
         close = difflib.get_close_matches(str(loc[-1]), keys, n=1, cutoff=0.6)
         msg = f"unknown key '{loc[-1]}'; expected one of: {', '.join(keys) or '?'}"
         hint = (f"Did you mean '{close[0]}'?" if close else "Fix the spelling or remove the key")
-        hint += " (docs/machine-files.md)"
+        hint += f" ({doc})"
     elif etype == "missing":
         msg = f"missing required key '{loc[-1]}'"
         if path and path[-1] == str(loc[-1]):  # the key is the last part: its table is above
             table, key = ".".join(path[:-1]), str(loc[-1])
-        hint = "Add it (docs/machine-files.md lists every key)"
+        hint = f"Add it ({doc} lists every key)"
     elif etype == "finite_number":
         msg = f"must be a finite number, got {_short(got)}"
         hint = "nan and inf are not values sewmech can compute with; write the number"
@@ -951,13 +951,14 @@ def _parse_toml(text: str, file: str) -> dict:
                                " file", "Check the file's brackets") from None
 
 
-def validate_model(model: type[BaseModel], raw: dict, file: str):
+def validate_model(model: type[BaseModel], raw: dict, file: str,
+                   doc: str = "docs/machine-files.md"):
     """``model`` validated from TOML data, or the :class:`MachineFileError` of its first
-    problem (file, table, key)."""
+    problem (file, table, key; ``doc`` is where the format is described)."""
     try:
         return model.model_validate(raw)
     except ValidationError as exc:
-        raise _explain(_first(exc.errors()), raw, file, model) from None
+        raise _explain(_first(exc.errors()), raw, file, model, doc) from None
     except RecursionError:
         raise MachineFileError(file, "", "", "nests arrays or tables too deeply to be a machine"
                                " file", "Check the file's brackets") from None
@@ -979,10 +980,19 @@ def load_machine_spec(path: str | Path) -> MachineSpec:
     return parse_machine(read_toml_text(path), str(path))
 
 
+def load_toml_model(path: str | Path, model: type[BaseModel], what: str,
+                    doc: str = "docs/machine-files.md"):
+    """A TOML file read (its size, encoding and nesting checked) and validated as ``model``;
+    every problem a :class:`MachineFileError` naming the file, the table and the key. For the
+    files a user edits besides machine files: loads, tolerances, design problems."""
+    path = Path(path).expanduser()
+    return validate_model(model, _parse_toml(read_toml_text(path, what), str(path)), str(path),
+                          doc)
+
+
 def load_load_file(path: str | Path) -> list[LoadSpec]:
     """Read and validate a load file (``[[loads]]`` tables, as in machine files)."""
-    raw = _parse_toml(read_toml_text(path, "load file"), str(path))
-    loads = list(validate_model(LoadFile, raw, str(path)).loads)
+    loads = list(load_toml_model(path, LoadFile, "load file").loads)
     if not loads:
         raise MachineFileError(str(path), "", "", "holds no [[loads]] tables", "A load file"
                                " replaces the machine file's loads; for a run without process"
