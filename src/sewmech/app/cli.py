@@ -23,7 +23,7 @@ from . import cli_design  # noqa: F401  (registers optimize)
 from .cli_common import (DEFAULT_MACHINE, EXIT_ERROR, EXIT_INTERNAL, EXIT_SIGINT,
                          MIN_STEP_DEG, SET_HELP, Format, Terminated, _bounded, _guard, _load,
                          _parse_sets, _phi, _phi_grid, _print_error, _rpm, _settings, app,
-                         command, console, err_console)
+                         command, console, err_console, print_json)
 
 __all__ = ["DEFAULT_MACHINE", "EXIT_ERROR", "EXIT_INTERNAL", "EXIT_SIGINT", "MIN_STEP_DEG",
            "Format", "Terminated", "_bounded", "_guard", "_parse_sets", "_print_error", "app",
@@ -271,8 +271,7 @@ def dynamics_cmd(
                            loads=load_specs)
     data = dynamics_to_dict(res)
     if as_json:
-        json.dump(data, sys.stdout)
-        sys.stdout.write("\n")
+        print_json(data)
         return
     if not m.spec.masses:
         console.print("[yellow]note:[/] " + escape("the machine has no [masses] tables: no"

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +15,8 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..engine.errors import OptionError
-from .cli_common import DEFAULT_MACHINE, SET_HELP, _load, _settings, command, console
+from .cli_common import (DEFAULT_MACHINE, SET_HELP, _load, _settings, command, console,
+                         print_json)
 
 
 #: the sewing metrics ``--output`` accepts besides the position channels (the keys of
@@ -96,8 +96,7 @@ def sensitivity_cmd(
                  "d_dparam": {n: float(x) for n, x in zip(names, d)},
                  "parameter_units": dict(zip(names, m.parameter_units))})
     if as_json:
-        json.dump(data, sys.stdout)
-        sys.stdout.write("\n")
+        print_json(data)
         return
     table = Table(title=f"{m.name}: d {output} / d parameter {at} ({output} ="
                         f" {value:.6g} {unit})")
@@ -163,8 +162,7 @@ def tolerance_cmd(
     if out is not None:
         _write_tolerance(m, out, res, data)
     if as_json:
-        json.dump(data, sys.stdout)
-        sys.stdout.write("\n")
+        print_json(data)
         return
     mc = res.monte_carlo
     u = res.unit
@@ -206,7 +204,7 @@ def _write_tolerance(m, out: Path, res, data: dict) -> None:
     import matplotlib.pyplot as plt
     import pandas as pd
 
-    from .figures import render
+    from .figures import save_figure
     from .io import atomic_write
     from .outdir import output_dir
 
@@ -227,10 +225,7 @@ def _write_tolerance(m, out: Path, res, data: dict) -> None:
         ax.set_ylabel("density")
         ax.legend(fontsize=7)
         ax.set_title(f"{m.name}: {res.metric} with every dimension within its tolerance")
-        try:
-            render(fig, root, stem + "-distribution")
-        finally:
-            plt.close(fig)
+        save_figure(fig, root, stem + "-distribution")
         names = list(res.contributions)[:15]
         shares = np.array([res.contributions[n] for n in names])
         fig, ax = plt.subplots(figsize=(8, 0.35 * len(names) + 1.5), constrained_layout=True)
@@ -242,10 +237,7 @@ def _write_tolerance(m, out: Path, res, data: dict) -> None:
         ax2.set_xlabel("cumulative share [%]", color="C3")
         ax.set_xlabel("share of the RSS variance [%]")
         ax.set_title(f"{m.name}: what makes {res.metric} stray", fontsize=10)
-        try:
-            render(fig, root, stem + "-pareto")
-        finally:
-            plt.close(fig)
+        save_figure(fig, root, stem + "-pareto")
         with atomic_write(root / f"{stem}-contributions.csv") as fh:
             pd.DataFrame({"parameter": list(res.contributions),
                           "share": list(res.contributions.values())}).to_csv(

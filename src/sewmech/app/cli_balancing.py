@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 from enum import Enum
 from pathlib import Path
 
@@ -18,7 +17,7 @@ from rich.table import Table
 
 from ..engine.errors import OptionError
 from .cli_common import (DEFAULT_MACHINE, SET_HELP, _bounded, _load, _phi_grid, _rpm, command,
-                         console)
+                         console, print_json)
 
 
 class Criterion(str, Enum):
@@ -138,8 +137,7 @@ def balance_cmd(
     if out is not None:
         _write_balance(m, out, res, data, names, rpm, point)
     if as_json:
-        json.dump(data, sys.stdout)
-        sys.stdout.write("\n")
+        print_json(data)
         return
     console.print(_cw_table(res))
     console.print(escape(res.message))
@@ -221,8 +219,7 @@ def trial_balance_cmd(
     if out is not None:
         _write_trial(out, file, cols, c)
     if as_json:
-        json.dump(data, sys.stdout)
-        sys.stdout.write("\n")
+        print_json(data)
         return
     lo, hi = c.ci95_gcm
     console.print(f"crossing: S_add = [bold]{c.s_add_gcm:.4g} g cm[/] (95 % interval {lo:.4g}"
@@ -240,7 +237,7 @@ def _write_trial(out: Path, file: Path, cols: dict, c) -> None:
     import matplotlib.pyplot as plt
     import pandas as pd
 
-    from .figures import render
+    from .figures import save_figure
     from .io import atomic_write
     from .outdir import output_dir
 
@@ -260,10 +257,7 @@ def _write_trial(out: Path, file: Path, cols: dict, c) -> None:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
         ax.set_title(f"{file.name}: vibration velocity of the control point")
-        try:
-            render(fig, root, "trial-balance")
-        finally:
-            plt.close(fig)
+        save_figure(fig, root, "trial-balance")
         with atomic_write(root / "trial-balance.csv") as fh:
             pd.DataFrame({"s_add_gcm": grid, "vx_fit_mm_s": c.fit_x[0] + c.fit_x[1] * grid,
                           "vy_fit_mm_s": c.fit_y[0] + c.fit_y[1] * grid}).to_csv(
@@ -319,8 +313,7 @@ def influence_balance_cmd(
                             [trial[r][1] for r in planes])
     data = {**res.to_json([f"run {r}" for r in planes]), "n_places": len(places)}
     if as_json:
-        json.dump(data, sys.stdout)
-        sys.stdout.write("\n")
+        print_json(data)
         return
     t = Table(title=f"correction masses from {len(places)} places and {len(planes)} trial runs")
     for col in ("plane (trial run)", "static moment [g cm]", "angle [deg]"):
@@ -348,8 +341,7 @@ def level_change_cmd(
     data = {"before_db": float(level_db(before)), "after_db": float(level_db(after)),
             "level_change_db": level_change_db(before, after), "reference_mm_s": V_REF_MM_S}
     if as_json:
-        json.dump(data, sys.stdout)
-        sys.stdout.write("\n")
+        print_json(data)
         return
     console.print(f"{before:g} mm/s -> {after:g} mm/s: {data['before_db']:.1f} dB ->"
                   f" {data['after_db']:.1f} dB (re 5e-8 m/s), change"

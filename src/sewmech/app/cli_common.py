@@ -57,6 +57,14 @@ class Terminated(BaseException):
         self.signum = signum
 
 
+def print_json(data) -> None:
+    """A command's result as one line of JSON on stdout (``--json``)."""
+    import json
+
+    json.dump(data, sys.stdout)
+    sys.stdout.write("\n")
+
+
 def _print_error(text: str) -> None:
     err_console.print(f"[bold red]error:[/] {escape(text)}", markup=True, highlight=False,
                       soft_wrap=True)

@@ -5,7 +5,6 @@ problem file). Registered on the shared app of :mod:`sewmech.app.cli_common` whe
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +12,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from .cli_common import command, console
+from .cli_common import command, console, print_json
 
 
 @command("optimize")
@@ -60,8 +59,7 @@ def optimize_cmd(
         _write(out, spec.problem.name, data, p.names,
                (p.params(p.start), p.params(np.asarray(r.x)), machine))
     if as_json:
-        json.dump(data, sys.stdout)
-        sys.stdout.write("\n")
+        print_json(data)
         return
     t = Table(title=f"{spec.problem.name} ({machine.name}), {method}: {r.status}")
     for col in ("variable", "start", "optimum", "unit", "bounds"):
@@ -128,7 +126,7 @@ def _write(out: Path, name: str, data: dict, names, designs=None) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .figures import render
+    from .figures import save_figure
     from .io import atomic_write
     from .outdir import output_dir
 
@@ -142,10 +140,7 @@ def _write(out: Path, name: str, data: dict, names, designs=None) -> None:
         ax.set_ylabel("objective")
         ax.grid(True, alpha=0.3)
         ax.set_title(f"{name}: {data['method']}, {data['status']}")
-        try:
-            render(fig, root, "convergence")
-        finally:
-            plt.close(fig)
+        save_figure(fig, root, "convergence")
         front = data.get("front")
         if front and front["f"]:
             F = np.array(front["f"])
@@ -161,15 +156,9 @@ def _write(out: Path, name: str, data: dict, names, designs=None) -> None:
             ax.grid(True, alpha=0.3)
             ax.legend(fontsize=8)
             ax.set_title(f"{name}: Pareto front ({len(F)} designs)")
-            try:
-                render(fig, root, "front")
-            finally:
-                plt.close(fig)
+            save_figure(fig, root, "front")
         if designs is not None:
             fig = _paths_figure(name, *designs)
-            try:
-                render(fig, root, "mechanism")
-            finally:
-                plt.close(fig)
+            save_figure(fig, root, "mechanism")
         with atomic_write(root / "optimize.json") as fh:
             json.dump(data, fh, indent=1)

@@ -51,6 +51,17 @@ def render(fig, root: Path, stem: str) -> bytes:
     return png.getvalue()
 
 
+def save_figure(fig, root: Path, stem: str) -> None:
+    """Write ``fig`` as ``root/stem.png`` and ``.svg`` (:func:`render`) and close it, also when
+    writing fails."""
+    import matplotlib.pyplot as plt
+
+    try:
+        render(fig, root, stem)
+    finally:
+        plt.close(fig)
+
+
 def _render_pickled(payload: bytes, root: str, stem: str) -> bytes:
     """A worker's job: the figure arrives pickled."""
     import matplotlib.pyplot as plt

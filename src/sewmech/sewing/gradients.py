@@ -166,6 +166,15 @@ def _top(machine: Machine, point: str, params) -> tuple[float, np.ndarray, objec
     return phi, -w * dv[0] / a, S
 
 
+def _with_take_up(machine: Machine):
+    """The machine's [sewing] roles, which must name the take-up's thread eye."""
+    s = _roles(machine)
+    if s.take_up_eye is None:
+        raise AnalysisError(f"machine '{machine.name}'", "has no take_up_eye in [sewing]",
+                            "Name the take-up's thread eye there")
+    return s
+
+
 def needle_top_gradient(machine: Machine, regulator_deg: float | None = None, *,
                         params=None) -> Gradient:
     """The shaft angle of the needle's top dead centre (deg, 0 .. 360) and its derivative by
@@ -181,10 +190,7 @@ def take_up_lag_gradient(machine: Machine, regulator_deg: float | None = None, *
                          params=None) -> Gradient:
     """How far (deg of shaft) the take-up eye's top follows the needle's top (> 0: lags), and
     its derivative by every parameter (deg per unit)."""
-    s = _roles(machine)
-    if s.take_up_eye is None:
-        raise AnalysisError(f"machine '{machine.name}'", "has no take_up_eye in [sewing]",
-                            "Name the take-up's thread eye there")
+    s = _with_take_up(machine)
     pn, dn, _ = _top(machine, s.needle_point, params)
     pe, de, _ = _top(machine, s.take_up_eye, params)
     lag = (math.degrees(pe - pn) + 180.0) % 360.0 - 180.0
@@ -198,10 +204,7 @@ def needle_descent_at_take_up_top_gradient(machine: Machine, regulator_deg: floa
     """How far (mm) the needle point has come down from its top when the take-up eye is at its
     highest, and its derivative: the needle's top value moves by dy/dp (an extremum), its
     height at the eye's top by dy/dp + dy/dphi dphi_eye/dp."""
-    s = _roles(machine)
-    if s.take_up_eye is None:
-        raise AnalysisError(f"machine '{machine.name}'", "has no take_up_eye in [sewing]",
-                            "Name the take-up's thread eye there")
+    s = _with_take_up(machine)
     pn, _, Sn = _top(machine, s.needle_point, params)
     pe, de, Se = _top(machine, s.take_up_eye, params)
     yn, dyn, _ = Sn.channel(f"p_{s.needle_point}_y")
