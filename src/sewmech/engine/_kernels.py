@@ -94,13 +94,6 @@ def atan2(y, x):
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
-def _par(params, d, idx, default):
-    if idx < 0:
-        return default
-    return params[d, idx]
-
-
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _solve2(m11, m12, m21, m22, b1, b2):
     det = m11 * m22 - m12 * m21
     return (b1 * m22 - m12 * b2) / det, (m11 * b2 - m21 * b1) / det, det
@@ -319,269 +312,288 @@ def rpr_guide(bx, by, bvx, bvy, bax, bay, ax_, ay_, avx, avy, aax, aay, e, branc
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
-def _arc_of(arcs_i, params, d, start, n, rho):
-    """Index of the arc whose normal-angle range (cam frame) contains rho, or -1."""
-    for k in range(start, start + n):
-        a0 = params[d, arcs_i[k, 3]]
-        a1 = params[d, arcs_i[k, 4]]
-        r = rho
-        while r < a0:
-            r += TWO_PI
-        while r >= a0 + TWO_PI:
-            r -= TWO_PI
-        if r < a1:
-            return k
-    return -1
+def _loop_steps(u, g, k0, nb, grp, unk, terms, cams_i, arcs_i, params, d, march_phi, march_omega,
+                march_eps, march_store, tol, max_iter, p, v, a, th, om, ep, lc, ls, s, sd, sdd,
+                fu, fc, q_prev, dq1_prev, dq2_prev, phi_prev, n_hist, lost, loop_res, loop_worst,
+                q, F, J, dq, Jw):
+    """Loop group g (unit u) at the block's steps k0 .. k0 + nb - 1 in order (continuation):
+    Newton-Raphson on the loop closures from a second-order Taylor predictor, then the rates
+    and accelerations from the same Jacobian.
 
-
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def _term_value(t, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd, level, res):
-    """Evaluate one loop term's vector (level 0), its known-rate part (1) or known accel part (2).
-
-    For level 1 and 2 the parts that multiply an unknown rate (column >= 0) are left out; they
-    live in the Jacobian. res[0:2] += sign * value; res[2:4] = d/dL; res[4:6] = d/dangle.
-    """
-    typ = terms[t, 0]
-    sign = float(terms[t, 2])
-    res[2] = 0.0
-    res[3] = 0.0
-    res[4] = 0.0
-    res[5] = 0.0
-    if typ == TERM_POINT:
-        i = terms[t, 4]
-        if level == 0:
-            res[0] += sign * p[i, 0]
-            res[1] += sign * p[i, 1]
-        elif level == 1:
-            res[0] += sign * v[i, 0]
-            res[1] += sign * v[i, 1]
-        else:
-            res[0] += sign * a[i, 0]
-            res[1] += sign * a[i, 1]
-        return 0
-    # angle of the term
-    ai = terms[t, 6]
-    if terms[t, 5] == SRC_LINK:
-        psi = th[ai]
-        psid = om[ai]
-        psidd = ep[ai]
-    else:
-        psi = s[ai]
-        psid = sd[ai]
-        psidd = sdd[ai]
-    psi += _par(params, d, terms[t, 7], 0.0)
-    ang_col = terms[t, 11]
-    c = math.cos(psi)
-    sn = math.sin(psi)
-    if typ == TERM_VEC:
-        li = terms[t, 4]
-        if terms[t, 3] == SRC_PARAM:
-            L = params[d, li]
-            Ld = 0.0
-            Ldd = 0.0
-        else:
-            L = s[li]
-            Ld = sd[li]
-            Ldd = sdd[li]
-        len_col = terms[t, 10]
-        if level == 0:
-            res[0] += sign * L * c
-            res[1] += sign * L * sn
-        elif level == 1:
-            # d/dt (L e^{i psi}) = Ld e + i L psid e: keep the known parts
-            kx = 0.0
-            ky = 0.0
-            if len_col < 0:
-                kx += Ld * c
-                ky += Ld * sn
-            if ang_col < 0:
-                kx += -L * psid * sn
-                ky += L * psid * c
-            res[0] += sign * kx
-            res[1] += sign * ky
-        else:
-            # (Ldd + i L psidd) e + (2 i Ld psid - L psid^2) e: the rates are all known now
-            kx = 2.0 * (-Ld * psid * sn) - L * psid * psid * c
-            ky = 2.0 * (Ld * psid * c) - L * psid * psid * sn
-            if len_col < 0:
-                kx += Ldd * c
-                ky += Ldd * sn
-            if ang_col < 0:
-                kx += -L * psidd * sn
-                ky += L * psidd * c
-            res[0] += sign * kx
-            res[1] += sign * ky
-        res[2] = sign * c
-        res[3] = sign * sn
-        res[4] = -sign * L * sn
-        res[5] = sign * L * c
-        return 0
-    # TERM_CAM: contact point p_c + R(th_c) c_k + (R_k + off) e^{i psi}
-    cam = terms[t, 8]
-    cl = cams_i[cam, 0]
-    cp = cams_i[cam, 1]
-    tc = th[cl]
-    wc = om[cl]
-    ec = ep[cl]
-    rho = psi - tc
-    k = _arc_of(arcs_i, params, d, cams_i[cam, 2], cams_i[cam, 3], rho)
-    if k < 0:
-        return 1
-    ccx = params[d, arcs_i[k, 0]]
-    ccy = params[d, arcs_i[k, 1]]
-    R = params[d, arcs_i[k, 2]] + _par(params, d, terms[t, 9], 0.0)
-    cc = math.cos(tc)
-    cs = math.sin(tc)
-    rx = cc * ccx - cs * ccy
-    ry = cs * ccx + cc * ccy
-    if level == 0:
-        res[0] += sign * (p[cp, 0] + rx + R * c)
-        res[1] += sign * (p[cp, 1] + ry + R * sn)
-    elif level == 1:
-        kx = v[cp, 0] - wc * ry
-        ky = v[cp, 1] + wc * rx
-        if ang_col < 0:
-            kx += -R * psid * sn
-            ky += R * psid * c
-        res[0] += sign * kx
-        res[1] += sign * ky
-    else:
-        kx = a[cp, 0] - ec * ry - wc * wc * rx - R * psid * psid * c
-        ky = a[cp, 1] + ec * rx - wc * wc * ry - R * psid * psid * sn
-        if ang_col < 0:
-            kx += -R * psidd * sn
-            ky += R * psidd * c
-        res[0] += sign * kx
-        res[1] += sign * ky
-    res[4] = -sign * R * sn
-    res[5] = sign * R * c
-    return 0
-
-
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def _assemble(g, grp, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd, level,
-              F, J, res):
-    """Fill F (level 0: residual; 1: known velocity part; 2: known acceleration part) and J."""
+    Everything of one step happens in this one function, the loop terms evaluated in its own
+    body: numba counts references of every array a compiled function receives (an atomic
+    increment and decrement per array and call), and a call per term, assembly or Newton step
+    made that counting four fifths of the feed's cost. q, F, J, dq, Jw are scratch of at least
+    the group's size. A failed step marks fu, fc and loses the continuation of the group."""
     n = grp[g, 0]
-    t0 = grp[g, 3]
-    nt = grp[g, 4]
-    for i in range(n):
-        F[i] = 0.0
-        for j in range(n):
-            J[i, j] = 0.0
-    for t in range(t0, t0 + nt):
-        row = 2 * terms[t, 1]
-        res[0] = 0.0
-        res[1] = 0.0
-        if _term_value(t, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd,
-                       level, res) != 0:
-            return 1
-        F[row] += res[0]
-        F[row + 1] += res[1]
-        lc = terms[t, 10]
-        ac = terms[t, 11]
-        if lc >= 0:
-            J[row, lc] += res[2]
-            J[row + 1, lc] += res[3]
-        if ac >= 0:
-            J[row, ac] += res[4]
-            J[row + 1, ac] += res[5]
-    return 0
-
-
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def _set_unknowns(g, grp, unk, q, th, s, which, om, ep, sd, sdd):
-    """Write q into the state slots of group g's unknowns (which: 0 value, 1 rate, 2 accel)."""
     u0 = grp[g, 1]
-    n = grp[g, 0]
-    for j in range(n):
-        kind = unk[u0 + j, 0]
-        idx = unk[u0 + j, 1]
-        if kind == 0:
-            if which == 0:
-                th[idx] = q[j]
-            elif which == 1:
-                om[idx] = q[j]
-            else:
-                ep[idx] = q[j]
-        else:
-            if which == 0:
-                s[idx] = q[j]
-            elif which == 1:
-                sd[idx] = q[j]
-            else:
-                sdd[idx] = q[j]
-
-
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def _solve_group(g, grp, unk, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd,
-                 q, tol, max_iter, F, J, dq, Jw, res, info):
-    """Newton-Raphson from q (updated in place); then rates and accelerations.
-
-    F, J, dq, Jw are scratch of at least the group's size. info[0] = residual max-norm (mm),
-    info[1] = iterations, info[2] = the loop with the largest residual. Returns a failure code.
-    """
-    n = grp[g, 0]
-    resid = np.inf
-    it = 0
-    while True:
-        _set_unknowns(g, grp, unk, q, th, s, np.int64(0), om, ep, sd, sdd)
-        if _assemble(g, grp, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd,
-                     np.int64(0), F, J, res) != 0:
-            info[0] = np.inf
-            info[1] = it
-            return FAIL_NEWTON
-        resid = 0.0
-        for i in range(n):
-            if abs(F[i]) > resid or not math.isfinite(F[i]):
-                resid = abs(F[i])
-                info[2] = i // 2
-        if resid <= tol or it >= max_iter or not math.isfinite(resid):
-            break
-        for i in range(n):
-            dq[i] = -F[i]
+    t0 = grp[g, 3]
+    t1 = t0 + grp[g, 4]
+    for kb in range(nb):
+        if fu[kb] >= 0:
+            continue
+        k = k0 + kb
+        if lost[g]:
+            fu[kb] = u
+            fc[kb] = FAIL_LOST
+            continue
+        phi = march_phi[k]
+        ws = march_omega[k]
+        es = march_eps[k]
+        if n_hist[g] == 0:
             for j in range(n):
-                Jw[i, j] = J[i, j]
-        if _gauss_solve(Jw, dq, n) < 1e-14:
-            info[0] = resid
-            info[1] = it
-            return FAIL_SINGULAR
-        # limit angle steps to half a radian so that a poor start cannot jump a branch
-        big = 0.0
+                q[j] = params[d, unk[u0 + j, 3]]
+            iters = 4 * max_iter
+        else:
+            # second-order Taylor predictor from the last solution's exact rates: one or two
+            # Newton steps land within the tolerance
+            h = phi - phi_prev[g]
+            for j in range(n):
+                q[j] = q_prev[u0 + j] + h * (dq1_prev[u0 + j] + 0.5 * h * dq2_prev[u0 + j])
+            iters = max_iter
+        # stage 0: Newton on the positions; 1: the rates; 2: the accelerations. Each stage
+        # assembles the loop equations once (level = stage) in the one block of code below.
+        stage = 0
+        it = 0
+        resid = np.inf
+        worst = 0
+        code = FAIL_NONE
+        while True:
+            if stage == 0:
+                for j in range(n):
+                    idx = unk[u0 + j, 1]
+                    if unk[u0 + j, 0] == 0:
+                        th[kb, idx] = q[j]
+                    else:
+                        s[kb, idx] = q[j]
+            for i in range(n):
+                F[i] = 0.0
+                for j in range(n):
+                    J[i, j] = 0.0
+            arc_missing = False
+            for t in range(t0, t1):
+                row = 2 * terms[t, 1]
+                typ = terms[t, 0]
+                sign = float(terms[t, 2])
+                fx = 0.0
+                fy = 0.0
+                jlx = 0.0
+                jly = 0.0
+                jax = 0.0
+                jay = 0.0
+                if typ == TERM_POINT:
+                    i = terms[t, 4]
+                    if stage == 0:
+                        fx = p[kb, i, 0]
+                        fy = p[kb, i, 1]
+                    elif stage == 1:
+                        fx = v[kb, i, 0]
+                        fy = v[kb, i, 1]
+                    else:
+                        fx = a[kb, i, 0]
+                        fy = a[kb, i, 1]
+                else:
+                    ai = terms[t, 6]
+                    if terms[t, 5] == SRC_LINK:
+                        psi = th[kb, ai]
+                        psid = om[kb, ai]
+                        psidd = ep[kb, ai]
+                    else:
+                        psi = s[kb, ai]
+                        psid = sd[kb, ai]
+                        psidd = sdd[kb, ai]
+                    if terms[t, 7] >= 0:
+                        psi += params[d, terms[t, 7]]
+                    ang_col = terms[t, 11]
+                    c = math.cos(psi)
+                    sn = math.sin(psi)
+                    if typ == TERM_VEC:
+                        li = terms[t, 4]
+                        if terms[t, 3] == SRC_PARAM:
+                            L = params[d, li]
+                            Ld = 0.0
+                            Ldd = 0.0
+                        else:
+                            L = s[kb, li]
+                            Ld = sd[kb, li]
+                            Ldd = sdd[kb, li]
+                        len_col = terms[t, 10]
+                        if stage == 0:
+                            fx = L * c
+                            fy = L * sn
+                        elif stage == 1:
+                            # d/dt (L e^{i psi}) = Ld e + i L psid e: the known parts
+                            if len_col < 0:
+                                fx += Ld * c
+                                fy += Ld * sn
+                            if ang_col < 0:
+                                fx += -L * psid * sn
+                                fy += L * psid * c
+                        else:
+                            # (Ldd + i L psidd) e + (2 i Ld psid - L psid^2) e: every rate
+                            # is known now
+                            fx = 2.0 * (-Ld * psid * sn) - L * psid * psid * c
+                            fy = 2.0 * (Ld * psid * c) - L * psid * psid * sn
+                            if len_col < 0:
+                                fx += Ldd * c
+                                fy += Ldd * sn
+                            if ang_col < 0:
+                                fx += -L * psidd * sn
+                                fy += L * psidd * c
+                        jlx = sign * c
+                        jly = sign * sn
+                        jax = -sign * L * sn
+                        jay = sign * L * c
+                    else:
+                        # TERM_CAM: contact point p_c + R(th_c) c_k + (R_k + off) e^{i psi}
+                        cam = terms[t, 8]
+                        cl = cams_i[cam, 0]
+                        cp = cams_i[cam, 1]
+                        tc = th[kb, cl]
+                        wc = om[kb, cl]
+                        ec = ep[kb, cl]
+                        rho = psi - tc
+                        arc = -1  # the arc whose normal-angle range (cam frame) holds rho
+                        for ka in range(cams_i[cam, 2], cams_i[cam, 2] + cams_i[cam, 3]):
+                            a0 = params[d, arcs_i[ka, 3]]
+                            r = rho
+                            while r < a0:
+                                r += TWO_PI
+                            while r >= a0 + TWO_PI:
+                                r -= TWO_PI
+                            if r < params[d, arcs_i[ka, 4]]:
+                                arc = ka
+                                break
+                        if arc < 0:
+                            arc_missing = True
+                            break
+                        ccx = params[d, arcs_i[arc, 0]]
+                        ccy = params[d, arcs_i[arc, 1]]
+                        R = params[d, arcs_i[arc, 2]]
+                        if terms[t, 9] >= 0:
+                            R += params[d, terms[t, 9]]
+                        cc = math.cos(tc)
+                        cs = math.sin(tc)
+                        rx = cc * ccx - cs * ccy
+                        ry = cs * ccx + cc * ccy
+                        if stage == 0:
+                            fx = p[kb, cp, 0] + rx + R * c
+                            fy = p[kb, cp, 1] + ry + R * sn
+                        elif stage == 1:
+                            fx = v[kb, cp, 0] - wc * ry
+                            fy = v[kb, cp, 1] + wc * rx
+                            if ang_col < 0:
+                                fx += -R * psid * sn
+                                fy += R * psid * c
+                        else:
+                            fx = a[kb, cp, 0] - ec * ry - wc * wc * rx - R * psid * psid * c
+                            fy = a[kb, cp, 1] + ec * rx - wc * wc * ry - R * psid * psid * sn
+                            if ang_col < 0:
+                                fx += -R * psidd * sn
+                                fy += R * psidd * c
+                        jax = -sign * R * sn
+                        jay = sign * R * c
+                F[row] += sign * fx
+                F[row + 1] += sign * fy
+                lcol = terms[t, 10]
+                acol = terms[t, 11]
+                if lcol >= 0:
+                    J[row, lcol] += jlx
+                    J[row + 1, lcol] += jly
+                if acol >= 0:
+                    J[row, acol] += jax
+                    J[row + 1, acol] += jay
+            if arc_missing:  # the contact left every arc of the cam profile
+                resid = np.inf
+                code = FAIL_NEWTON
+                break
+            if stage == 0:
+                resid = 0.0
+                for i in range(n):
+                    if abs(F[i]) > resid or not math.isfinite(F[i]):
+                        resid = abs(F[i])
+                        worst = i // 2
+                if resid <= tol or it >= iters or not math.isfinite(resid):
+                    if not (resid <= tol):
+                        code = FAIL_NEWTON
+                        break
+                    for i in range(n):  # converged: the rates next, with this Jacobian
+                        for j in range(n):
+                            Jw[i, j] = J[i, j]
+                    stage = 1
+                    continue
+                for i in range(n):
+                    dq[i] = -F[i]
+                    for j in range(n):
+                        Jw[i, j] = J[i, j]
+                if _gauss_solve(Jw, dq, n) < 1e-14:
+                    code = FAIL_SINGULAR
+                    break
+                # limit angle steps to half a radian so that a poor start cannot jump a branch
+                big = 0.0
+                for j in range(n):
+                    if unk[u0 + j, 2] == 1 and abs(dq[j]) > big:
+                        big = abs(dq[j])
+                f = 1.0 if big <= 0.5 else 0.5 / big
+                for j in range(n):
+                    q[j] += f * dq[j]
+                it += 1
+                continue
+            # the rates (stage 1) solve J qd = -(known part of dF/dt), the accelerations
+            # (stage 2) J qdd = -(d2F/dt2 without the unknown accelerations)
+            for i in range(n):
+                dq[i] = -F[i]
+            piv = _gauss_solve(Jw, dq, n)
+            if stage == 1 and piv < 1e-13:
+                code = FAIL_SINGULAR
+                break
+            for j in range(n):
+                idx = unk[u0 + j, 1]
+                if unk[u0 + j, 0] == 0:
+                    if stage == 1:
+                        om[kb, idx] = dq[j]
+                    else:
+                        ep[kb, idx] = dq[j]
+                else:
+                    if stage == 1:
+                        sd[kb, idx] = dq[j]
+                    else:
+                        sdd[kb, idx] = dq[j]
+            if stage == 2:
+                break
+            for i in range(n):
+                for j in range(n):
+                    Jw[i, j] = J[i, j]
+            stage = 2
+        row_out = march_store[k]
+        if row_out >= 0:
+            loop_res[d, row_out, g] = resid
+            loop_worst[d, row_out, g] = worst
+        if code != FAIL_NONE:
+            lost[g] = True
+            fu[kb] = u
+            fc[kb] = code
+            continue
         for j in range(n):
-            if unk[grp[g, 1] + j, 2] == 1 and abs(dq[j]) > big:
-                big = abs(dq[j])
-        f = 1.0 if big <= 0.5 else 0.5 / big
-        for j in range(n):
-            q[j] += f * dq[j]
-        it += 1
-    info[0] = resid
-    info[1] = it
-    if not (resid <= tol):
-        return FAIL_NEWTON
-    # velocities: J qd = -(known part of dF/dt)
-    for i in range(n):
-        for j in range(n):
-            Jw[i, j] = J[i, j]
-    _assemble(g, grp, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd,
-              np.int64(1),
-              F, J, res)
-    for i in range(n):
-        dq[i] = -F[i]
-    if _gauss_solve(Jw, dq, n) < 1e-13:
-        return FAIL_SINGULAR
-    _set_unknowns(g, grp, unk, dq, th, s, np.int64(1), om, ep, sd, sdd)
-    # accelerations: J qdd = -(d2F/dt2 without the unknown accelerations)
-    _assemble(g, grp, terms, cams_i, arcs_i, params, d, p, v, a, th, om, ep, s, sd, sdd,
-              np.int64(2),
-              F, Jw, res)
-    for i in range(n):
-        dq[i] = -F[i]
-        for j in range(n):
-            Jw[i, j] = J[i, j]
-    _gauss_solve(Jw, dq, n)
-    _set_unknowns(g, grp, unk, dq, th, s, np.int64(2), om, ep, sd, sdd)
-    return FAIL_NONE
+            q_prev[u0 + j] = q[j]
+            L = unk[u0 + j, 1]
+            if unk[u0 + j, 0] == 0:
+                r1 = om[kb, L]
+                r2 = ep[kb, L]
+            else:
+                r1 = sd[kb, L]
+                r2 = sdd[kb, L]
+            if ws != 0.0:  # d/dphi = (d/dt) / omega
+                dq1_prev[u0 + j] = r1 / ws
+                dq2_prev[u0 + j] = (r2 - r1 / ws * es) / (ws * ws)
+            else:
+                dq1_prev[u0 + j] = 0.0
+                dq2_prev[u0 + j] = 0.0
+            if unk[u0 + j, 0] == 0:
+                lc[kb, L] = math.cos(th[kb, L])
+                ls[kb, L] = math.sin(th[kb, L])
+        phi_prev[g] = phi
+        n_hist[g] += 1
 
 
 # ---- the interpreter -------------------------------------------------------------------------------
@@ -641,8 +653,6 @@ def _eval_designs(d0, d1, units, params, p_lo, p_hi, march_phi, mc, ms, march_st
             max_n = grp[g, 0]
     out = np.empty(16)
     G = np.empty(27 * BLOCK)  # the RRR units' lanes: 12 inputs, 15 outputs (pitch BLOCK)
-    res = np.empty(6)
-    info = np.zeros(3)
     F = np.empty(max_n)
     J = np.empty((max_n, max_n))
     q = np.empty(max_n)
@@ -908,64 +918,11 @@ def _eval_designs(d0, d1, units, params, p_lo, p_hi, march_phi, mc, ms, march_st
                         sd[kb, var] = out[4]
                         sdd[kb, var] = out[5]
                 elif op == OP_LOOP:  # continuation: the block's steps in order
-                    g = units[u, 1]
-                    u0 = grp[g, 1]
-                    n = grp[g, 0]
-                    for kb in range(nb):
-                        if fu[kb] >= 0:
-                            continue
-                        k = k0 + kb
-                        if lost[g]:
-                            fu[kb] = u
-                            fc[kb] = FAIL_LOST
-                            continue
-                        phi = march_phi[k]
-                        ws = march_omega[k]
-                        es = march_eps[k]
-                        if n_hist[g] == 0:
-                            for j in range(n):
-                                q[j] = params[d, unk[u0 + j, 3]]
-                            iters = 4 * max_iter
-                        else:
-                            # second-order Taylor predictor from the last solution's exact
-                            # rates: one Newton step usually lands within the tolerance
-                            h = phi - phi_prev[g]
-                            for j in range(n):
-                                q[j] = q_prev[u0 + j] + h * (dq1_prev[u0 + j]
-                                                             + 0.5 * h * dq2_prev[u0 + j])
-                            iters = max_iter
-                        code = _solve_group(g, grp, unk, terms, cams_i, arcs_i, params, d,
-                                            p[kb], v[kb], a[kb], th[kb], om[kb], ep[kb], s[kb],
-                                            sd[kb], sdd[kb], q, tol, iters, F, J, dq, Jw, res,
-                                            info)
-                        if march_store[k] >= 0:
-                            loop_res[d, march_store[k], g] = info[0]
-                            loop_worst[d, march_store[k], g] = int(info[2])
-                        if code != FAIL_NONE:
-                            lost[g] = True
-                            fu[kb] = u
-                            fc[kb] = code
-                            continue
-                        for j in range(n):
-                            q_prev[u0 + j] = q[j]
-                            L = unk[u0 + j, 1]
-                            if unk[u0 + j, 0] == 0:
-                                r1 = om[kb, L]
-                                r2 = ep[kb, L]
-                            else:
-                                r1 = sd[kb, L]
-                                r2 = sdd[kb, L]
-                            if ws != 0.0:  # d/dphi = (d/dt) / omega
-                                dq1_prev[u0 + j] = r1 / ws
-                                dq2_prev[u0 + j] = (r2 - r1 / ws * es) / (ws * ws)
-                            else:
-                                dq1_prev[u0 + j] = 0.0
-                                dq2_prev[u0 + j] = 0.0
-                            if unk[u0 + j, 0] == 0:
-                                lc[kb, L] = math.cos(th[kb, L])
-                                ls[kb, L] = math.sin(th[kb, L])
-                        phi_prev[g] = phi
-                        n_hist[g] += 1
+                    _loop_steps(u, units[u, 1], k0, nb, grp, unk, terms, cams_i, arcs_i, params,
+                                d, march_phi, march_omega, march_eps, march_store, tol,
+                                max_iter, p, v, a, th, om, ep, lc, ls, s, sd, sdd, fu, fc,
+                                q_prev, dq1_prev, dq2_prev, phi_prev, n_hist, lost, loop_res,
+                                loop_worst, q, F, J, dq, Jw)
             for kb in range(nb):
                 row = march_store[k0 + kb]
                 if row < 0:
