@@ -167,6 +167,29 @@ def test_differential_evolution_evaluates_a_population_per_batch_call(tmp_path):
     assert np.all(np.isfinite(f)) and f[2] == 1e12
 
 
+def test_values_only_path_equals_the_exact_objective_and_constraints():
+    """Problem.batch / Problem.value (what Powell, cyclic search, DE and NSGA-II read): the
+    objective and every constraint of the JB1-3 feed-lift problem from the 1 deg grid's
+    Hermite events equal the exactly located ones of Problem.objective / constraints; the
+    assembly flag equals design_ok; a design counts once however often it is asked for."""
+    import numpy as np
+
+    spec, m = load_problem(ROOT / "examples" / "problems" / "feed-lift.toml")
+    p = Problem(spec, m)
+    X = np.array([p.start, [1.7, 7.5], [1.0, 8.8]])
+    f, g, ok = p.batch(X)
+    assert g.shape == (3, 5) and p.constraint_scales().shape == (5,)
+    for k, x in enumerate(X):
+        assert ok[k] == p.design_ok(x)
+        assert f[k] == pytest.approx(p.objective(x)[0], abs=1e-6)
+        np.testing.assert_allclose(g[k], p.constraints(x)[0], atol=1e-6)
+    before = p.evaluations
+    fv, gv, okv = p.value(X[1])
+    p.value(X[1])
+    assert p.evaluations == before  # X[1] was evaluated above
+    assert fv == f[1] and okv == ok[1] and np.array_equal(gv, g[1])
+
+
 TWO_PARTS = """
 [problem]
 name = "swing against crank length"

@@ -267,6 +267,54 @@ class Problem:
                 names.append(f"{c.metric} <= {c.max:g}")
         return np.array(g), np.array(J).reshape(len(g), len(x)), names
 
+    # ---- values only, for the derivative-free methods and the population methods ------------
+    def batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For a batch of designs X (m, n_variables; file units), values only: the objective
+        (m,), the constraints g (m, n_g), >= 0 where met, in the order and units of
+        :meth:`constraints`, and which designs assemble over the whole turn (m,). One
+        kinematics call per metric (:func:`batch_values`: events on a 1 deg grid refined on
+        its Hermite interpolant, within about 1e-7 of the located ones); NaN where a design
+        does not assemble."""
+        vals, ok = batch_values(self, X)
+        spec = self.spec
+        uniform = spec.objective.form == "weighted_uniform"
+        terms = []
+        for p, sc in zip(spec.objective.parts, self._part_scales()):
+            v = vals[(p.metric, p.regulator_deg, p.phi_deg)]
+            if p.sense == "target":
+                dev = (v - p.target) / sc
+                terms.append(p.weight * (np.abs(dev) if uniform else dev ** 2))
+            else:
+                terms.append((1.0 if p.sense == "min" else -1.0) * p.weight * v / sc)
+        f = np.max(terms, axis=0) if uniform else np.sum(terms, axis=0)
+        g = []
+        for c in spec.constraints:
+            v = vals[(c.metric, c.regulator_deg, c.phi_deg)]
+            if c.min is not None:
+                g.append(v - c.min)
+            if c.max is not None:
+                g.append(c.max - v)
+        return f, (np.column_stack(g) if g else np.zeros((len(f), 0))), ok
+
+    def constraint_scales(self) -> np.ndarray:
+        """The size of each bound of :meth:`constraints` (at least 1), to compare violations."""
+        return np.array([max(abs(b), 1.0) for c in self.spec.constraints
+                         for b in (c.min, c.max) if b is not None])
+
+    def value(self, x: np.ndarray) -> tuple[float, np.ndarray, bool]:
+        """:meth:`batch` of one design (remembered): objective, constraints, assembles."""
+        design = tuple(np.asarray(x, dtype=float))
+        key = ("value", design)
+        if key not in self._memo:
+            if design not in self._designs:
+                self._designs.add(design)
+                self.evaluations += 1
+            if len(self._memo) > 256:
+                self._memo.clear()
+            f, g, ok = self.batch(np.asarray(design)[None, :])
+            self._memo[key] = (float(f[0]), g[0], bool(ok[0]))
+        return self._memo[key]
+
     def report(self, x: np.ndarray) -> dict:
         """Each constraint's value and whether it holds (to 1e-9 of its scale), and whether the
         design assembles over the whole turn (always a constraint)."""
@@ -433,6 +481,13 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
         except SewmechError:
             return math.inf
 
+    def fv_of(x):  # the same from values only (the derivative-free searches)
+        try:
+            f, _, ok = problem.value(x)
+        except SewmechError:
+            return math.inf
+        return f if ok and math.isfinite(f) else math.inf
+
     f0 = f_of(problem.start)
     converged = True
     message = ""
@@ -441,14 +496,15 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
         if len(problem.names) != 1 or problem.spec.constraints:
             raise OptionError("--method", "golden searches one variable within its bounds,"
                               " without constraints", "Use powell, cyclic or slsqp")
-        r = golden_section(lambda t: f_of(np.array([t])), lo[0], hi[0], tol=tol * span[0])
+        r = golden_section(lambda t: fv_of(np.array([t])), lo[0], hi[0], tol=tol * span[0])
         x, history, message = np.array(r.x), r.history, r.message
     elif method in ("cyclic", "powell"):
         def g_all(u):
-            x = to_x(u)
             try:
-                g = problem.constraints(x)[0] if problem.spec.constraints else np.zeros(0)
+                _, g, ok = problem.value(to_x(u))
             except SewmechError:
+                return np.array([-1.0])
+            if not (ok and np.all(np.isfinite(g))):
                 return np.array([-1.0])
             return np.concatenate([g, u, 1.0 - u])
 
@@ -457,7 +513,7 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
             raise OptionError("problem", "the start is not strictly inside every constraint"
                               " and bound, which the interior penalty needs",
                               "Give a start (variables' start) that meets every constraint")
-        r = interior_penalty(lambda u: f_of(to_x(u)), g_all, u0, method=method, tol=tol)
+        r = interior_penalty(lambda u: fv_of(to_x(u)), g_all, u0, method=method, tol=tol)
         x, history, message, converged = to_x(r.x), r.history, r.message, r.status == 0
     elif method == "nsga2":
         x, history, message, converged, front = _nsga2(problem, seed)
@@ -554,30 +610,12 @@ def _penalised(problem: Problem, X: np.ndarray) -> np.ndarray:
     """The objective of a batch of designs, a design that violates a constraint valued
     1e6 (1 + its violations in units of their bounds' sizes), one that does not assemble 1e12:
     the population never holds a NaN."""
-    vals, ok = batch_values(problem, X)
-    spec = problem.spec
-    s = problem._part_scales()
-    terms = []
-    for p, sc in zip(spec.objective.parts, s):
-        v = vals[(p.metric, p.regulator_deg, p.phi_deg)]
-        if p.sense == "target":
-            t = np.abs(v - p.target) / sc if spec.objective.form == "weighted_uniform" \
-                else ((v - p.target) / sc) ** 2
-            terms.append(p.weight * t)
-        else:
-            terms.append((1.0 if p.sense == "min" else -1.0) * p.weight * v / sc)
-    f = np.max(terms, axis=0) if spec.objective.form == "weighted_uniform" \
-        else np.sum(terms, axis=0)
+    f, g, ok = problem.batch(X)
     # Deb's rule: any design that meets every constraint beats any that does not, and of two
     # that do not, the one that violates less wins
-    viol = np.zeros(len(f))
-    for c in spec.constraints:
-        v = vals[(c.metric, c.regulator_deg, c.phi_deg)]
-        for bound, sign in ((c.min, 1.0), (c.max, -1.0)):
-            if bound is not None:
-                viol = viol + np.maximum(0.0, sign * (bound - v)) / max(abs(bound), 1.0)
+    viol = np.sum(np.maximum(0.0, -g) / problem.constraint_scales(), axis=1)
     f = np.where(viol > 0, 1e6 * (1.0 + viol), f)
-    return np.where(ok & np.isfinite(f), f, 1e12)
+    return np.where(ok & np.isfinite(f) & np.isfinite(viol), f, 1e12)
 
 
 def _differential_evolution(problem: Problem, seed: int, tol: float):
