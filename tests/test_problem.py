@@ -109,8 +109,11 @@ def test_optimize_command_prints_the_issue_keys(tmp_path):
         assert key in data
     assert data["status"] == "success"
     assert data["x"]["B.u"] == pytest.approx(closed_form_crank(0.9), abs=1e-5)
-    assert (tmp_path / "o" / "convergence.png").is_file()
-    assert (tmp_path / "o" / "mechanism.png").is_file()  # before and after
+    assert (tmp_path / "o" / "problem-convergence.png").is_file()
+    page = (tmp_path / "o" / "index.html").read_text()
+    assert "Metrics before and after" in page and "B.u" in page
+    assert (tmp_path / "o" / "problem-mechanism.png").is_file()  # before and after
+    assert (tmp_path / "o" / "problem-channel-theta_rocker.csv").is_file()
     bad = CliRunner().invoke(app, ["optimize", str(SWING), "--method", "annealing"])
     assert bad.exit_code == 2 and "--method" in bad.output
 
@@ -129,6 +132,31 @@ def test_the_shipped_feed_lift_problem_by_slsqp():
     assert r.constraints["feed_lift"]["value"] == pytest.approx(1.3, abs=1e-6)
     assert r.x[0] == pytest.approx(1.8)
     assert r.n_evaluations < 60
+
+
+def test_the_feed_lift_report_shows_the_dog_before_and_after(tmp_path):
+    """sewmech optimize --out writes the problem's page: every metric before and after (the
+    answer's equal to the constraints the command reports), and the dog's path at each
+    regulator setting the metrics read, whose highest point above the plate is the lift."""
+    import numpy as np
+    import pandas as pd
+
+    path = ROOT / "examples" / "problems" / "feed-lift.toml"
+    out = CliRunner().invoke(app, ["optimize", str(path), "--method", "slsqp", "--json",
+                                   "--out", str(tmp_path / "o")])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.output)
+    o = tmp_path / "o"
+    metrics = pd.read_csv(o / "problem-metrics.csv")
+    lift = metrics[metrics.metric == "feed_lift"].iloc[0]
+    assert lift.answer == pytest.approx(data["constraints"]["feed_lift"]["value"], abs=1e-9)
+    for reg in ("0", "30"):
+        curves = pd.read_csv(o / f"problem-feed-{reg}.csv")
+        assert {"start y above the plate [mm]", "answer y above the plate [mm]"} <= set(curves)
+    y = pd.read_csv(o / "problem-feed-0.csv")["answer y above the plate [mm]"].to_numpy()
+    assert np.max(y) == pytest.approx(lift.answer, abs=2e-4)  # 1 deg samples of the path
+    page = (o / "index.html").read_text()
+    assert "The feed dog at regulator 30 deg" in page and "data:image/png;base64" in page
 
 
 def test_an_answer_always_assembles_over_the_whole_turn(tmp_path):

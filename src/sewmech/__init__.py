@@ -47,7 +47,8 @@ MODULES = {
                              "tolerance_file", "methods", "problem")},
     **{m: "app" for m in ("cli", "cli_common", "cli_balancing", "cli_accuracy", "cli_design",
                           "report",
-                          "report_dynamics", "report_balancing", "report_accuracy", "figures",
+                          "report_dynamics", "report_balancing", "report_accuracy", "report_design",
+                          "figures",
                           "plot", "io", "outdir")},
 }
 
