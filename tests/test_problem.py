@@ -12,6 +12,7 @@ import pytest
 from scipy.optimize import brentq
 from typer.testing import CliRunner
 
+import sewmech
 from sewmech.cli import app
 from sewmech.design.problem import Problem, load_problem, optimize
 from sewmech.engine.errors import MachineFileError, OptionError
@@ -216,6 +217,47 @@ def test_values_only_path_equals_the_exact_objective_and_constraints():
     p.value(X[1])
     assert p.evaluations == before  # X[1] was evaluated above
     assert fv == f[1] and okv == ok[1] and np.array_equal(gv, g[1])
+
+
+def test_a_design_that_fails_between_grid_angles_is_never_feasible(tmp_path):
+    """The crank turned 0.5 deg so that the dyad's reach is tightest at phi = 179.5 deg, between
+    grid angles, and the links 2e-4 mm too short there: at every whole degree it assembles
+    (4e-4 mm to spare at 179 and 180), so a 1 deg grid alone would pass it. The searches'
+    check keeps every unit 0.01 mm from failing at the grid angles and refuses it; the answer's
+    verdict is the exact proof, which locates the failure; the margin's own closed form
+    says the same."""
+    import numpy as np
+
+    from sewmech.design.problem import ASSEMBLY_CLEARANCE_MM, assembles_batch
+    from sewmech.engine.assembly import prove_assembly
+
+    r, ad, l1 = 15.0, 38.0, 30.0
+    l2 = ad + r - 2e-4 - l1
+    m = sewmech.load_machine("fourbar-benchmark")
+    P = m.parameters({"B.u": r, "crank.phase": math.radians(0.5), "dyad.length1": l1,
+                      "dyad.length2": l2})
+    grid = np.radians(np.arange(360.0)) + math.radians(0.5)
+    reach = np.hypot(ad - r * np.cos(grid), r * np.sin(grid))  # |B D| at the grid angles
+    assert np.all(l1 + l2 - reach > 1e-4)  # a grid alone passes it ...
+    assert l1 + l2 - (ad + r) < 0  # ... but it fails at 179.5 deg
+    assert sewmech.kinematics(m, np.radians(np.arange(360.0)), params=P,
+                              on_failure="mask").feasible.all()
+    assert not assembles_batch(m, P[None, :])[0]
+    proof = prove_assembly(m, params=P)
+    assert not proof.ok and abs(proof.smallest.phi_deg - 179.5) < 1e-6
+    # a design with room to spare passes both
+    P2 = m.parameters({"B.u": r, "dyad.length1": l1, "dyad.length2": l2 + 0.1})
+    assert assembles_batch(m, P2[None, :])[0] and prove_assembly(m, params=P2).ok
+    assert 0 < ASSEMBLY_CLEARANCE_MM <= 0.01
+    # a problem's answer reported: not assembled, with where, whatever the grid says
+    spec, pm = load_problem(write(tmp_path, CONSTRAINED))
+    pm2 = pm.with_parameters({"crank.phase": math.radians(0.5), "dyad.length1": l1,
+                              "dyad.length2": l2})
+    prob2 = Problem(spec, pm2)
+    rep = prob2.report(np.array([r]))
+    a = rep["assembles over the whole turn"]
+    assert not a["satisfied"] and a["failures"] and a["smallest_margin_mm"] < 0
+    assert not prob2.design_ok(np.array([r]))
 
 
 TWO_PARTS = """

@@ -189,23 +189,15 @@ class Problem:
         return self._memo[key]
 
     def design_ok(self, x: np.ndarray) -> bool:
-        """The design assembles over the whole turn (the kinematics on a 1 deg grid; at the
-        setting inputs' extremes where the machine has them, e.g. both ends of the stitch
-        regulator)."""
-        from ..engine.kinematics import kinematics
-
+        """The design assembles over the whole turn as the searches see it (the kinematics on
+        a 1 deg grid at the setting inputs' extremes, every closed-form unit at least
+        :data:`ASSEMBLY_CLEARANCE_MM` from failing at every grid angle, which keeps it
+        assembled between the grid angles too). The answer's verdict is :meth:`report`'s exact
+        proof."""
         key = ("assembles", tuple(np.asarray(x, dtype=float)))
         if key not in self._memo:
-            inputs = None
-            if self.machine.spec.inputs:
-                lo = {n: math.radians(i.min_deg if i.min_deg is not None else i.default_deg)
-                      for n, i in self.machine.spec.inputs.items()}
-                hi = {n: math.radians(i.max_deg if i.max_deg is not None else i.default_deg)
-                      for n, i in self.machine.spec.inputs.items()}
-                inputs = {n: np.array([lo[n], hi[n]]) for n in lo}
-            r = kinematics(self.machine, np.radians(np.arange(360.0)), params=self.params(x),
-                           inputs=inputs, on_failure="mask")
-            self._memo[key] = bool(r.feasible.all())
+            self._memo[key] = bool(assembles_batch(self.machine,
+                                                   self.params(x)[None, :])[0])
         return self._memo[key]
 
     # ---- the objective and the constraints -----------------------------------------------------
@@ -317,17 +309,75 @@ class Problem:
 
     def report(self, x: np.ndarray) -> dict:
         """Each constraint's value and whether it holds (to 1e-9 of its scale), and whether the
-        design assembles over the whole turn (always a constraint)."""
-        ok = self.design_ok(x)
-        out = {"assembles over the whole turn": {"value": float(ok), "satisfied": ok,
-                                                 "min": 1.0, "max": None}}
+        design assembles over the whole turn (always a constraint): proved exactly
+        (:func:`sewmech.engine.assembly.prove_assembly`, every margin's minimum between the grid
+        angles located) at both ends of every setting input. A metric that cannot be formed
+        for the design has no value and does not hold."""
+        from ..engine.assembly import prove_assembly
+
+        P = self.params(x)
+        proofs = [prove_assembly(self.machine, params=P, inputs=inputs)
+                  for inputs in _setting_extremes(self.machine)]
+        ok = all(p.ok for p in proofs)
+        smallest = [p.smallest.value_mm for p in proofs if p.smallest is not None]
+        out = {"assembles over the whole turn": {
+            "value": float(ok), "satisfied": ok, "min": 1.0, "max": None,
+            "smallest_margin_mm": min(smallest) if smallest else None,
+            "failures": [f"{f.unit}: {f.from_deg:.6g}..{f.to_deg:.6g} deg, {f.reason}"
+                         for p in proofs for f in p.failures]}}
         for c in self.spec.constraints:
-            v, _ = self.metric(c, x)
+            try:
+                v, _ = self.metric(c, x)
+            except SewmechError:
+                v = math.nan
             ok = (c.min is None or v >= c.min - 1e-9 * max(1.0, abs(c.min))) and (
                 c.max is None or v <= c.max + 1e-9 * max(1.0, abs(c.max)))
             name = c.metric if c.metric not in out else f"{c.metric} ({len(out)})"
-            out[name] = {"value": v, "satisfied": bool(ok), "min": c.min, "max": c.max}
+            out[name] = {"value": v if math.isfinite(v) else None, "satisfied": bool(ok),
+                         "min": c.min, "max": c.max}
         return out
+
+
+#: how far (mm) every closed-form unit must stay from failing to assemble at the grid angles of
+#: the searches' assembly check: a margin m(phi) that clears this at 1 deg steps cannot fall
+#: below zero between them unless |m''| exceeds 0.01 / (h^2 / 8) = 260 mm/rad^2, several times
+#: what the links of a sewing machine give (their lengths, 10-130 mm). Without it a search
+#: pressed against the assembly limit ended a few micrometres beyond it between grid angles.
+ASSEMBLY_CLEARANCE_MM = 0.01
+
+
+def _setting_extremes(machine: Machine) -> list[dict | None]:
+    """The setting inputs at their lower and at their upper ends (rad), or [None]."""
+    if not machine.spec.inputs:
+        return [None]
+    ends = []
+    for k in (0, 1):
+        ends.append({n: math.radians((i.min_deg, i.max_deg)[k] if (i.min_deg, i.max_deg)[k]
+                                     is not None else i.default_deg)
+                     for n, i in machine.spec.inputs.items()})
+    return ends
+
+
+def assembles_batch(machine: Machine, P: np.ndarray) -> np.ndarray:
+    """Which designs of the batch P (m, n_params) assemble over the whole turn as the searches
+    see it: on a 1 deg grid at both ends of every setting input, every closed-form unit's
+    assembly margin at least :data:`ASSEMBLY_CLEARANCE_MM` at every grid angle. (m,) bool."""
+    from ..engine.kinematics import kinematics
+    from ..engine.margins import conditions
+
+    phi = np.radians(np.arange(360.0))
+    m = len(P)
+    ok = np.ones(m, dtype=bool)
+    Pt = np.asarray(P, dtype=float).T[:, :, None]  # (n_params, m, 1): per design, any angle
+    for inputs in _setting_extremes(machine):
+        # (every unit solved: asking for no outputs would solve none)
+        r = kinematics(machine, phi, params=P, inputs=inputs, on_failure="mask")
+        ok &= r.feasible.reshape(m, len(phi)).all(axis=1)
+        for c in conditions(machine, Pt):
+            margin = np.asarray(c.fn(r)[0]).reshape(m, len(phi))
+            ok &= np.where(np.isnan(margin), -np.inf, margin).min(axis=1) >= \
+                ASSEMBLY_CLEARANCE_MM
+    return ok
 
 
 #: the needle-thread balance's figures (:func:`sewmech.sewing.thread.thread_balance`), values
@@ -400,17 +450,7 @@ def batch_values(problem: Problem, X: np.ndarray) -> tuple[dict, np.ndarray]:
     P = np.tile(np.asarray(m.defaults, dtype=float), (len(X), 1))
     P[:, problem.index] = X * problem.factor
     phi = np.radians(np.arange(360.0))
-    inputs = None
-    if m.spec.inputs:
-        inputs = {n: np.array([math.radians(i.min_deg if i.min_deg is not None else
-                                            i.default_deg),
-                               math.radians(i.max_deg if i.max_deg is not None else
-                                            i.default_deg)])[:, None]
-                  for n, i in m.spec.inputs.items()}
-    # (every unit solved: asking for no outputs would solve none)
-    r = kinematics(m, phi, params=P if inputs is None else P[None, :, :], inputs=inputs,
-                   on_failure="mask")
-    ok = r.feasible.reshape(-1, len(X), len(phi)).all(axis=(0, 2))
+    ok = assembles_batch(m, P)
     out = {}
     for ref in [*problem.spec.objective.parts, *problem.spec.constraints]:
         key = (ref.metric, ref.regulator_deg, ref.phi_deg)
