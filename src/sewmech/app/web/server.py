@@ -143,6 +143,7 @@ class App:
 
     async def _open(self, text: str, file: str):
         session = await run_in_threadpool(Session.from_text, text, file)
+        await run_in_threadpool(session.warm)
         token = self.add(session)
         return JSONResponse({"session": token, "machine": session.info()})
 

@@ -158,6 +158,9 @@ class Session:
     file_name: str
     params: dict[str, Param] = field(init=False)
     lock: threading.Lock = field(default_factory=threading.Lock, init=False)
+    #: the checks run on a second compiled copy of the machine under a lock of their own, so
+    #: that a checks request (tens of ms) never holds up the next turn
+    checks_lock: threading.Lock = field(default_factory=threading.Lock, init=False)
 
     def __post_init__(self):
         from ...engine.dynamics import DynamicsPlan
@@ -177,6 +180,17 @@ class Session:
         else:
             self.dynamics_note = "the machine file has no [masses]: no forces"
         self._kin = None if self._dyn is not None else KinematicsPlan(m, self.phi)
+        self._checks_machine = machine_from_toml(self.text, self.file_name)
+
+    def warm(self) -> None:
+        """Build the calls' plans now (the first turn and checks of a machine take a few hundred
+        ms), so that the page's first slider move is as fast as the next ones. A default
+        design that fails is not an error here: the page's first turn reports it."""
+        for fn in (self.turn, self.checks):
+            try:
+                fn({})
+            except (SewmechError, ValueError):
+                pass
 
     @classmethod
     def from_text(cls, text: str, file_name: str) -> Session:
@@ -342,11 +356,11 @@ class Session:
         from ...sewing.checks import check_timing
 
         P = self.design(values)
-        m = self.machine
+        m = self._checks_machine
         s = m.spec.sewing
         if s is None:
             return {"events": [], "checks": [], "note": "the machine file has no [sewing]"}
-        with self.lock:
+        with self.checks_lock:
             events = []
 
             def event(name, fn):

@@ -169,7 +169,9 @@ async function evaluate(t0) {
     S.turn = turn; S.turnValues = values;
     clearError();
     if (S.k >= turn.phi_deg.length) S.k = 0;
+    const t2 = performance.now();
     updateNumbers(); drawPlots(); drawFrame();
+    S.drawMs = performance.now() - t2;
     S.redraws += 1;
     if (t0 !== undefined) S.latency.push(performance.now() - t0);
     $("status").textContent = `turn in ${S.serverMs.toFixed(0)} ms`;
