@@ -26,7 +26,6 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 from browser_helpers import CHROMIUM_ARGS
-from serve_helpers import call
 from sewmech.app.web.session import Session, shipped_texts
 
 RESULTS = HERE / "results" / "serve.json"
@@ -70,18 +69,35 @@ def server_side() -> dict:
 
 
 def over_http(url: str) -> dict:
-    token = call(f"{url}/api/sessions", {"machine": "jb1-3"})[1]["session"]
+    """One keep-alive connection, as a browser's; the server's own time from its
+    Server-Timing header."""
+    import http.client
+
+    host, port = url.split("//")[1].split(":")
+    conn = http.client.HTTPConnection(host, int(port), timeout=60)
+
+    def post(path, body):
+        conn.request("POST", path, json.dumps(body), {"Content-Type": "application/json"})
+        r = conn.getresponse()
+        data = json.loads(r.read())
+        assert r.status == 200, data
+        dur = r.getheader("Server-Timing")
+        return data, (float(dur.split("dur=")[1]) / 1e3 if dur else None)
+
+    token = post("/api/sessions", {"machine": "jb1-3"})[0]["session"]
     for _ in range(3):
-        call(f"{url}/api/sessions/{token}/turn", {"set": {"input.regulator": 1.0}})
+        post(f"/api/sessions/{token}/turn", {"set": {"input.regulator": 1.0}})
     out = {}
     for name, values in zip(("regulator", "needle_bar.length"), slider_values()):
-        times = []
+        times, server = [], []
         for v in values:
             t0 = time.perf_counter()
-            status, _ = call(f"{url}/api/sessions/{token}/turn", {"set": v})
+            _, dur = post(f"/api/sessions/{token}/turn", {"set": v})
             times.append(time.perf_counter() - t0)
-            assert status == 200
+            server.append(dur)
+        out[f"turn, {name} (sewmech serve's own time)"] = pct(server)
         out[f"turn, {name} (HTTP round trip)"] = pct(times)
+    conn.close()
     return out
 
 
@@ -152,9 +168,9 @@ def main():
     print(f"{'what':48s} {'p50 ms':>8s} {'p95 ms':>8s} {'max ms':>8s}")
     for k, r in rows.items():
         print(f"{k:48s} {r['p50_ms']:8.1f} {r['p95_ms']:8.1f} {r['max_ms']:8.1f}")
-    worst = max(r["p95_ms"] for k, r in rows.items() if k.startswith("turn") and "process" in k)
+    worst = max(r["p95_ms"] for k, r in rows.items() if k.startswith("turn") and "own time" in k)
     verdict = "met" if worst <= TARGET_P95_MS else "MISSED"
-    print(f"target: a JB1-3 turn with dynamics at most {TARGET_P95_MS:g} ms p95 on the server:"
+    print(f"target: a JB1-3 turn with dynamics at most {TARGET_P95_MS:g} ms p95 in the server:"
           f" {worst:.1f} ms, {verdict}")
     RESULTS.parent.mkdir(exist_ok=True)
     RESULTS.write_text(json.dumps({"rows": rows, "target_p95_ms": TARGET_P95_MS,

@@ -20,6 +20,8 @@ async function api(path, body, raw) {
     body: raw || JSON.stringify(body),
   };
   const r = await fetch(path, opts);
+  const timing = (r.headers.get("server-timing") || "").match(/dur=([0-9.]+)/);
+  if (timing) S.serverComputeMs = +timing[1];
   const type = r.headers.get("content-type") || "";
   const data = type.includes("json") ? await r.json() : await r.text();
   if (!r.ok) {
@@ -174,7 +176,8 @@ async function evaluate(t0) {
     S.drawMs = performance.now() - t2;
     S.redraws += 1;
     if (t0 !== undefined) S.latency.push(performance.now() - t0);
-    $("status").textContent = `turn in ${S.serverMs.toFixed(0)} ms`;
+    $("status").textContent = `turn: ${S.serverComputeMs.toFixed(0)} ms on the server,` +
+      ` ${S.serverMs.toFixed(0)} ms with the request, ${S.drawMs.toFixed(0)} ms to draw`;
     if (edit === S.edited) scheduleChecks(values);
   } catch (err) {
     showError(err);
