@@ -112,3 +112,14 @@ def test_a_bad_file_shows_its_located_error_and_the_page_keeps_working(page):
     _redraws_after(pg, n)
     assert pg.is_hidden("#error")
     assert box.input_value()
+
+
+@pytest.mark.parametrize("name", ["fourbar-benchmark", "bartack-1820", "jb1-3"])
+def test_every_shipped_kind_of_machine_opens(page, name):
+    pg = page
+    n = pg.evaluate("window.sewmech.redraws")
+    pg.select_option("#machine", name)
+    _redraws_after(pg, n)
+    assert pg.evaluate("window.sewmech.machine.name") == name
+    assert pg.is_hidden("#error")
+    assert pg.errors == []
