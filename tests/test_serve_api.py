@@ -120,6 +120,13 @@ def test_a_design_that_does_not_assemble_says_where_and_why(url, jb):
     assert status == 422 and "finite number" in body["error"]["what"]
     status, body = call(f"{url}/api/sessions/{jb['session']}/turn", raw=b"{not json")
     assert status == 400 and body["error"]["where"] == "request"
+    # a cam's design values that make no cam: located at the cam's parameter
+    status, body = _turn(url, jb["session"], {"feed_cam.dwell": 500.0})
+    assert status == 422 and body["error"]["where"] == "parameter 'feed_cam.dwell'"
+    # a value the file's rules refuse (a crank that does not turn): the checks say so, located
+    status, body = call(f"{url}/api/sessions/{jb['session']}/checks",
+                        {"set": {"needle_crank.ratio": 0.0}})
+    assert status == 422 and 'units[0] "needle_crank"' in body["error"]["where"]
     # the server keeps serving, the session too
     status, body = _turn(url, jb["session"], {})
     assert status == 200 and body["feed"]["stitch_mm"] is not None

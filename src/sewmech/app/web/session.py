@@ -226,6 +226,10 @@ class Session:
     # ---- a design ------------------------------------------------------------------------------
     def design(self, values) -> np.ndarray:
         """The parameter vector of the page's values ({name: value in the shown unit})."""
+        return self._design(values)[0]
+
+    def _design(self, values) -> tuple[np.ndarray, dict[str, float]]:
+        """(parameter vector, the changed dimensions in internal units) of the page's values."""
         if values is None:
             values = {}
         if not isinstance(values, dict):
@@ -248,7 +252,23 @@ class Session:
             overrides[name] = float(v) / p.factor
         inputs = {k[6:]: v for k, v in overrides.items() if k.startswith("input.")}
         dims = {k: v for k, v in overrides.items() if not k.startswith("input.")}
-        return self.machine.parameters(dims, inputs=inputs)
+        try:
+            return self.machine.parameters(dims, inputs=inputs), dims
+        except SewmechError:
+            raise
+        except ValueError as exc:  # a cam's design values that make no cam
+            cams = [k for k in dims if k.rpartition(".")[0] in self.machine.cam_designs]
+            raise ParameterError(", ".join(cams) or "design", (), math.nan, str(exc),
+                                 "Change the cam's width, stroke and dwell together") from None
+
+    def validate_as_file(self, dims: dict[str, float]) -> None:
+        """Check the changed dimensions as a machine file with them would be checked (the
+        file's rules can be stricter than a parameter's domain, e.g. a crank's speed ratio of
+        0); a located MachineFileError otherwise. The last set that passed is remembered."""
+        key = tuple(sorted(dims.items()))
+        if dims and key != getattr(self, "_valid", None):
+            self._checks_machine.with_parameters(dims, origin="the page's values")
+            self._valid = key
 
     def turn(self, values) -> dict:
         """One full turn of the design: every point, link and slider at each drawn angle, the
@@ -351,12 +371,16 @@ class Session:
 
     def checks(self, values) -> dict:
         """The timing events (refined on the exact kinematics) and every check of the
-        machine's roles: slower than a turn (tens of ms), so a request of its own."""
+        machine's roles: slower than a turn (tens of ms), so a request of its own. The design
+        is also checked as a machine file with these values would be (:meth:`validate_as_file`),
+        which a turn leaves out for speed."""
         from ...sewing import timing as T
         from ...sewing.checks import check_timing
 
-        P = self.design(values)
+        P, dims = self._design(values)
         m = self._checks_machine
+        with self.checks_lock:
+            self.validate_as_file(dims)
         s = m.spec.sewing
         if s is None:
             return {"events": [], "checks": [], "note": "the machine file has no [sewing]"}

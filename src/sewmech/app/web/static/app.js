@@ -195,7 +195,9 @@ function scheduleChecks(values) {
       const c = await api(`/api/sessions/${S.token}/checks`, {set: values});
       if (edit === S.edited) { S.checks = c; renderChecks(); drawPlots(); }
     } catch (err) {
-      if (edit === S.edited) { S.checks = {checks: [], events: [], error: err.info}; renderChecks(); }
+      if (edit === S.edited) {
+        S.checks = {checks: [], events: [], error: err.info}; renderChecks(); showError(err);
+      }
     }
   }, 120);
 }
