@@ -226,14 +226,19 @@ def test_the_export_is_the_files_text_with_the_new_values_and_loads_back(url, jb
 
 
 def test_sewmech_serve_prints_its_url_and_serves(tmp_path):
-    proc = subprocess.Popen([sys.executable, "-c", CLI, "serve", "jb8-2", "--port",
+    mine = tmp_path / "mine.toml"
+    mine.write_text(sewmech.machine.shipped_machines()["jb8-2"].read_text())
+    proc = subprocess.Popen([sys.executable, "-c", CLI, "serve", str(mine), "--port",
                              "0"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         line = proc.stdout.readline()
         assert "http://127.0.0.1:" in line, line
         base = line.split("http://")[1].split("/")[0]
         status, body = call(f"http://{base}/api/machines")
-        assert status == 200 and body["initial"] == "jb8-2"
+        assert status == 200 and body["initial"] == "jb8-2 (mine.toml)"
+        assert "jb1-3" in {m["name"] for m in body["machines"]}
+        status, body = call(f"http://{base}/api/sessions", {"machine": body["initial"]})
+        assert status == 200 and body["machine"]["file"] == "mine.toml"
         status, page = call(f"http://{base}/")
         assert status == 200 and page.lower().startswith("<!doctype html")
     finally:
