@@ -24,6 +24,8 @@ pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 @pytest.fixture(scope="module")
 def url():
+    import sewmech.web  # noqa: F401  (the short name, as test_layers imports it, first)
+
     with running_server() as u:
         yield u
 

@@ -21,8 +21,7 @@ import secrets
 import threading
 import time
 from collections import OrderedDict
-from importlib import resources
-from pathlib import PurePath
+from pathlib import Path, PurePath
 
 from starlette.applications import Starlette
 from starlette.concurrency import run_in_threadpool
@@ -42,7 +41,10 @@ MAX_SESSIONS = 32
 #: the largest JSON request (a page's values), bytes
 MAX_JSON_BYTES = 256 * 1024
 
-STATIC = resources.files(__package__) / "static"
+#: the page's files, shipped as package data beside this module (found by this file's path:
+#: importing ``sewmech.web`` by its short name rebinds the package's ``__spec__``, which
+#: importlib.resources would read)
+STATIC = Path(__file__).resolve().parent / "static"
 
 
 class RequestError(Exception):
