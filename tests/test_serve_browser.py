@@ -5,6 +5,7 @@ the page keeps working; a screenshot is saved."""
 from __future__ import annotations
 
 import base64
+from pathlib import Path
 
 import pytest
 from sewmech.feed import feed_cycles
@@ -72,6 +73,14 @@ def test_the_regulator_and_a_dimension_move_the_stitch_and_the_drawing(page, tmp
     assert _drawing(pg) != after_regulator  # the needle bar is longer
     assert pg.locator('.param[data-name="needle_bar.length"]').get_attribute("class").endswith(
         "changed")
+    with pg.expect_download() as dl:  # the edited file: the shipped text with the new values
+        pg.click("#export-toml")
+    text = Path(dl.value.path()).read_text(encoding="utf-8")
+    assert dl.value.suggested_filename == "jb1-3-edited.toml"
+    assert "length = 47.0" in text and f"default_deg = {setting}" in text
+    with pg.expect_download() as dl:
+        pg.click("#export-csv")
+    assert Path(dl.value.path()).read_text(encoding="utf-8").startswith("phi_deg,")
     pg.screenshot(path=str(tmp_path / "serve.png"), full_page=True)
     assert (tmp_path / "serve.png").stat().st_size > 10_000
     assert pg.errors == []
