@@ -46,7 +46,7 @@ MODULES = {
     **{m: "design" for m in ("balancing", "vibration", "inserts", "tolerances",
                              "tolerance_file", "methods", "problem")},
     **{m: "app" for m in ("cli", "cli_common", "cli_balancing", "cli_accuracy", "cli_design",
-                          "report",
+                          "cli_serve", "web", "report",
                           "report_dynamics", "report_balancing", "report_accuracy", "report_design",
                           "figures",
                           "plot", "io", "outdir")},

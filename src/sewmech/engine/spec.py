@@ -929,6 +929,17 @@ def read_toml_text(path: str | Path, what: str = "machine file") -> str:
     except OSError as exc:
         raise MachineFileError(file, "", "", f"cannot read the file: {exc.strerror or exc}",
                                "Check the path and its permissions") from None
+    return toml_text(data, file, what)
+
+
+def toml_text(data: bytes, file: str, what: str = "machine file") -> str:
+    """Bytes of a TOML file (read from disk or received, e.g. uploaded to ``sewmech serve``)
+    as text, with the checks of :func:`read_toml_text`: at most :data:`MAX_FILE_BYTES`, not
+    binary, UTF-8 (a byte-order mark is dropped)."""
+    if len(data) > MAX_FILE_BYTES:
+        raise MachineFileError(file, "", "", f"is more than {MAX_FILE_BYTES // 2**20} MiB; a"
+                               f" {what} is at most {MAX_FILE_BYTES // 2**20} MiB of TOML text",
+                               f"Check that this is the {what} you meant")
     if b"\0" in data:
         raise MachineFileError(file, "", "", f"is a binary file, not a {what} (TOML text)",
                                "Give the path of a .toml file")

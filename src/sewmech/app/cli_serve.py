@@ -1,0 +1,58 @@
+"""``sewmech serve``: the interactive page (:mod:`sewmech.app.web`) on a local web server.
+Registered on the shared app of :mod:`sewmech.app.cli_common` when :mod:`sewmech.app.cli`
+imports this module."""
+
+from __future__ import annotations
+
+import socket
+
+import typer
+
+from ..engine.errors import OptionError
+from .cli_common import DEFAULT_MACHINE, command, console
+
+
+@command("serve")
+def serve_cmd(
+    machine: str = typer.Argument(DEFAULT_MACHINE, help="the machine the page opens with: a"
+                                  " shipped name or a machine file (TOML)"),
+    port: int = typer.Option(8000, help="TCP port; 0 picks a free one (printed)"),
+    host: str = typer.Option("127.0.0.1", help="address to listen on; the default serves this"
+                             " computer only (0.0.0.0 serves your network: anyone who reaches"
+                             " it can use the page)"),
+):
+    """Start the interactive page: change a dimension or the stitch regulator and watch the
+    mechanism, its curves, forces and checks move (docs/serve.md). Ctrl-C stops it."""
+    from pathlib import Path
+
+    import uvicorn
+
+    from ..engine.machine import shipped_machines
+    from ..engine.spec import parse_machine, read_toml_text
+    from .web.server import create_app
+
+    if not 0 <= port <= 65535:
+        raise OptionError("--port", f"must be 0 .. 65535, got {port}", "Give e.g. --port 8000,"
+                          " or --port 0 for any free port")
+    extra, initial = {}, machine
+    if machine not in shipped_machines() or Path(machine).exists():
+        path = Path(machine).expanduser()
+        text = read_toml_text(path)
+        spec = parse_machine(text, str(path))  # a bad file stops here, with its location
+        initial = f"{spec.machine.name} ({path.name})"
+        extra[initial] = (path.name, text)
+    app = create_app(extra, initial)
+    try:
+        sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind((host, port))
+        sock.listen(128)  # connections wait from now on, while the server starts
+    except OSError as exc:
+        raise OptionError("--port", f"cannot listen on {host}:{port}: {exc.strerror or exc}",
+                          "Choose another --port (0: any free one)") from None
+    bound = sock.getsockname()[1]
+    shown = f"[{host}]" if ":" in host else host
+    console.print(f"sewmech: the page is at http://{shown}:{bound}/ (Ctrl-C stops the server)",
+                  highlight=False, soft_wrap=True)
+    config = uvicorn.Config(app, log_level="warning", lifespan="off")
+    uvicorn.Server(config).run(sockets=[sock])
