@@ -142,3 +142,16 @@ def test_starting_a_command_imports_no_plotting_tables_or_optimisers():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.strip()
     assert out == "[]"
+
+
+def test_a_short_name_leaves_the_module_its_own_spec():
+    """Importing a module by its short name does not give it the alias's spec: its __spec__
+    keeps its real name, and a package's files stay reachable through importlib.resources."""
+    import importlib.resources
+
+    import sewmech
+
+    for short, layer in sewmech.MODULES.items():
+        module = importlib.import_module(f"sewmech.{short}")
+        assert module.__spec__.name == f"sewmech.{layer}.{short}", short
+    assert importlib.resources.files("sewmech.app.web").joinpath("static").is_dir()

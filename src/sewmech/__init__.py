@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.abc
+import importlib.machinery
 import importlib.util
 import sys
 
@@ -64,10 +65,16 @@ class _ShortNames(importlib.abc.MetaPathFinder, importlib.abc.Loader):
 
     def create_module(self, spec):
         name = spec.name.rpartition(".")[2]
-        return importlib.import_module(f"{__name__}.{MODULES[name]}.{name}")
+        module = importlib.import_module(f"{__name__}.{MODULES[name]}.{name}")
+        # the import system sets __spec__ of what this returns to the short name's spec;
+        # keep the module's own (a package found by importlib.resources needs its real one)
+        spec.loader_state = module.__spec__
+        return module
 
     def exec_module(self, module):
-        pass  # the layer's module is already executed
+        # the layer's module is already executed: only its own spec back
+        if isinstance(module.__spec__.loader_state, importlib.machinery.ModuleSpec):
+            module.__spec__ = module.__spec__.loader_state
 
 
 sys.meta_path.append(_ShortNames())
