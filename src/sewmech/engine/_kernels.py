@@ -99,7 +99,7 @@ def _solve2(m11, m12, m21, m22, b1, b2):
     return (b1 * m22 - m12 * b2) / det, (m11 * b2 - m21 * b1) / det, det
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
 def _gauss_solve(M, b, n):
     """Solve M x = b in place (partial pivoting). Returns (x in b, smallest |pivot| / scale)."""
     scale = 0.0
@@ -315,7 +315,7 @@ def rpr_guide(bx, by, bvx, bvy, bax, bay, ax_, ay_, avx, avy, aax, aay, e, branc
 def _loop_steps(u, g, k0, nb, grp, unk, terms, cams_i, arcs_i, params, d, march_phi, march_omega,
                 march_eps, march_store, tol, max_iter, p, v, a, th, om, ep, lc, ls, s, sd, sdd,
                 fu, fc, q_prev, dq1_prev, dq2_prev, phi_prev, n_hist, lost, loop_res, loop_worst,
-                q, F, J, dq, Jw):
+                q, F, J, dq, Jw, trig):
     """Loop group g (unit u) at the block's steps k0 .. k0 + nb - 1 in order (continuation):
     Newton-Raphson on the loop closures from a second-order Taylor predictor, then the rates
     and accelerations from the same Jacobian.
@@ -324,7 +324,9 @@ def _loop_steps(u, g, k0, nb, grp, unk, terms, cams_i, arcs_i, params, d, march_
     body: numba counts references of every array a compiled function receives (an atomic
     increment and decrement per array and call), and a call per term, assembly or Newton step
     made that counting four fifths of the feed's cost. q, F, J, dq, Jw are scratch of at least
-    the group's size. A failed step marks fu, fc and loses the continuation of the group."""
+    the group's size; trig (at least the group's terms x 4) keeps each term's cos and sin from
+    the last Newton assembly for the rates and accelerations, which are taken at the same
+    angles. A failed step marks fu, fc and loses the continuation of the group."""
     n = grp[g, 0]
     u0 = grp[g, 1]
     t0 = grp[g, 3]
@@ -405,8 +407,15 @@ def _loop_steps(u, g, k0, nb, grp, unk, terms, cams_i, arcs_i, params, d, march_
                     if terms[t, 7] >= 0:
                         psi += params[d, terms[t, 7]]
                     ang_col = terms[t, 11]
-                    c = math.cos(psi)
-                    sn = math.sin(psi)
+                    tt = t - t0
+                    if stage == 0:
+                        c = math.cos(psi)
+                        sn = math.sin(psi)
+                        trig[tt, 0] = c
+                        trig[tt, 1] = sn
+                    else:  # the same angles as the converged assembly
+                        c = trig[tt, 0]
+                        sn = trig[tt, 1]
                     if typ == TERM_VEC:
                         li = terms[t, 4]
                         if terms[t, 3] == SRC_PARAM:
@@ -472,8 +481,14 @@ def _loop_steps(u, g, k0, nb, grp, unk, terms, cams_i, arcs_i, params, d, march_
                         R = params[d, arcs_i[arc, 2]]
                         if terms[t, 9] >= 0:
                             R += params[d, terms[t, 9]]
-                        cc = math.cos(tc)
-                        cs = math.sin(tc)
+                        if stage == 0:
+                            cc = math.cos(tc)
+                            cs = math.sin(tc)
+                            trig[tt, 2] = cc
+                            trig[tt, 3] = cs
+                        else:
+                            cc = trig[tt, 2]
+                            cs = trig[tt, 3]
                         rx = cc * ccx - cs * ccy
                         ry = cs * ccx + cc * ccy
                         if stage == 0:
@@ -658,6 +673,11 @@ def _eval_designs(d0, d1, units, params, p_lo, p_hi, march_phi, mc, ms, march_st
     q = np.empty(max_n)
     dq = np.empty(max_n)
     Jw = np.empty((max_n, max_n))
+    max_t = 1
+    for g in range(n_groups):
+        if grp[g, 4] > max_t:
+            max_t = grp[g, 4]
+    trig = np.empty((max_t, 4))
     p = np.empty((BLOCK, n_points, 2))
     v = np.empty((BLOCK, n_points, 2))
     a = np.empty((BLOCK, n_points, 2))
@@ -922,7 +942,7 @@ def _eval_designs(d0, d1, units, params, p_lo, p_hi, march_phi, mc, ms, march_st
                                 d, march_phi, march_omega, march_eps, march_store, tol,
                                 max_iter, p, v, a, th, om, ep, lc, ls, s, sd, sdd, fu, fc,
                                 q_prev, dq1_prev, dq2_prev, phi_prev, n_hist, lost, loop_res,
-                                loop_worst, q, F, J, dq, Jw)
+                                loop_worst, q, F, J, dq, Jw, trig)
             for kb in range(nb):
                 row = march_store[k0 + kb]
                 if row < 0:
