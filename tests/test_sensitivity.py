@@ -302,3 +302,30 @@ def test_the_command_line_offers_every_metric():
     from sewmech.sewing.gradients import METRICS
 
     assert set(CLI) == set(METRICS)
+
+
+@pytest.mark.parametrize("channels", [["p_needle.point_y"],
+                                      ["p_feed_dog.tip_x", "theta_take_up_lever"],
+                                      ["q_needle_bar", "omega_big_rod"]])
+def test_outputs_solve_only_what_the_channels_need(channels):
+    """sensitivities(..., outputs=): the asked channels' values and derivatives (with the
+    rates and accelerations) equal those of the whole machine's; only the units they depend on
+    are solved (the needle's chain has no loop unit, so no feed point is in its result); a name
+    that is not a channel is refused with the way out."""
+    m = sewmech.load_machine("jb1-3")
+    phi = np.radians([3.0, 91.0, 200.0, 311.0])
+    whole = sensitivities(m, phi, rates=True)
+    part = sensitivities(m, phi, rates=True, outputs=channels)
+    for name in channels:
+        head, _, rest = name.partition("_")
+        rate = {"p": "v", "theta": "omega", "q": "qd"}.get(head, head)
+        for kind in (name, f"{rate}_{rest}"):
+            v0, d0, _ = whole.channel(kind)
+            v1, d1, _ = part.channel(kind)
+            np.testing.assert_array_equal(v1, v0)
+            np.testing.assert_allclose(d1, d0, rtol=0, atol=1e-12 * max(1.0, np.abs(d0).max()))
+    if channels == ["p_needle.point_y"]:
+        assert "feed_dog.tip" not in part.kin.point_names
+        assert len(part.kin.point_names) < len(whole.kin.point_names)
+    with pytest.raises(KeyError, match="not a channel"):
+        sensitivities(m, phi, outputs=["needle.point"])

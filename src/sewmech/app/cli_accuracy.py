@@ -84,7 +84,7 @@ def sensitivity_cmd(
         try:
             S = sensitivities(m, np.radians([phi_deg]), inputs=settings or None,
                               rates=output.split("_")[0] in ("v", "omega", "qd", "a", "epsilon",
-                                                             "qdd"))
+                                                             "qdd"), outputs=[output])
             value, d, unit = S.channel(output)
         except KeyError as exc:
             raise OptionError("--output", exc.args[0], "Give e.g. p_needle.point_y,"

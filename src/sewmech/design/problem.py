@@ -415,11 +415,11 @@ def _metric(machine: Machine, ref: MetricRef, P: np.ndarray) -> tuple[float, np.
         channel = name.split(":", 1)[1]
         ex = extremes(machine, channel, params=P)
         phi = np.array([ex.maximum.phi, ex.minimum.phi])
-        S = sensitivities(machine, phi, params=P)
+        S = sensitivities(machine, phi, params=P, outputs=[channel])
         v, d, _ = S.channel(channel)
         return float(v[0] - v[1]), d[0] - d[1]
-    S = sensitivities(machine, np.radians([ref.phi_deg]), params=P)
     try:
+        S = sensitivities(machine, np.radians([ref.phi_deg]), params=P, outputs=[name])
         v, d, _ = S.channel(name)
     except KeyError as exc:
         raise OptionError("metric", exc.args[0]) from None

@@ -81,8 +81,8 @@ def metric_gradient(machine: Machine, metric: str, *, regulator_deg: float | Non
                             else None)
         return g.value, g.d_dparam, g.unit
     inputs = _inputs(machine, regulator_deg)
-    S = sensitivities(machine, np.radians([phi_deg]), inputs=inputs)
     try:
+        S = sensitivities(machine, np.radians([phi_deg]), inputs=inputs, outputs=[metric])
         v, d, unit = S.channel(metric)
     except KeyError as exc:
         raise OptionError("--output", exc.args[0], "Metrics: " + ", ".join(METRICS)) from None

@@ -105,27 +105,39 @@ def _rot90(x: np.ndarray) -> np.ndarray:
 
 
 def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None = None,
-                  inputs=None, rates: bool = False) -> Sensitivities:
+                  inputs=None, rates: bool = False,
+                  outputs: list[str] | None = None) -> Sensitivities:
     """Exact derivatives of every point position, link angle and joint variable with respect
     to every parameter (``machine.parameter_names``), at shaft angles ``phi`` (rad), for the
     designs ``params`` (default: the file's) and setting ``inputs`` (rad, as for
     :func:`sewmech.kinematics`). With ``rates`` the velocities, angular velocities, joint
-    rates and the accelerations are differentiated too (at the file's speed). A position where the mechanism cannot
-    be assembled raises (the derivatives are not defined there)."""
+    rates and the accelerations are differentiated too (at the file's speed). A position where
+    the mechanism cannot be assembled raises (the derivatives are not defined there).
+
+    ``outputs`` (channel names as :meth:`Sensitivities.channel` takes them, e.g.
+    ``["p_needle.point_y"]``; None: every channel): only the units these depend on are solved
+    and differentiated, and the result holds the points, links and variables of those units
+    (a gradient of one channel then costs a few of its own kinematics evaluations)."""
     designs = int(np.prod(np.shape(params)[:-1])) if params is not None else 1
     for v in (inputs or {}).values():
         designs = max(designs, int(np.size(v)))
     _check_size(machine, designs * int(np.size(phi)) * (3 if rates else 1))
-    r = kinematics(machine, phi, params=params, inputs=inputs)
+    prog, pt_sel, lk_sel, var_sel = _outputs_of(machine, outputs)
+    r = kinematics(machine, phi, params=params, inputs=inputs,
+                   **({} if outputs is None else {
+                       "points": [machine.point_names[i] for i in pt_sel],
+                       "links": [machine.link_names[i] for i in lk_sel],
+                       "variables": [machine.variable_names[i] for i in var_sel]}))
     if not r.all_feasible:
         raise AnalysisError(f"machine '{machine.name}'", "cannot be assembled at some of the"
                             " angles: the sensitivities are not defined there",
                             "Choose angles where it assembles (sewmech check)")
     batch = r.p.shape[:-2]  # (batch..., n_phi)
     n = int(np.prod(batch)) if batch else 1
-    P = r.p.reshape(n, len(machine.point_names), 2)
-    TH = r.theta.reshape(n, len(machine.link_names))
-    Q = r.q.reshape(n, len(machine.variable_names))
+    full = _Full(n, machine, pt_sel, lk_sel, var_sel)
+    P = full.points(r.p)
+    TH = full.links(r.theta)
+    Q = full.variables(r.q)
     # the parameters of each position (designs broadcast over the angles)
     par = np.broadcast_to(_design_params(machine, r, params, inputs)[..., None, :],
                           batch + (len(machine.parameter_names),)).reshape(n, -1)
@@ -134,7 +146,6 @@ def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None 
     dTH = np.zeros((n, len(machine.link_names), npar))
     dQ = np.zeros((n, len(machine.variable_names), npar))
     eye = np.eye(npar)
-    prog = machine.program
     for row in prog:
         op = row[0]
         if op == OP_FIXED:
@@ -169,23 +180,89 @@ def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None 
     shape = batch
     rate_tangents = {}
     if rates:
-        V = r.v.reshape(P.shape)
-        OM = r.omega.reshape(TH.shape)
-        QD = r.q_dot.reshape(Q.shape)
-        dV, dOM, dQD = _rates(machine, V, OM, QD, P, TH, Q, dP, dTH, dQ, par, eye)
-        A = r.a.reshape(P.shape)
-        EP = r.epsilon.reshape(TH.shape)
-        QDD = r.q_ddot.reshape(Q.shape)
+        V = full.points(r.v)
+        OM = full.links(r.omega)
+        QD = full.variables(r.q_dot)
+        dV, dOM, dQD = _rates(machine, V, OM, QD, P, TH, Q, dP, dTH, dQ, par, eye, prog)
+        A = full.points(r.a)
+        EP = full.links(r.epsilon)
+        QDD = full.variables(r.q_ddot)
         dA, dEP, dQDD = _accels(machine, A, EP, QDD, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM,
-                                dQD, par, eye)
-        rate_tangents = {"dv": dV.reshape(shape + dV.shape[1:]),
-                         "domega": dOM.reshape(shape + dOM.shape[1:]),
-                         "dqd": dQD.reshape(shape + dQD.shape[1:]),
-                         "da": dA.reshape(shape + dA.shape[1:]),
-                         "depsilon": dEP.reshape(shape + dEP.shape[1:]),
-                         "dqdd": dQDD.reshape(shape + dQDD.shape[1:])}
-    return Sensitivities(r, dP.reshape(shape + dP.shape[1:]), dTH.reshape(shape + dTH.shape[1:]),
-                         dQ.reshape(shape + dQ.shape[1:]), **rate_tangents)
+                                dQD, par, eye, prog)
+        rate_tangents = {"dv": full.back(dV, pt_sel, shape),
+                         "domega": full.back(dOM, lk_sel, shape),
+                         "dqd": full.back(dQD, var_sel, shape),
+                         "da": full.back(dA, pt_sel, shape),
+                         "depsilon": full.back(dEP, lk_sel, shape),
+                         "dqdd": full.back(dQDD, var_sel, shape)}
+    return Sensitivities(r, full.back(dP, pt_sel, shape), full.back(dTH, lk_sel, shape),
+                         full.back(dQ, var_sel, shape), **rate_tangents)
+
+
+def _outputs_of(machine: Machine, outputs) -> tuple:
+    """The program rows the channels ``outputs`` depend on (None: all) and the points, links
+    and variables those rows write (indices): what the tangents need solved."""
+    if outputs is None:
+        return (machine.program, np.arange(len(machine.point_names)),
+                np.arange(len(machine.link_names)), np.arange(len(machine.variable_names)))
+    pts, lks, vrs = [], [], []
+    for name in ([outputs] if isinstance(outputs, str) else outputs):
+        kind, _, rest = str(name).partition("_")
+        if kind in ("p", "v", "a"):
+            pt, _, comp = rest.rpartition("_")
+            if comp not in ("x", "y"):
+                raise KeyError(f"channel '{name}': a point channel ends in _x or _y")
+            pts.append(name_index(machine.point_names, pt, "point"))
+        elif kind in ("theta", "omega", "epsilon"):
+            lks.append(name_index(machine.link_names, rest, "link"))
+        elif kind in ("q", "qd", "qdd"):
+            vrs.append(name_index(machine.variable_names, rest, "joint variable"))
+        else:  # (KeyError, as Sensitivities.channel raises for a name it does not know)
+            raise KeyError(f"'{name}' is not a channel: p_POINT_x, p_POINT_y, theta_LINK,"
+                           " q_VAR, their rates v_, omega_, qd_ and accelerations a_,"
+                           " epsilon_, qdd_")
+    rows = machine.rows_for(pts, lks, vrs)
+    written: set = set()
+    for k in rows:
+        written |= machine._row_io[k][1]
+    sel = [np.array(sorted(i for t, i in written if t == tag), dtype=np.int64)
+           for tag in ("p", "l", "v")]
+    return (machine.program[rows], *sel)
+
+
+class _Full:
+    """Scatters the selected outputs of a kinematics result into arrays over every point,
+    link and variable of the machine (indices as the program's; unsolved ones NaN), and
+    gathers the tangents back."""
+
+    def __init__(self, n, machine, pt_sel, lk_sel, var_sel):
+        self.n, self.m = n, machine
+        self.sel = (pt_sel, lk_sel, var_sel)
+
+    def _scatter(self, a, count, sel, tail):
+        a = np.asarray(a).reshape((self.n, len(sel)) + tail)
+        if len(sel) == count:  # every one: the arrays as they are
+            return a
+        out = np.full((self.n, count) + tail, np.nan)
+        out[:, sel] = a
+        return out
+
+    def points(self, a):
+        return self._scatter(a, len(self.m.point_names), self.sel[0], (2,))
+
+    def links(self, a):
+        out = self._scatter(a, len(self.m.link_names), self.sel[1], ())
+        if 0 not in self.sel[1]:  # the frame (link 0) reads as still, as in a whole result
+            out[:, 0] = 0.0
+        return out
+
+    def variables(self, a):
+        return self._scatter(a, len(self.m.variable_names), self.sel[2], ())
+
+    @staticmethod
+    def back(d, sel, shape):
+        d = d if len(sel) == d.shape[1] else d[:, sel]
+        return d.reshape(shape + d.shape[1:])
 
 
 def _check_size(machine: Machine, n: int) -> None:
@@ -300,14 +377,14 @@ def _active_arc(machine: Machine, par: np.ndarray, cl, a0: int, na: int, rho: np
 # ---- the rates' derivatives ----------------------------------------------------------------------
 
 
-def _rates(machine: Machine, V, OM, QD, P, TH, Q, dP, dTH, dQ, par, eye):
+def _rates(machine: Machine, V, OM, QD, P, TH, Q, dP, dTH, dQ, par, eye, prog):
     """Derivatives of the velocities (mm/s), angular velocities (rad/s) and joint rates by every
     parameter, from the velocity relations of each unit differentiated in solve order (the
     position tangents ``dP``, ``dTH``, ``dQ`` known): returns dV, dOM, dQD."""
     dV = np.zeros_like(dP)
     dOM = np.zeros_like(dTH)
     dQD = np.zeros_like(dQ)
-    for row in machine.program:
+    for row in prog:
         op = row[0]
         if op == OP_CRANK:
             L, jra, jset = row[1], row[3], row[4]
@@ -419,14 +496,14 @@ def _rpr_rates(row, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, par, eye) ->
 
 
 def _accels(machine: Machine, A, EP, QDD, V, OM, QD, P, TH, Q, dP, dTH, dQ, dV, dOM, dQD, par,
-            eye):
+            eye, prog):
     """Derivatives of the accelerations (mm/s^2), angular accelerations (rad/s^2) and joint
     accelerations by every parameter: each unit's acceleration relation differentiated with the
     position and rate tangents known. Returns dA, dEP, dQDD."""
     dA = np.zeros_like(dP)
     dEP = np.zeros_like(dTH)
     dQDD = np.zeros_like(dQ)
-    for row in machine.program:
+    for row in prog:
         op = row[0]
         if op == OP_CRANK:
             L, jra, jset = row[1], row[3], row[4]

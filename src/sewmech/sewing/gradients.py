@@ -81,7 +81,8 @@ def stitch_length_gradient(machine: Machine, regulator_deg: float, *, params=Non
     phi = crossing_angles(machine, dog, s.plate_y, np.radians([float(c.rise_deg),
                                                                float(c.fall_deg)]),
                           params=params, inputs=inputs)
-    S = sensitivities(machine, phi, params=params, inputs=inputs)
+    S = sensitivities(machine, phi, params=params, inputs=inputs,
+                      outputs=[f"p_{dog}_x", f"p_{dog}_y"])
     x, dx, _ = S.channel(f"p_{dog}_x")
     _, dy, _ = S.channel(f"p_{dog}_y")
     rate = kinematics(machine, phi, params=params, inputs=inputs, omega=1.0, points=[dog],
@@ -121,7 +122,8 @@ def feed_lift_gradient(machine: Machine, regulator_deg: float, *, params=None) -
     inputs = {s.regulator: math.radians(regulator_deg)}
     phi = extremum_angle(machine, s.feed_dog, 1, math.radians(float(c.top_deg)), params=params,
                          inputs=inputs)
-    S = sensitivities(machine, np.array([phi]), params=params, inputs=inputs)
+    S = sensitivities(machine, np.array([phi]), params=params, inputs=inputs,
+                      outputs=[f"p_{s.feed_dog}_y"])
     y, dy, _ = S.channel(f"p_{s.feed_dog}_y")
     return Gradient("feed_lift", float(y[0] - s.plate_y), "mm", machine.parameter_names,
                     dy[0], {"top": math.degrees(phi), "regulator": regulator_deg})
@@ -139,7 +141,8 @@ def dog_height_at_needle_plate_gradient(machine: Machine, regulator_deg: float, 
     start = needle_windows(machine, params)[1].start_deg
     phi = crossing_angles(machine, s.needle_point, s.plate_y, np.radians([start]),
                           params=params, inputs=inputs)
-    S = sensitivities(machine, phi, params=params, inputs=inputs)
+    S = sensitivities(machine, phi, params=params, inputs=inputs,
+                      outputs=[f"p_{s.needle_point}_y", f"p_{s.feed_dog}_y"])
     _, dyn, _ = S.channel(f"p_{s.needle_point}_y")
     yd, dyd, _ = S.channel(f"p_{s.feed_dog}_y")
     r = kinematics(machine, phi, params=params, inputs=inputs, omega=1.0,
@@ -151,15 +154,18 @@ def dog_height_at_needle_plate_gradient(machine: Machine, regulator_deg: float, 
                     {"needle_at_plate": float(np.degrees(phi[0])), "regulator": regulator_deg})
 
 
-def _top(machine: Machine, point: str, params) -> tuple[float, np.ndarray, object]:
+def _top(machine: Machine, point: str, params, also: tuple[str, ...] = ()
+         ) -> tuple[float, np.ndarray, object]:
     """The shaft angle (rad) of ``point``'s highest position and its derivative by every
     parameter: at the top v_y = 0, so d phi/dp = -(d v_y/dp) / (d v_y/dphi) = -w (d v_y/dp) / a_y
-    at the file's constant speed w. Also returns the sensitivities there (with rates)."""
+    at the file's constant speed w. Also returns the sensitivities there (with rates) of the
+    point and of the points ``also``."""
     from ..engine.extremes import extremes
 
     phi0 = extremes(machine, f"p_{point}_y", params=params).maximum.phi
     phi = extremum_angle(machine, point, 1, phi0, params=params)
-    S = sensitivities(machine, np.array([phi]), params=params, rates=True)
+    S = sensitivities(machine, np.array([phi]), params=params, rates=True,
+                      outputs=[f"p_{q}_y" for q in (point, *also)])
     _, dv, _ = S.channel(f"v_{point}_y")
     w = float(S.kin.omega_shaft[..., 0])
     a = float(S.kin.point(point).a[..., 0, 1])
@@ -206,7 +212,7 @@ def needle_descent_at_take_up_top_gradient(machine: Machine, regulator_deg: floa
     height at the eye's top by dy/dp + dy/dphi dphi_eye/dp."""
     s = _with_take_up(machine)
     pn, _, Sn = _top(machine, s.needle_point, params)
-    pe, de, Se = _top(machine, s.take_up_eye, params)
+    pe, de, Se = _top(machine, s.take_up_eye, params, also=(s.needle_point,))
     yn, dyn, _ = Sn.channel(f"p_{s.needle_point}_y")
     ye, dye, _ = Se.channel(f"p_{s.needle_point}_y")
     w = float(Se.kin.omega_shaft[..., 0])
@@ -225,7 +231,8 @@ def _extreme(machine: Machine, channel: str, which: str, params) -> tuple[float,
 
     ex = extremes(machine, channel, params=params)
     phi = (ex.maximum if which == "max" else ex.minimum).phi
-    return phi, sensitivities(machine, np.array([phi]), params=params, rates=True)
+    return phi, sensitivities(machine, np.array([phi]), params=params, rates=True,
+                              outputs=[channel])
 
 
 def loop_lift_gradient(machine: Machine, regulator_deg: float | None = None, *,
@@ -250,7 +257,8 @@ def loop_lift_gradient(machine: Machine, regulator_deg: float | None = None, *,
     pm = math.radians(ll.phi_deg)
     # the meeting angle as the march reaches it (after the bottom)
     pm = pb + ((pm - pb) % (2.0 * math.pi))
-    Sm = sensitivities(machine, np.array([pm]), params=params, rates=True)
+    Sm = sensitivities(machine, np.array([pm]), params=params, rates=True,
+                       outputs=[f"p_{sp}_x", f"p_{needle}_y"])
     _, dxs, _ = Sm.channel(f"p_{sp}_x")
     dphi_m = -(dxs[0] - dX) / (float(Sm.kin.point(sp).v[..., 0, 0]) / w)
     _, dym, _ = Sm.channel(f"p_{needle}_y")
