@@ -45,7 +45,7 @@ def main():
         row = run(PROBLEMS / "fourbar-swing.toml", method)
         row["error_mm"] = abs(row["x"][0] - a_star)
         rows.append(row)
-    for name in ("feed-lift.toml", "jb13-toward-jb82.toml"):
+    for name in ("feed-lift.toml", "jb13-toward-jb82.toml", "take-up.toml"):
         rows.append(run(PROBLEMS / name, "slsqp"))
     powell = run(PROBLEMS / "feed-lift.toml", "powell")
     rows.append(powell)

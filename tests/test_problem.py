@@ -319,20 +319,19 @@ def test_jb13_toward_jb82_hits_both_targets():
         assert got == pytest.approx(theirs, abs=1e-4), part.metric
 
 
-def test_the_take_up_problem_uses_value_only_thread_metrics():
-    """The thread balance's figures have no exact derivatives: SLSQP refuses the problem with
-    the way out; the batch values equal the thread balance of each design; the start meets the
-    constraints (the penalty methods need that)."""
+def test_the_take_up_problem_by_slsqp_with_the_thread_figures_exact_derivatives():
+    """The take-up problem: the batch values equal the thread balance of each design and the
+    start meets the constraints (the penalty methods need that). SLSQP, with the thread
+    figures' exact derivatives and the assembly margin as a constraint, meets every
+    constraint, keeps the take-up 0.01 mm from full extension, and no feasible design a small
+    step away along any variable is better (a brute-force check of the answer)."""
     import numpy as np
 
-    import sewmech
-    from sewmech.design.problem import batch_values
+    from sewmech.design.problem import ASSEMBLY_CLEARANCE_MM, batch_values
     from sewmech.sewing.thread import thread_balance
 
     spec, m = load_problem(ROOT / "examples" / "problems" / "take-up.toml")
     p = Problem(spec, m)
-    with pytest.raises(OptionError, match="no exact derivatives yet"):
-        optimize(p, "slsqp")
     X = np.array([p.start, p.start + [0.3, -0.2, 0.4]])
     vals, ok = batch_values(p, X)
     assert ok.all()
@@ -342,4 +341,43 @@ def test_the_take_up_problem_uses_value_only_thread_metrics():
             b.min_overfeed_while_loop_grows)
     g, _, _ = p.constraints(p.start)
     assert np.all(g > 0)
-    assert sewmech.load_machine("jb1-3").name == m.name
+    r = optimize(p, "slsqp")
+    assert r.status == "success", r.message
+    assert r.fun < r.objective_start - 5.0  # the least overfeed raised several times over
+    margin = r.constraints["assembles over the whole turn"]["smallest_margin_mm"]
+    assert margin >= ASSEMBLY_CLEARANCE_MM - 1e-6
+    q = Problem(spec, m)
+    for j in range(3):
+        for step in (-0.01, 0.01):
+            x = np.array(r.x, dtype=float)
+            x[j] += step
+            if not (p.lower[j] <= x[j] <= p.upper[j]):
+                continue
+            if q.assembly_margin(x)[0] < ASSEMBLY_CLEARANCE_MM or np.any(
+                    q.constraints(x)[0] < 0):
+                continue
+            assert q.objective(x)[0] >= r.fun - 1e-9, (j, step)
+
+
+def test_the_assembly_margin_and_its_derivative():
+    """Problem.assembly_margin: the smallest margin equals the exact proof's (located between
+    grid angles), its derivative the central differences of that proof's smallest margin."""
+    import numpy as np
+
+    from sewmech.engine.assembly import prove_assembly
+
+    spec, m = load_problem(ROOT / "examples" / "problems" / "take-up.toml")
+    p = Problem(spec, m)
+    x = np.array([25.6, 19.2, -8.0])
+    v, d = p.assembly_margin(x)
+
+    def smallest(xx):
+        return min(prove_assembly(m, params=p.params(xx), inputs=i).smallest.value_mm
+                   for i in ({"regulator": math.radians(-30)}, {"regulator": math.radians(30)}))
+
+    assert v == pytest.approx(smallest(x), abs=1e-9)
+    for j in range(3):
+        e = np.zeros(3)
+        e[j] = 1e-5
+        fd = (smallest(x + e) - smallest(x - e)) / 2e-5
+        assert d[j] == pytest.approx(fd, abs=1e-5), j

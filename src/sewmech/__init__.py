@@ -43,7 +43,7 @@ MODULES = {
                              "kinematics", "dynamics", "extremes", "margins", "assembly",
                              "counterweights", "sensitivity")},
     **{m: "sewing" for m in ("timing", "checks", "feed", "thread", "transmission",
-                             "embroidery", "gradients")},
+                             "embroidery", "gradients", "thread_gradients")},
     **{m: "design" for m in ("balancing", "vibration", "inserts", "tolerances",
                              "tolerance_file", "methods", "problem")},
     **{m: "app" for m in ("cli", "cli_common", "cli_balancing", "cli_accuracy", "cli_design",

@@ -45,6 +45,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from ..engine.errors import MachineFileError, OptionError, SewmechError
 from ..engine.machine import Machine, load_machine
 from ..engine.spec import load_toml_model
+from ..sewing.thread_gradients import THREAD_FIGURES, thread_gradient
 
 
 class _Spec(BaseModel):
@@ -259,6 +260,20 @@ class Problem:
                 names.append(f"{c.metric} <= {c.max:g}")
         return np.array(g), np.array(J).reshape(len(g), len(x)), names
 
+    def assembly_margin(self, x: np.ndarray) -> tuple[float, np.ndarray]:
+        """The smallest assembly margin (mm) of any closed-form unit over the whole turn, at
+        both ends of every setting input, and its derivative by the variables (mm per file
+        unit): the margin that SLSQP keeps at least :data:`ASSEMBLY_CLEARANCE_MM`. Each
+        condition's margin (:func:`sewmech.engine.margins.conditions`) is read on a 1 deg grid
+        from the points it names (so also where its unit fails), its least value located by
+        Brent's method on its slope; the derivative is the margin's at that angle (where its
+        slope is 0 the angle's motion does not change it), by central differences of the
+        variables in one kinematics call."""
+        key = ("margin", tuple(np.asarray(x, dtype=float)))
+        if key not in self._memo:
+            self._memo[key] = _smallest_margin(self, np.asarray(x, dtype=float))
+        return self._memo[key]
+
     # ---- values only, for the derivative-free methods and the population methods ------------
     def batch(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """For a batch of designs X (m, n_variables; file units), values only: the objective
@@ -358,6 +373,61 @@ def _setting_extremes(machine: Machine) -> list[dict | None]:
     return ends
 
 
+def _smallest_margin(problem: Problem, x: np.ndarray) -> tuple[float, np.ndarray]:
+    """See :meth:`Problem.assembly_margin`."""
+    from scipy.optimize import brentq
+
+    from ..engine.kinematics import kinematics
+    from ..engine.margins import conditions
+
+    m = problem.machine
+    P = problem.params(x)
+    h = math.radians(1.0)
+    grid = np.arange(360) * h
+    best = (math.inf, None, None, None)
+    for inputs in _setting_extremes(m):
+        for c in conditions(m, P):
+            def margin(phi, c=c, inputs=inputs, params=P):
+                r = kinematics(m, np.atleast_1d(phi), params=params, inputs=inputs, omega=1.0,
+                               points=c.points, links=c.links, variables=(),
+                               on_failure="mask")
+                return c.fn(r)
+
+            v, dv = (np.asarray(a, dtype=float) for a in margin(grid))
+            if not np.isfinite(v).any():
+                continue
+            k = int(np.nanargmin(v))
+            phi_min, v_min = grid[k], float(v[k])
+            j = (k - 1) % 360 if dv[k] > 0 else (k + 1) % 360
+            lo_, hi_ = sorted((grid[k], grid[k] + (h if j == (k + 1) % 360 else -h)))
+            try:
+                s0 = float(margin(lo_)[1][0])
+                s1 = float(margin(hi_)[1][0])
+                if s0 < 0.0 < s1:
+                    phi_min = brentq(lambda t: float(margin(t)[1][0]), lo_, hi_, xtol=1e-12)
+                    v_min = float(margin(phi_min)[0][0])
+            except ValueError:
+                pass
+            if v_min < best[0]:
+                best = (v_min, c, inputs, phi_min)
+    v_min, c, inputs, phi_min = best
+    if c is None:
+        return -math.inf, np.zeros(len(x))
+    # the margin at that angle for the variables stepped up and down, one batch call
+    n = len(x)
+    step = 1e-6 * np.maximum(1.0, np.abs(x))
+    X = np.concatenate([x + np.diag(step), x - np.diag(step)])
+    PP = np.tile(P, (2 * n, 1))
+    PP[:, problem.index] = X * problem.factor
+    cs = conditions(m, PP.T[:, :, None])
+    ci = [k for k, cc in enumerate(conditions(m, P)) if cc.unit == c.unit and
+          cc.label == c.label][0]
+    r = kinematics(m, np.array([phi_min]), params=PP, inputs=inputs, omega=1.0,
+                   points=c.points, links=c.links, variables=(), on_failure="mask")
+    vals = np.asarray(cs[ci].fn(r)[0], dtype=float).reshape(2 * n)
+    return v_min, (vals[:n] - vals[n:]) / (2.0 * step)
+
+
 def assembles_batch(machine: Machine, P: np.ndarray) -> np.ndarray:
     """Which designs of the batch P (m, n_params) assemble over the whole turn as the searches
     see it: on a 1 deg grid at both ends of every setting input, every closed-form unit's
@@ -380,11 +450,10 @@ def assembles_batch(machine: Machine, P: np.ndarray) -> np.ndarray:
     return ok
 
 
-#: the needle-thread balance's figures (:func:`sewmech.sewing.thread.thread_balance`), values
-#: only: no exact derivatives yet, so the derivative-free methods solve problems that use them
-THREAD_METRICS = {"thread_min_overfeed": "min_overfeed_while_loop_grows",
-                  "thread_overfeed_at_needle_entry": "overfeed_at_needle_entry",
-                  "thread_reserve": "reserve_after_cast_off"}
+#: the needle-thread balance's figures (:func:`sewmech.sewing.thread.thread_balance`) as
+#: metrics: metric name -> ThreadBalance property; their exact derivatives are
+#: :func:`sewmech.sewing.thread_gradients.thread_gradient`'s
+THREAD_METRICS = THREAD_FIGURES
 
 
 def _metric(machine: Machine, ref: MetricRef, P: np.ndarray) -> tuple[float, np.ndarray | None]:
@@ -394,9 +463,8 @@ def _metric(machine: Machine, ref: MetricRef, P: np.ndarray) -> tuple[float, np.
 
     name = ref.metric
     if name in THREAD_METRICS:
-        from ..sewing.thread import thread_balance
-
-        return float(getattr(thread_balance(machine, params=P), THREAD_METRICS[name])), None
+        g = thread_gradient(machine, name, params=P)
+        return g.value, g.d_dparam
     if name in METRICS:
         feed = name in ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
         reg = ref.regulator_deg
@@ -458,10 +526,12 @@ def batch_values(problem: Problem, X: np.ndarray) -> tuple[dict, np.ndarray]:
             continue
         name = ref.metric
         if name in THREAD_METRICS:  # (one design at a time: the thread balance has no batch)
+            from ..sewing.thread import thread_balance
+
             vals = np.full(len(X), np.nan)
             for k in np.nonzero(ok)[0]:
                 try:
-                    vals[k] = _metric(m, ref, P[k])[0]
+                    vals[k] = getattr(thread_balance(m, params=P[k]), THREAD_METRICS[name])
                 except SewmechError:
                     pass
         elif name in METRICS:
@@ -584,17 +654,20 @@ def _slsqp(problem: Problem, x0, lo, hi, tol: float, history: list) -> tuple[np.
     """SLSQP from x0 with the metrics' exact gradients, the bounds and the constraints."""
     from scipy.optimize import minimize
 
-    value_only = [r.metric for r in [*problem.spec.objective.parts, *problem.spec.constraints]
-                  if r.metric in THREAD_METRICS]
-    if value_only:
-        raise OptionError("--method", f"{', '.join(sorted(set(value_only)))} have no exact"
-                          " derivatives yet, which SLSQP needs",
-                          "Use powell, cyclic, de or nsga2 for this problem")
+    def guarded(x):  # the constraints where the design can be evaluated, else all unmet
+        try:
+            return problem.constraints(x)[:2]
+        except SewmechError:
+            k = sum((c.min is not None) + (c.max is not None) for c in problem.spec.constraints)
+            return -np.ones(k), np.zeros((k, len(x)))
 
-    cons = []
+    # every unit kept ASSEMBLY_CLEARANCE_MM from failing to assemble anywhere in the turn
+    cons = [{"type": "ineq",
+             "fun": lambda x: np.array([problem.assembly_margin(x)[0] - ASSEMBLY_CLEARANCE_MM]),
+             "jac": lambda x: problem.assembly_margin(x)[1][None, :]}]
     if problem.spec.constraints:
-        cons = [{"type": "ineq", "fun": lambda x: problem.constraints(x)[0],
-                 "jac": lambda x: problem.constraints(x)[1]}]
+        cons.append({"type": "ineq", "fun": lambda x: guarded(x)[0],
+                     "jac": lambda x: guarded(x)[1]})
 
     def fg(x):
         try:

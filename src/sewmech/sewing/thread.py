@@ -144,6 +144,26 @@ def _path_of(machine: Machine, r, on_failure: str = "raise") -> ThreadPath:
 CHECK_SPRING_STROKE_MM = 10.0  # DOMAIN.md 2.2 item 5: Juki LK-1900B check spring, 8-10 mm
 
 
+def path_length_gradient(centres: ArrayLike, rho: ArrayLike) -> np.ndarray:
+    """d(path length)/d(each guide's centre) (..., n, 2) for the path of :func:`path_length`:
+    the unit vector of the segment arriving at a guide minus that of the segment leaving it.
+    On a pin the tangent points slide round it as it moves and the arc takes up exactly what
+    the straight segments lose (the taut thread's length is stationary in them), so a pin
+    counts like a point at its centre."""
+    c = np.asarray(centres, dtype=float)
+    rho = np.asarray(rho, dtype=float)
+    d = c[..., 1:, :] - c[..., :-1, :]
+    dd = np.einsum("...i,...i->...", d, d)
+    b = rho[:-1] - rho[1:]
+    a = np.sqrt(dd - b * b)
+    jd = np.stack([-d[..., 1], d[..., 0]], axis=-1)
+    u = (a[..., None] * d + b[..., None] * jd) / dd[..., None]
+    g = np.zeros_like(c)
+    g[..., :-1, :] -= u
+    g[..., 1:, :] += u
+    return g
+
+
 def consumption_per_stitch(stitch_mm: ArrayLike, fabric_mm: ArrayLike,
                            thread_diameter_mm: ArrayLike = 0.0) -> dict[str, np.ndarray]:
     """Needle and bobbin thread per stitch of a balanced lockstitch (type 301), mm.
@@ -251,6 +271,13 @@ def thread_balance(machine: Machine, *, stitch_mm: float = 2.5, fabric_mm: float
     the shuttle timing, and the loop drawn round a bobbin case of ``bobbin_case_radius`` about
     the shuttle axis until the shuttle has turned ``cast_off_deg`` past seizure.
     """
+    return _balance(machine, stitch_mm, fabric_mm, step_deg, params)[0]
+
+
+def _balance(machine: Machine, stitch_mm: float, fabric_mm: float | None, step_deg: float,
+             params) -> tuple[ThreadBalance, dict]:
+    """:func:`thread_balance` and what it was read from (the kinematics, the grid indices of
+    its events, the loop's drawing mask): what the balance's derivatives need."""
     t = _thread_spec(machine)
     s = T.roles(machine)
     if t.bobbin_case_radius is None:
@@ -311,11 +338,15 @@ def thread_balance(machine: Machine, *, stitch_mm: float = 2.5, fabric_mm: float
     if not (d < 0).any():
         raise ValueError(f"machine '{machine.name}': the needle never enters the fabric")
     deg = 360.0 / n
-    return ThreadBalance(np.arange(n) * deg, tp.supply, tp.below, pen, loop, demand,
-                         tp.supply - demand, k_top * deg, math.degrees(seize), k_c * deg,
-                         k_m * deg, math.degrees(float(ph[d < 0][0])), float(stitch_mm), fabric,
-                         float(consumption_per_stitch(stitch_mm, fabric, t.thread_diameter)
-                               ["needle"]))
+    balance = ThreadBalance(np.arange(n) * deg, tp.supply, tp.below, pen, loop, demand,
+                            tp.supply - demand, k_top * deg, math.degrees(seize), k_c * deg,
+                            k_m * deg, math.degrees(float(ph[d < 0][0])), float(stitch_mm),
+                            fabric, float(consumption_per_stitch(stitch_mm, fabric,
+                                                                 t.thread_diameter)["needle"]))
+    return balance, {"r": r, "h": h, "k_top": k_top, "k_s": k_s, "k_c": k_c, "k_m": k_m,
+                     "k_bdc": k_bdc, "k_max": int(np.argmax(tp.take_up)), "drawing": drawing,
+                     "hole": hole, "axis": axis, "shuttle_point": sp, "fabric": fabric,
+                     "entry": float(ph[d < 0][0])}
 
 
 def check_thread(machine: Machine, balance: ThreadBalance | None = None) -> list:
