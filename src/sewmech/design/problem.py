@@ -420,8 +420,8 @@ def _smallest_margin(problem: Problem, x: np.ndarray) -> tuple[float, np.ndarray
     PP = np.tile(P, (2 * n, 1))
     PP[:, problem.index] = X * problem.factor
     cs = conditions(m, PP.T[:, :, None])
-    ci = [k for k, cc in enumerate(conditions(m, P)) if cc.unit == c.unit and
-          cc.label == c.label][0]
+    ci = next(k for k, cc in enumerate(conditions(m, P)) if cc.unit == c.unit
+              and cc.label == c.label)
     r = kinematics(m, np.array([phi_min]), params=PP, inputs=inputs, omega=1.0,
                    points=c.points, links=c.links, variables=(), on_failure="mask")
     vals = np.asarray(cs[ci].fn(r)[0], dtype=float).reshape(2 * n)

@@ -57,7 +57,7 @@ def thread_gradient(machine: Machine, name: str, *, params=None, stitch_mm: floa
         ks, ws = [int(x["k_c"])], [1.0]
     else:
         f = x["entry"] / h
-        k0 = int(math.floor(f)) % n
+        k0 = math.floor(f) % n
         w = f - math.floor(f)
         ks, ws = [k0, (k0 + 1) % n], [1.0 - w, w]
     value = float(getattr(b, THREAD_FIGURES[name]))
