@@ -386,7 +386,7 @@ def _smallest_margin(problem: Problem, x: np.ndarray) -> tuple[float, np.ndarray
     grid = np.arange(360) * h
     best = (math.inf, None, None, None)
     for inputs in _setting_extremes(m):
-        for c in conditions(m, P):
+        for ci, c in enumerate(conditions(m, P)):
             def margin(phi, c=c, inputs=inputs, params=P):
                 r = kinematics(m, np.atleast_1d(phi), params=params, inputs=inputs, omega=1.0,
                                points=c.points, links=c.links, variables=(),
@@ -409,22 +409,20 @@ def _smallest_margin(problem: Problem, x: np.ndarray) -> tuple[float, np.ndarray
             except ValueError:
                 pass
             if v_min < best[0]:
-                best = (v_min, c, inputs, phi_min)
-    v_min, c, inputs, phi_min = best
-    if c is None:
-        return -math.inf, np.zeros(len(x))
+                best = (v_min, ci, inputs, phi_min)
+    v_min, ci, inputs, phi_min = best
+    if ci is None:  # no closed-form unit, or none whose inputs assemble: nothing to hold
+        return (math.inf if not conditions(m, P) else -1.0), np.zeros(len(x))
     # the margin at that angle for the variables stepped up and down, one batch call
     n = len(x)
     step = 1e-6 * np.maximum(1.0, np.abs(x))
     X = np.concatenate([x + np.diag(step), x - np.diag(step)])
     PP = np.tile(P, (2 * n, 1))
     PP[:, problem.index] = X * problem.factor
-    cs = conditions(m, PP.T[:, :, None])
-    ci = next(k for k, cc in enumerate(conditions(m, P)) if cc.unit == c.unit
-              and cc.label == c.label)
+    c = conditions(m, PP.T[:, :, None])[ci]  # (the same condition, for the stepped designs)
     r = kinematics(m, np.array([phi_min]), params=PP, inputs=inputs, omega=1.0,
                    points=c.points, links=c.links, variables=(), on_failure="mask")
-    vals = np.asarray(cs[ci].fn(r)[0], dtype=float).reshape(2 * n)
+    vals = np.asarray(c.fn(r)[0], dtype=float).reshape(2 * n)
     return v_min, (vals[:n] - vals[n:]) / (2.0 * step)
 
 
@@ -661,10 +659,14 @@ def _slsqp(problem: Problem, x0, lo, hi, tol: float, history: list) -> tuple[np.
             k = sum((c.min is not None) + (c.max is not None) for c in problem.spec.constraints)
             return -np.ones(k), np.zeros((k, len(x)))
 
-    # every unit kept ASSEMBLY_CLEARANCE_MM from failing to assemble anywhere in the turn
-    cons = [{"type": "ineq",
-             "fun": lambda x: np.array([problem.assembly_margin(x)[0] - ASSEMBLY_CLEARANCE_MM]),
-             "jac": lambda x: problem.assembly_margin(x)[1][None, :]}]
+    # every closed-form unit kept ASSEMBLY_CLEARANCE_MM from failing to assemble anywhere in
+    # the turn (a machine of loop units alone has no margin to hold)
+    from ..engine.margins import conditions
+
+    cons = [] if not conditions(problem.machine, problem.params(x0)) else [
+        {"type": "ineq",
+         "fun": lambda x: np.array([problem.assembly_margin(x)[0] - ASSEMBLY_CLEARANCE_MM]),
+         "jac": lambda x: problem.assembly_margin(x)[1][None, :]}]
     if problem.spec.constraints:
         cons.append({"type": "ineq", "fun": lambda x: guarded(x)[0],
                      "jac": lambda x: guarded(x)[1]})
