@@ -343,34 +343,61 @@ def batch_values(problem: Problem, X: np.ndarray) -> tuple[dict, np.ndarray]:
     kinematics batch call per metric, and which designs assemble over the whole turn (at both
     ends of every setting input): ({(metric, regulator_deg, phi_deg): values (m,)}, (m,) bool).
     Values of designs that do not assemble are NaN (masked by the caller, never used)."""
-    from ..engine._events import extreme_rows
-    from ..engine.kinematics import kinematics
-    from ..sewing.gradients import METRICS, metric_values
-
     m = problem.machine
     X = np.atleast_2d(np.asarray(X, dtype=float))
     P = np.tile(np.asarray(m.defaults, dtype=float), (len(X), 1))
     P[:, problem.index] = X * problem.factor
+    return metric_batch(m, [*problem.spec.objective.parts, *problem.spec.constraints], P)
+
+
+def setting_extremes(machine: Machine) -> dict[str, np.ndarray] | None:
+    """Both ends of every setting input (rad; its default where a range is not declared), as
+    a (2, 1) column per input to broadcast against a batch of designs; None without inputs."""
+    if not machine.spec.inputs:
+        return None
+    return {n: np.array([math.radians(i.min_deg if i.min_deg is not None else i.default_deg),
+                         math.radians(i.max_deg if i.max_deg is not None else i.default_deg)]
+                        )[:, None]
+            for n, i in machine.spec.inputs.items()}
+
+
+def assembles_batch(machine: Machine, P: np.ndarray) -> np.ndarray:
+    """Which designs of the batch P (m, n_parameters) assemble at every whole degree of the
+    turn at both ends of every setting input, in one kinematics call: (m,) bool."""
+    from ..engine.kinematics import kinematics
+
     phi = np.radians(np.arange(360.0))
-    inputs = None
-    if m.spec.inputs:
-        inputs = {n: np.array([math.radians(i.min_deg if i.min_deg is not None else
-                                            i.default_deg),
-                               math.radians(i.max_deg if i.max_deg is not None else
-                                            i.default_deg)])[:, None]
-                  for n, i in m.spec.inputs.items()}
+    inputs = setting_extremes(machine)
     # (every unit solved: asking for no outputs would solve none)
-    r = kinematics(m, phi, params=P if inputs is None else P[None, :, :], inputs=inputs,
+    r = kinematics(machine, phi, params=P if inputs is None else P[None, :, :], inputs=inputs,
                    on_failure="mask")
-    ok = r.feasible.reshape(-1, len(X), len(phi)).all(axis=(0, 2))
+    return r.feasible.reshape(-1, len(P), len(phi)).all(axis=(0, 2))
+
+
+def metric_batch(machine: Machine, refs, P: np.ndarray, ok: np.ndarray | None = None
+                 ) -> tuple[dict, np.ndarray]:
+    """The metrics ``refs`` (each with ``metric``, ``regulator_deg``, ``phi_deg``: a sewing
+    metric, a thread metric, ``range:CHANNEL`` or a channel at ``phi_deg``) for the batch of
+    designs P (m, n_parameters; internal units), and which designs assemble over the whole turn
+    (:func:`assembles_batch`, unless given as ``ok``): ({(metric, regulator_deg, phi_deg):
+    values (m,)}, (m,) bool). Values of designs that do not assemble are NaN."""
+    from ..engine._events import extreme_rows
+    from ..engine.kinematics import kinematics
+    from ..sewing.gradients import METRICS, metric_values
+
+    m = machine
+    P = np.atleast_2d(np.asarray(P, dtype=float))
+    phi = np.radians(np.arange(360.0))
+    if ok is None:
+        ok = assembles_batch(m, P)
     out = {}
-    for ref in [*problem.spec.objective.parts, *problem.spec.constraints]:
+    for ref in refs:
         key = (ref.metric, ref.regulator_deg, ref.phi_deg)
         if key in out:
             continue
         name = ref.metric
         if name in THREAD_METRICS:  # (one design at a time: the thread balance has no batch)
-            vals = np.full(len(X), np.nan)
+            vals = np.full(len(P), np.nan)
             for k in np.nonzero(ok)[0]:
                 try:
                     vals[k] = _metric(m, ref, P[k])[0]
@@ -385,7 +412,7 @@ def batch_values(problem: Problem, X: np.ndarray) -> tuple[dict, np.ndarray]:
             channel = name.split(":", 1)[1]
             rate, acc = _channel_rates(channel)
             k = kinematics(m, phi, params=P, omega=1.0, on_failure="mask")
-            V, S, C = (k.channel(c)[0].reshape(len(X), len(phi)) for c in (channel, rate, acc))
+            V, S, C = (k.channel(c)[0].reshape(len(P), len(phi)) for c in (channel, rate, acc))
             if channel.startswith("theta_"):
                 V = np.unwrap(V, axis=1)
             h = 2.0 * math.pi / len(phi)
