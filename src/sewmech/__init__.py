@@ -44,9 +44,9 @@ MODULES = {
     **{m: "sewing" for m in ("timing", "checks", "feed", "thread", "transmission",
                              "embroidery", "gradients")},
     **{m: "design" for m in ("balancing", "vibration", "inserts", "tolerances",
-                             "tolerance_file", "methods", "problem")},
+                             "tolerance_file", "methods", "problem", "sweep_file", "sweep")},
     **{m: "app" for m in ("cli", "cli_common", "cli_balancing", "cli_accuracy", "cli_design",
-                          "report",
+                          "cli_sweep", "sweep_run", "report",
                           "report_dynamics", "report_balancing", "report_accuracy", "figures",
                           "plot", "io", "outdir")},
 }
