@@ -175,9 +175,20 @@ def test_curves_equal_the_kinematics_of_each_design(small, reference):
 
 # ---- Dask ---------------------------------------------------------------------------------------
 
+def _worker_threads():
+    from sewmech.engine._threads import n_threads
+
+    return os.environ.get("NUMBA_NUM_THREADS"), os.environ.get("OMP_NUM_THREADS"), n_threads()
+
+
 def test_a_local_cluster_gives_exactly_the_in_process_result(small, reference, tmp_path):
+    from distributed import Client
+
     ref, t = reference
-    r = run_sweep(small, tmp_path / "dask", workers=2, chunk=5)
+    with sweep_run.local_cluster(2) as cluster, Client(cluster) as client:
+        r = run_sweep(small, tmp_path / "dask", chunk=5, client=client)
+        # one thread per worker process: numba's, OpenMP's, sewmech's kernel threads
+        assert set(client.run(_worker_threads).values()) == {("1", "1", 1)}
     assert sorted(r.computed) == [0, 1, 2, 3] and not r.failed
     assert table(tmp_path / "dask").equals(t)
     for k, v in curves(tmp_path / "dask").items():

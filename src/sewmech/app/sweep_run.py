@@ -137,8 +137,9 @@ def _foreign(root: Path) -> list[str]:
         path = root / entry
         if entry in (LOCK, RECORD) and path.is_file() and not path.is_symlink():
             continue
-        if TMP_RE.fullmatch(entry) and path.is_file():
-            continue  # ours: a killed run's temporary file
+        if TMP_RE.fullmatch(entry) and not path.is_symlink() and (
+                path.is_file() or entry.startswith(f".{CURVES}.")):
+            continue  # ours: a killed run's temporary file (or Zarr store being made)
         if entry == CHUNKS and path.is_dir() and not path.is_symlink():
             out += [f"{CHUNKS}/{e}" for e in sorted(os.listdir(path))
                     if not ((CHUNK_RE.fullmatch(e) or TMP_RE.fullmatch(e))
@@ -207,14 +208,22 @@ def _write_json(path: Path, data: dict) -> None:
 
 
 def _init_outputs(root: Path, sweep: Sweep, chunk: int) -> None:
-    """The record, the chunks' directory and the curves' Zarr store (if not there yet);
-    temporary files of a killed run removed."""
+    """The record first (so that a run killed from here on leaves a sweep directory that the
+    next run resumes), then the chunks' directory and the curves' Zarr store if not there yet;
+    temporary files and directories of a killed run removed."""
+    import shutil
+
     for d in (root, root / CHUNKS):
         if d.is_dir():
             for e in os.listdir(d):
                 if TMP_RE.fullmatch(e):
-                    with contextlib.suppress(OSError):
-                        (d / e).unlink()
+                    if (d / e).is_dir() and not (d / e).is_symlink():
+                        shutil.rmtree(d / e, ignore_errors=True)
+                    else:
+                        with contextlib.suppress(OSError):
+                            (d / e).unlink()
+    if not (root / RECORD).is_file():
+        _write_json(root / RECORD, _record(sweep, chunk))
     (root / CHUNKS).mkdir(mode=dir_mode(), exist_ok=True)
     if sweep.spec.curves is not None and not (root / CURVES / "zarr.json").is_file():
         import zarr
@@ -228,8 +237,6 @@ def _init_outputs(root: Path, sweep: Sweep, chunk: int) -> None:
             g.create_array(ch, shape=(n, len(phi)), chunks=(chunk, len(phi)), dtype="f8",
                            fill_value=np.nan)
         os.replace(tmp, root / CURVES)  # the store appears whole
-    if not (root / RECORD).is_file():
-        _write_json(root / RECORD, _record(sweep, chunk))
 
 
 def write_chunk(root: Path, sweep: Sweep, k: int, c: Chunk) -> None:
@@ -277,11 +284,12 @@ def default_workers() -> int:
 def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
               workers: int | None = None, chunk: int | None = None, retries: int = 2,
               on_chunk: Callable[[int, int], None] | None = None,
-              stop_after: int | None = None) -> RunReport:
+              stop_after: int | None = None, client=None) -> RunReport:
     """Run the chunks of ``sweep`` that ``out`` lacks (see the module doc) and write them.
 
     ``on_chunk(k, n_designs)`` is called after each chunk is written (a progress bar);
-    ``stop_after`` stops cleanly after that many chunks of this run (the tests' interruption).
+    ``stop_after`` stops cleanly after that many chunks of this run (the tests' interruption);
+    ``client``, a ``distributed.Client`` already connected, is used instead of a new cluster.
     Raises SweepError (after finishing every other chunk) when some chunk failed.
     """
     root = Path(out).expanduser()
@@ -322,11 +330,11 @@ def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
             return True
 
         if todo:
-            if scheduler is None and workers == 0:
+            if client is None and scheduler is None and workers == 0:
                 _run_here(sweep, bounds, todo, retries, finished, report)
             else:
                 _run_dask(sweep, bounds, todo, retries, finished, report, scheduler,
-                          default_workers() if workers is None else workers)
+                          default_workers() if workers is None else workers, client)
         report.seconds = time.perf_counter() - t0
     if report.failed:
         shown = "; ".join(f"chunk {k} (designs {bounds[k][0]} .. {bounds[k][1] - 1}): {e}"
@@ -357,21 +365,30 @@ def _run_here(sweep, bounds, todo, retries, finished, report) -> None:
             return
 
 
-def _run_dask(sweep, bounds, todo, retries, finished, report, scheduler, workers) -> None:
+def local_cluster(workers: int):
+    """A Dask LocalCluster of ``workers`` processes with one thread each, numba, OpenMP and
+    BLAS held to one thread in every worker (:data:`WORKER_ENV`)."""
+    import dask
+    from distributed import LocalCluster
+
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENV}):
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                            dashboard_address=":0", silence_logs=50)
+
+
+def _run_dask(sweep, bounds, todo, retries, finished, report, scheduler, workers,
+              client=None) -> None:
     """The chunks as Dask tasks (at most four per worker thread in flight), results written
     here as they arrive."""
-    import dask
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import Client, as_completed
 
     from ..design.sweep import evaluate_texts, texts_of
 
     with contextlib.ExitStack() as stack:
-        if scheduler is None:
-            with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENV,
-                                  "distributed.worker.daemon": False}):
-                cluster = stack.enter_context(LocalCluster(
-                    n_workers=workers, threads_per_worker=1, processes=True,
-                    dashboard_address=None, silence_logs=50))
+        if client is not None:
+            pass
+        elif scheduler is None:
+            cluster = stack.enter_context(local_cluster(workers))
             client = stack.enter_context(Client(cluster))
         else:
             try:
