@@ -252,6 +252,7 @@ def test_an_unreachable_scheduler_is_a_clear_error(tmp_path, monkeypatch):
                               f"tcp://127.0.0.1:{_free_port()}", "--out", str(tmp_path / "o")])
     assert res.exit_code == 2
     assert "--scheduler" in res.output and "Traceback" not in res.output
+    assert not (tmp_path / "o").exists()  # nothing written before the cluster answers
 
 
 # ---- resuming, retries, failures ----------------------------------------------------------------

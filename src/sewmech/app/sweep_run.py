@@ -153,8 +153,8 @@ def _foreign(root: Path) -> list[str]:
 
 
 def prepare_dir(root: Path, sweep: Sweep, chunk: int | None, option: str = "--out") -> int:
-    """Check (and make) the output directory for the sweep; returns the chunk size to use.
-    Call with the directory's lock held."""
+    """Check the output directory for the sweep (nothing is written); returns the chunk size
+    to use. Called before the long work starts, and again with the directory's lock held."""
     if root.exists() and not root.is_dir():
         raise OutputError(f"{option} {root}", "is a file, not a directory",
                           "Give a directory for the sweep (it is created if missing)")
@@ -195,9 +195,7 @@ def prepare_dir(root: Path, sweep: Sweep, chunk: int | None, option: str = "--ou
                               f" resumed sweep keeps its chunks", f"Leave out --chunk, or give"
                               f" --chunk {recorded}")
         return recorded
-    chunk = DEFAULT_CHUNK if chunk is None else chunk
-    root.mkdir(mode=dir_mode(), parents=True, exist_ok=True)
-    return chunk
+    return DEFAULT_CHUNK if chunk is None else chunk
 
 
 def _write_json(path: Path, data: dict) -> None:
@@ -302,14 +300,23 @@ def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
     if scheduler is not None and workers is not None:
         raise OptionError("--workers", "a cluster given by --scheduler has its own workers",
                           "Leave out --workers (start `dask worker` processes on the cluster)")
-    if not root.exists():
-        try:
-            root.mkdir(mode=dir_mode(), parents=True)
-        except OSError as exc:
-            from .outdir import _os_error
+    size = prepare_dir(root, sweep, chunk)  # a directory not this sweep's: before any work
+    here = client is None and scheduler is None and workers == 0
+    if (root / RECORD).is_file() and len(done_chunks(root)) >= len(
+            chunk_bounds(sweep.n_designs, size)):
+        here = True  # nothing left to compute: no cluster to start
+    with contextlib.ExitStack() as stack:
+        if not here and client is None:  # (an unreachable scheduler: before any writing)
+            client = stack.enter_context(_client(scheduler, default_workers()
+                                                 if workers is None else workers))
+        if not root.exists():
+            try:
+                root.mkdir(mode=dir_mode(), parents=True)
+            except OSError as exc:
+                from .outdir import _os_error
 
-            raise _os_error(root, exc, "--out") from None
-    with dir_lock(root):
+                raise _os_error(root, exc, "--out") from None
+        stack.enter_context(dir_lock(root))
         chunk = prepare_dir(root, sweep, chunk)
         _init_outputs(root, sweep, chunk)
         bounds = chunk_bounds(sweep.n_designs, chunk)
@@ -330,11 +337,10 @@ def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
             return True
 
         if todo:
-            if client is None and scheduler is None and workers == 0:
+            if here:
                 _run_here(sweep, bounds, todo, retries, finished, report)
             else:
-                _run_dask(sweep, bounds, todo, retries, finished, report, scheduler,
-                          default_workers() if workers is None else workers, client)
+                _run_dask(sweep, bounds, todo, retries, finished, report, client)
         report.seconds = time.perf_counter() - t0
     if report.failed:
         shown = "; ".join(f"chunk {k} (designs {bounds[k][0]} .. {bounds[k][1] - 1}): {e}"
@@ -376,59 +382,65 @@ def local_cluster(workers: int):
                             dashboard_address=":0", silence_logs=50)
 
 
-def _run_dask(sweep, bounds, todo, retries, finished, report, scheduler, workers,
-              client=None) -> None:
+@contextlib.contextmanager
+def _client(scheduler: str | None, workers: int):
+    """A Dask client: of a new local cluster of ``workers`` processes, or of the scheduler at
+    ``scheduler``."""
+    from distributed import Client
+
+    if scheduler is None:
+        with local_cluster(workers) as cluster, Client(cluster) as client:
+            yield client
+        return
+    try:
+        client = Client(scheduler, timeout=CONNECT_TIMEOUT)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise OptionError("--scheduler", f"cannot reach a Dask scheduler at {scheduler!r}"
+                          f" ({exc})", "Start one with `dask scheduler` and give its address,"
+                          " e.g. tcp://10.0.0.5:8786") from None
+    with client:
+        yield client
+
+
+def _run_dask(sweep, bounds, todo, retries, finished, report, client) -> None:
     """The chunks as Dask tasks (at most four per worker thread in flight), results written
     here as they arrive."""
-    from distributed import Client, as_completed
+    from distributed import as_completed
 
     from ..design.sweep import evaluate_texts, texts_of
 
-    with contextlib.ExitStack() as stack:
-        if client is not None:
-            pass
-        elif scheduler is None:
-            cluster = stack.enter_context(local_cluster(workers))
-            client = stack.enter_context(Client(cluster))
+    client.register_plugin(_Warm(), name="sewmech-warm")
+    threads = max(1, sum(client.nthreads().values()))
+    texts = client.scatter(texts_of(sweep), broadcast=True)
+    window = 4 * threads
+    queue = list(todo)
+    keys = {}
+
+    def submit():
+        k = queue.pop(0)
+        f = client.submit(evaluate_texts, texts, *bounds[k], retries=retries, pure=False,
+                          key=f"sewmech-sweep-{sweep.sweep_sha256[:8]}-chunk-{k}"
+                              f"-{os.getpid()}-{time.monotonic_ns()}")
+        keys[f.key] = k
+        return f
+
+    running = as_completed([submit() for _ in range(min(window, len(queue)))],
+                           with_results=False)
+    for f in running:
+        k = keys.pop(f.key)
+        if f.status == "finished":
+            c = f.result()
+            f.release()
+            if not finished(k, c):
+                for other in list(running.futures):
+                    other.cancel()
+                return
         else:
-            try:
-                client = stack.enter_context(Client(scheduler, timeout=CONNECT_TIMEOUT))
-            except (OSError, TimeoutError, ValueError) as exc:
-                raise OptionError("--scheduler", f"cannot reach a Dask scheduler at"
-                                  f" {scheduler!r} ({exc})", "Start one with `dask scheduler`"
-                                  " and give its address, e.g. tcp://10.0.0.5:8786") from None
-        client.register_plugin(_Warm(), name="sewmech-warm")
-        threads = max(1, sum(client.nthreads().values()))
-        texts = client.scatter(texts_of(sweep), broadcast=True)
-        window = 4 * threads
-        queue = list(todo)
-        keys = {}
-
-        def submit():
-            k = queue.pop(0)
-            f = client.submit(evaluate_texts, texts, *bounds[k], retries=retries, pure=False,
-                              key=f"sewmech-sweep-{sweep.sweep_sha256[:8]}-chunk-{k}"
-                                  f"-{os.getpid()}-{time.monotonic_ns()}")
-            keys[f.key] = k
-            return f
-
-        running = as_completed([submit() for _ in range(min(window, len(queue)))],
-                               with_results=False)
-        for f in running:
-            k = keys.pop(f.key)
-            if f.status == "finished":
-                c = f.result()
-                f.release()
-                if not finished(k, c):
-                    for other in list(running.futures):
-                        other.cancel()
-                    return
-            else:
-                exc = f.exception()
-                report.failed[k] = f"{type(exc).__name__}: {exc}"
-                f.release()
-            if queue:
-                running.add(submit())
+            exc = f.exception()
+            report.failed[k] = f"{type(exc).__name__}: {exc}"
+            f.release()
+        if queue:
+            running.add(submit())
 
 
 class _Warm(WorkerPlugin):
