@@ -261,6 +261,8 @@ def test_an_interrupted_sweep_resumes_with_only_the_missing_chunks(small, refere
     out = tmp_path / "r"
     r1 = run_sweep(small, out, workers=0, chunk=5, stop_after=2)
     assert r1.stopped and r1.computed == [0, 1]
+    res = runner.invoke(app, ["sweep-summary", str(out)])
+    assert res.exit_code == 0 and "partial: 2 of 4 chunks written" in res.output
     # a killed run's half-written chunk (a temporary file) is never taken for a chunk
     (out / "chunks" / ".chunk-000002.parquet.x1y2.tmp").write_bytes(b"PAR1 half")
     with pytest.raises(OptionError, match="--chunk 5"):
