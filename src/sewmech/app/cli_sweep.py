@@ -29,7 +29,7 @@ def sweep_cmd(
     workers: int = typer.Option(None, help="worker processes of the local cluster (default:"
                                 " one per core); 0 evaluates in this process, without Dask"),
     chunk: int = typer.Option(None, help="designs per chunk, each one batch call and one"
-                              " Parquet file (default 1000; a resumed sweep keeps its own)"),
+                              " Parquet file (default 250; a resumed sweep keeps its own)"),
     retries: int = typer.Option(2, help="attempts after a chunk's first failure before it is"
                                 " reported failed"),
     as_json: bool = typer.Option(False, "--json", help="print the run's figures as JSON"),

@@ -56,7 +56,9 @@ CHUNKS = "chunks"
 CURVES = "curves.zarr"
 CHUNK_RE = re.compile(r"chunk-(\d{6,})\.parquet")
 TMP_RE = re.compile(r"\..+\.tmp")
-DEFAULT_CHUNK = 1000
+#: designs per chunk: the whole-turn assembly check of 250 JB1-3 designs holds about 350 MB
+#: of kinematics in a worker (1.4 GB at 1000)
+DEFAULT_CHUNK = 250
 #: how long to wait for the scheduler at --scheduler's address
 CONNECT_TIMEOUT = "20s"
 #: environment of every worker process: one thread each for numba (sewmech's kernel threads),
@@ -293,7 +295,7 @@ def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
     root = Path(out).expanduser()
     if chunk is not None and not 1 <= chunk <= 10_000_000:
         raise OptionError("--chunk", f"must be in 1 .. 10000000 designs, got {chunk}",
-                          "Give e.g. --chunk 1000")
+                          "Give e.g. --chunk 250")
     if workers is not None and not 0 <= workers <= 4096:
         raise OptionError("--workers", f"must be in 0 .. 4096, got {workers}",
                           "Give --workers 0 to run in this process")
