@@ -56,8 +56,8 @@ CHUNKS = "chunks"
 CURVES = "curves.zarr"
 CHUNK_RE = re.compile(r"chunk-(\d{6,})\.parquet")
 TMP_RE = re.compile(r"\..+\.tmp")
-#: designs per chunk: the whole-turn assembly check of 250 JB1-3 designs holds about 350 MB
-#: of kinematics in a worker (1.4 GB at 1000)
+#: designs per chunk: the whole-turn assembly check of 250 JB1-3 designs holds about 250 MB
+#: of kinematics in a worker (1 GB at 1000)
 DEFAULT_CHUNK = 250
 #: how long to wait for the scheduler at --scheduler's address
 CONNECT_TIMEOUT = "20s"
