@@ -356,6 +356,11 @@ def test_a_directory_that_is_not_the_sweeps_is_refused(small, reference, tmp_pat
     with pytest.raises(OutputError, match="did not write.*chunks/extra.csv"):
         run_sweep(small, out, workers=0)
     (out / "chunks" / "extra.csv").unlink()
+    (out / ".notes.tmp").write_text("mine too")  # (not a name a sweep writes: kept, refused)
+    with pytest.raises(OutputError, match="did not write.*notes.tmp"):
+        run_sweep(small, out, workers=0)
+    assert (out / ".notes.tmp").read_text() == "mine too"
+    (out / ".notes.tmp").unlink()
     # the same directory for a changed sweep file, or another machine file
     changed = write(tmp_path, SMALL.read_text(encoding="utf-8").replace("upper = 12.0",
                                                                         "upper = 13.0"))

@@ -55,7 +55,9 @@ RECORD = "sweep.json"
 CHUNKS = "chunks"
 CURVES = "curves.zarr"
 CHUNK_RE = re.compile(r"chunk-(\d{6,})\.parquet")
-TMP_RE = re.compile(r"\..+\.tmp")
+#: the temporary names a sweep writes under before renaming (a killed run may leave them)
+ROOT_TMP_RE = re.compile(r"\.(sweep\.json|curves\.zarr)\..+\.tmp")
+CHUNK_TMP_RE = re.compile(r"\.chunk-\d{6,}\.parquet\..+\.tmp")
 #: designs per chunk: the whole-turn assembly check of 250 JB1-3 designs holds about 250 MB
 #: of kinematics in a worker (1 GB at 1000)
 DEFAULT_CHUNK = 250
@@ -139,12 +141,11 @@ def _foreign(root: Path) -> list[str]:
         path = root / entry
         if entry in (LOCK, RECORD) and path.is_file() and not path.is_symlink():
             continue
-        if TMP_RE.fullmatch(entry) and not path.is_symlink() and (
-                path.is_file() or entry.startswith(f".{CURVES}.")):
+        if ROOT_TMP_RE.fullmatch(entry) and not path.is_symlink():
             continue  # ours: a killed run's temporary file (or Zarr store being made)
         if entry == CHUNKS and path.is_dir() and not path.is_symlink():
             out += [f"{CHUNKS}/{e}" for e in sorted(os.listdir(path))
-                    if not ((CHUNK_RE.fullmatch(e) or TMP_RE.fullmatch(e))
+                    if not ((CHUNK_RE.fullmatch(e) or CHUNK_TMP_RE.fullmatch(e))
                             and (path / e).is_file())]
             continue
         if entry == CURVES and path.is_dir() and not path.is_symlink() and (
@@ -160,7 +161,8 @@ def prepare_dir(root: Path, sweep: Sweep, chunk: int | None, option: str = "--ou
     if root.exists() and not root.is_dir():
         raise OutputError(f"{option} {root}", "is a file, not a directory",
                           "Give a directory for the sweep (it is created if missing)")
-    entries = [e for e in os.listdir(root) if e != LOCK] if root.exists() else []
+    entries = [e for e in os.listdir(root) if e != LOCK and not ROOT_TMP_RE.fullmatch(e)] \
+        if root.exists() else []
     record = None
     if (root / RECORD).is_file():
         record = read_record(root, option)
@@ -213,10 +215,10 @@ def _init_outputs(root: Path, sweep: Sweep, chunk: int) -> None:
     temporary files and directories of a killed run removed."""
     import shutil
 
-    for d in (root, root / CHUNKS):
+    for d, pattern in ((root, ROOT_TMP_RE), (root / CHUNKS, CHUNK_TMP_RE)):
         if d.is_dir():
             for e in os.listdir(d):
-                if TMP_RE.fullmatch(e):
+                if pattern.fullmatch(e):
                     if (d / e).is_dir() and not (d / e).is_symlink():
                         shutil.rmtree(d / e, ignore_errors=True)
                     else:
