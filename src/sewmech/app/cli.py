@@ -21,6 +21,7 @@ from . import cli_balancing  # noqa: F401  (registers balance, trial-balance, in
 from . import cli_accuracy  # noqa: F401  (registers sensitivity, tolerance)
 from . import cli_design  # noqa: F401  (registers optimize)
 from . import cli_serve  # noqa: F401  (registers serve)
+from . import cli_sweep  # noqa: F401  (registers sweep, sweep-summary)
 from .cli_common import (DEFAULT_MACHINE, EXIT_ERROR, EXIT_INTERNAL, EXIT_SIGINT,
                          MIN_STEP_DEG, SET_HELP, Format, Terminated, _bounded, _guard, _load,
                          _parse_sets, _phi, _phi_grid, _print_error, _rpm, _settings, app,

@@ -15,6 +15,10 @@ Every command that writes files (``--out DIR``) goes through :func:`output_dir`:
   The lock file stays (it is sewmech's own and harmless; removing it could let two runs
   lock two different files).
 - Files and directories get the modes the umask gives (0644 and 0755 under umask 022).
+
+A sweep (:mod:`sewmech.app.sweep_run`) writes in place instead, chunk by chunk, each file by
+rename, so that an interrupted run keeps its finished chunks; it holds the same lock
+(:func:`dir_lock`).
 """
 
 from __future__ import annotations
@@ -285,3 +289,36 @@ def _commit(root: Path, staging: Path, manifest: dict, command: str) -> None:
     os.chmod(tmp, file_mode())
     os.replace(tmp, root / MANIFEST)
     staging.rmdir()
+
+
+@contextlib.contextmanager
+def dir_lock(root: Path, option: str = "--out") -> Iterator[None]:
+    """Hold ``root``'s lock (``.sewmech.lock``; ``root`` must exist) for a command that writes
+    into the directory in place rather than through a staging directory (a sweep, which keeps
+    every finished chunk). Raises OutputError if another run holds it. A lock file this call
+    created is removed again if the body fails (e.g. refuses a directory of the user's)."""
+    lock = root / LOCK
+    created = not lock.exists()
+    try:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, file_mode())
+    except OSError as exc:
+        raise _os_error(root, exc, option) from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            created = False  # the other run's lock
+            other = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "?"
+            raise OutputError(f"{option} {root}", f"another sewmech run (pid {other}) is"
+                              " writing into this directory", "Wait for it to finish, or"
+                              " choose another directory") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, str(os.getpid()).encode(), 0)
+        yield
+    except BaseException:
+        if created:
+            with contextlib.suppress(OSError):
+                os.unlink(lock)
+        raise
+    finally:
+        os.close(fd)

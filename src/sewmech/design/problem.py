@@ -361,16 +361,24 @@ class Problem:
 ASSEMBLY_CLEARANCE_MM = 0.01
 
 
-def _setting_extremes(machine: Machine) -> list[dict | None]:
-    """The setting inputs at their lower and at their upper ends (rad), or [None]."""
+def setting_extremes(machine: Machine) -> dict[str, np.ndarray] | None:
+    """Both ends of every setting input (rad; its default where a range is not declared), as
+    a (2, 1) column per input to broadcast against a batch of designs; None without inputs."""
     if not machine.spec.inputs:
+        return None
+    return {n: np.array([math.radians(i.min_deg if i.min_deg is not None else i.default_deg),
+                         math.radians(i.max_deg if i.max_deg is not None else i.default_deg)]
+                        )[:, None]
+            for n, i in machine.spec.inputs.items()}
+
+
+def _setting_extremes(machine: Machine) -> list[dict | None]:
+    """The setting inputs at their lower and at their upper ends (rad), or [None]: one
+    design's two calls (:func:`setting_extremes` as two dicts)."""
+    ext = setting_extremes(machine)
+    if ext is None:
         return [None]
-    ends = []
-    for k in (0, 1):
-        ends.append({n: math.radians((i.min_deg, i.max_deg)[k] if (i.min_deg, i.max_deg)[k]
-                                     is not None else i.default_deg)
-                     for n, i in machine.spec.inputs.items()})
-    return ends
+    return [{n: float(v[k, 0]) for n, v in ext.items()} for k in (0, 1)]
 
 
 def _smallest_margin(problem: Problem, x: np.ndarray) -> tuple[float, np.ndarray]:
@@ -426,25 +434,41 @@ def _smallest_margin(problem: Problem, x: np.ndarray) -> tuple[float, np.ndarray
     return v_min, (vals[:n] - vals[n:]) / (2.0 * step)
 
 
+#: designs per kinematics call of the whole-turn assembly check: 256 x 2 settings x 360
+#: angles of JB1-3's points are about 0.3 GB, whatever the batch
+ASSEMBLY_CHUNK = 256
+
+
 def assembles_batch(machine: Machine, P: np.ndarray) -> np.ndarray:
     """Which designs of the batch P (m, n_params) assemble over the whole turn as the searches
-    see it: on a 1 deg grid at both ends of every setting input, every closed-form unit's
-    assembly margin at least :data:`ASSEMBLY_CLEARANCE_MM` at every grid angle. (m,) bool."""
+    and sweeps see it: on a 1 deg grid at both ends of every setting input, every closed-form
+    unit's assembly margin at least :data:`ASSEMBLY_CLEARANCE_MM` at every grid angle. One
+    kinematics call per :data:`ASSEMBLY_CHUNK` designs. (m,) bool."""
     from ..engine.kinematics import kinematics
     from ..engine.margins import conditions
 
+    P = np.atleast_2d(np.asarray(P, dtype=float))
     phi = np.radians(np.arange(360.0))
-    m = len(P)
-    ok = np.ones(m, dtype=bool)
-    Pt = np.asarray(P, dtype=float).T[:, :, None]  # (n_params, m, 1): per design, any angle
-    for inputs in _setting_extremes(machine):
-        # (every unit solved: asking for no outputs would solve none)
-        r = kinematics(machine, phi, params=P, inputs=inputs, on_failure="mask")
-        ok &= r.feasible.reshape(m, len(phi)).all(axis=1)
-        for c in conditions(machine, Pt):
-            margin = np.asarray(c.fn(r)[0]).reshape(m, len(phi))
-            ok &= np.where(np.isnan(margin), -np.inf, margin).min(axis=1) >= \
+    inputs = setting_extremes(machine)
+    # every unit solved (asking for no outputs would solve none), but only the points and the
+    # links the margins read kept when they need every unit (less memory and time)
+    points = list(machine.point_names)
+    links = sorted({lk for c in conditions(machine, np.asarray(machine.defaults))
+                    for lk in c.links})
+    sel = {"points": points, "links": links, "variables": []} \
+        if len(machine.selection(points, links, [])[-1]) == len(machine.program) else {}
+    ok = np.empty(len(P), dtype=bool)
+    for a in range(0, len(P), ASSEMBLY_CHUNK):
+        Q = P[a:a + ASSEMBLY_CHUNK]
+        m = len(Q)
+        r = kinematics(machine, phi, params=Q if inputs is None else Q[None, :, :],
+                       inputs=inputs, on_failure="mask", **sel)
+        good = r.feasible.reshape(-1, m, len(phi)).all(axis=(0, 2))
+        for c in conditions(machine, Q.T[:, :, None]):  # (n_params, m, 1): per design
+            margin = np.asarray(c.fn(r)[0]).reshape(-1, m, len(phi))
+            good &= np.where(np.isnan(margin), -np.inf, margin).min(axis=(0, 2)) >= \
                 ASSEMBLY_CLEARANCE_MM
+        ok[a:a + m] = good
     return ok
 
 
@@ -507,18 +531,32 @@ def batch_values(problem: Problem, X: np.ndarray) -> tuple[dict, np.ndarray]:
     kinematics batch call per metric, and which designs assemble over the whole turn (at both
     ends of every setting input): ({(metric, regulator_deg, phi_deg): values (m,)}, (m,) bool).
     Values of designs that do not assemble are NaN (masked by the caller, never used)."""
-    from ..engine._events import extreme_rows
-    from ..engine.kinematics import kinematics
-    from ..sewing.gradients import METRICS, metric_values
-
     m = problem.machine
     X = np.atleast_2d(np.asarray(X, dtype=float))
     P = np.tile(np.asarray(m.defaults, dtype=float), (len(X), 1))
     P[:, problem.index] = X * problem.factor
+    return metric_batch(m, [*problem.spec.objective.parts, *problem.spec.constraints], P)
+
+
+def metric_batch(machine: Machine, refs, P: np.ndarray, ok: np.ndarray | None = None
+                 ) -> tuple[dict, np.ndarray]:
+    """The metrics ``refs`` (each with ``metric``, ``regulator_deg``, ``phi_deg``: a sewing
+    metric, a thread metric, ``range:CHANNEL`` or a channel at ``phi_deg``) for the batch of
+    designs P (m, n_parameters; internal units), values only, and which designs assemble over
+    the whole turn (:func:`assembles_batch`, unless given as ``ok``): ({(metric,
+    regulator_deg, phi_deg): values (m,)}, (m,) bool). Values of designs that do not assemble
+    are NaN."""
+    from ..engine._events import extreme_rows
+    from ..engine.kinematics import kinematics
+    from ..sewing.gradients import METRICS, metric_values
+
+    m = machine
+    P = np.atleast_2d(np.asarray(P, dtype=float))
     phi = np.radians(np.arange(360.0))
-    ok = assembles_batch(m, P)
+    if ok is None:
+        ok = assembles_batch(m, P)
     out = {}
-    for ref in [*problem.spec.objective.parts, *problem.spec.constraints]:
+    for ref in refs:
         key = (ref.metric, ref.regulator_deg, ref.phi_deg)
         if key in out:
             continue
@@ -526,7 +564,7 @@ def batch_values(problem: Problem, X: np.ndarray) -> tuple[dict, np.ndarray]:
         if name in THREAD_METRICS:  # (one design at a time: the thread balance has no batch)
             from ..sewing.thread import thread_balance
 
-            vals = np.full(len(X), np.nan)
+            vals = np.full(len(P), np.nan)
             for k in np.nonzero(ok)[0]:
                 try:
                     vals[k] = getattr(thread_balance(m, params=P[k]), THREAD_METRICS[name])
@@ -541,7 +579,7 @@ def batch_values(problem: Problem, X: np.ndarray) -> tuple[dict, np.ndarray]:
             channel = name.split(":", 1)[1]
             rate, acc = _channel_rates(channel)
             k = kinematics(m, phi, params=P, omega=1.0, on_failure="mask")
-            V, S, C = (k.channel(c)[0].reshape(len(X), len(phi)) for c in (channel, rate, acc))
+            V, S, C = (k.channel(c)[0].reshape(len(P), len(phi)) for c in (channel, rate, acc))
             if channel.startswith("theta_"):
                 V = np.unwrap(V, axis=1)
             h = 2.0 * math.pi / len(phi)

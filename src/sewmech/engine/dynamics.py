@@ -704,7 +704,8 @@ class DynamicsPlan:
     plan.
 
     Parameters are those of :func:`inverse_dynamics` (which see); ``params`` and ``inputs`` are
-    given per call.
+    given per call. ``on_failure="mask"`` (as for the kinematics) gives NaN forces at the
+    positions that cannot be assembled instead of raising (design sweeps).
     """
 
     def __init__(
@@ -718,6 +719,7 @@ class DynamicsPlan:
         gravity: bool = True,
         loads: Sequence[LoadSpec] | None = None,
         masses: Mapping[str, MassProperties] | None = None,
+        on_failure: str = "raise",
     ):
         self.machine = machine
         self.structure = force_structure(machine)
@@ -740,7 +742,7 @@ class DynamicsPlan:
             rows.append(np.array([[li, machine.point_index(origin)]] * 3, dtype=np.int64))
             local.append(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]))
         self.kin_plan = KinematicsPlan(
-            machine, phi, rpm=rpm, omega=omega, epsilon=epsilon,
+            machine, phi, rpm=rpm, omega=omega, epsilon=epsilon, on_failure=on_failure,
             extra_points=(np.concatenate(rows), np.concatenate(local)))
         self._loads = _load_tables(machine, self.loads, np.degrees(self.kin_plan.phi))
         self._load_links = tuple(int(i) for i in self._loads[0][:, 0])

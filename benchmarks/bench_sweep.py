@@ -1,0 +1,132 @@
+"""Benchmark: design sweeps (issue 20).
+
+The shipped sweep's designs (examples/sweeps/jb-feed.toml: six feed dimensions, four feed
+metrics at the regulator's settings, the whole-turn assembly at both regulator ends, peak
+torque and shaking force), its first ``DESIGNS`` designs (a Sobol sequence's prefix: the same
+designs the full sweep starts with), in chunks of ``CHUNK``:
+
+- in this process (``--workers 0``: the kernels on every core through threads), and on a Dask
+  LocalCluster of 1 and of 2 worker processes (one thread each), timed in interleaved rounds
+  (benchmarks/_timing.py), each into a fresh directory (writing Parquet included); the
+  clusters are started before the rounds (their start-up is printed apart);
+- the target (issue 20): Dask's overhead at 2 workers at most 10 % against in-process on 2
+  cores, i.e. the 2-worker time at most 1.10 x the in-process time;
+- the shipped 100,000-design sweep's time, estimated from the in-process rate (``--full`` runs
+  the whole sweep through the command line instead, which takes about an hour on 2 cores).
+
+Prints a table and writes ``benchmarks/results/sweep.json``; a missed target prints MISSED and
+exits 0.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from _timing import interleave, table
+
+SHIPPED = HERE.parent / "examples" / "sweeps" / "jb-feed.toml"
+RESULTS = HERE / "results" / "sweep.json"
+DESIGNS = 640
+CHUNK = 80
+ROUNDS = 3
+TARGET_OVERHEAD = 0.10
+
+
+def main():
+    from distributed import Client
+
+    from sewmech.app.sweep_run import local_cluster, run_sweep
+    from sewmech.design.sweep_file import load_sweep
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench-sweep-"))
+    try:
+        text = SHIPPED.read_text(encoding="utf-8")
+        assert "designs = 100000" in text
+        part = tmp / "jb-feed-part.toml"
+        part.write_text(text.replace("designs = 100000", f"designs = {DESIGNS}"),
+                        encoding="utf-8")
+        sweep = load_sweep(part)
+        runs = [0]
+
+        def fresh() -> Path:
+            runs[0] += 1
+            return tmp / f"out-{runs[0]}"
+
+        starts = {}
+        clusters = {}
+        for n in (1, 2):
+            t0 = time.perf_counter()
+            cluster = local_cluster(n)
+            client = Client(cluster)
+            client.wait_for_workers(n)
+            starts[n] = time.perf_counter() - t0
+            clusters[n] = (cluster, client)
+
+        def here():
+            run_sweep(sweep, fresh(), workers=0, chunk=CHUNK)
+
+        def on(n):
+            return lambda: run_sweep(sweep, fresh(), chunk=CHUNK, client=clusters[n][1])
+
+        contenders = {"in-process": here, "LocalCluster, 1 worker": on(1),
+                      "LocalCluster, 2 workers": on(2)}
+        t = interleave(contenders, rounds=ROUNDS)
+        for cluster, client in clusters.values():
+            client.close()
+            cluster.close()
+        rows = []
+        result = {"designs": DESIGNS, "chunk": CHUNK, "rounds": ROUNDS, "cores": os.cpu_count(),
+                  "cluster_start_s": starts, "contenders": {}}
+        for name in contenders:
+            best, med = t.best(name), t.median(name)
+            rows.append((name, f"{best:.2f}", f"{med:.2f}", f"{DESIGNS / med:.1f}"))
+            result["contenders"][name] = {"best_s": best, "median_s": med,
+                                          "designs_per_s": DESIGNS / med,
+                                          "rounds_s": t.rounds[name]}
+        print(f"the shipped sweep's first {DESIGNS} designs in chunks of {CHUNK},"
+              f" {ROUNDS} interleaved rounds, {os.cpu_count()} cores")
+        print(table(rows, ("contender", "best s", "median s", "designs/s (median)")))
+        print(f"cluster start-up: 1 worker {starts[1]:.1f} s, 2 workers {starts[2]:.1f} s"
+              " (not in the times above)")
+        ratio = t.ratio("LocalCluster, 2 workers", "in-process")
+        lo, hi = t.ratio_range("LocalCluster, 2 workers", "in-process")
+        speedup = t.ratio("LocalCluster, 1 worker", "LocalCluster, 2 workers")
+        verdict = "met" if ratio <= 1.0 + TARGET_OVERHEAD else "MISSED"
+        print(f"Dask at 2 workers / in-process: {ratio:.3f} (rounds {lo:.3f} .. {hi:.3f}),"
+              f" overhead {100 * (ratio - 1):+.1f} %; target <= {100 * TARGET_OVERHEAD:.0f} %:"
+              f" {verdict}")
+        print(f"2 workers against 1: {speedup:.2f} x")
+        rate = DESIGNS / t.median("in-process")
+        per_core = DESIGNS / t.median("LocalCluster, 1 worker")
+        estimate = 100_000 / rate
+        print(f"the shipped 100,000-design sweep in this process: about {estimate / 60:.0f} min"
+              f" at {rate:.1f} designs/s (estimated from the rate above, not run whole);"
+              f" per core (1 worker): {per_core:.1f} designs/s")
+        result.update({"overhead_ratio_2_workers": ratio, "overhead_range": [lo, hi],
+                       "speedup_2_over_1": speedup, "verdict": verdict,
+                       "per_core_designs_per_s": per_core,
+                       "full_sweep_estimate_s": estimate})
+        if "--full" in sys.argv:
+            out = tmp / "full"
+            t0 = time.perf_counter()
+            subprocess.run([str(Path(sys.executable).parent / "sewmech"), "sweep",
+                            str(SHIPPED), "--out", str(out)], check=True)
+            result["full_sweep_s"] = time.perf_counter() - t0
+            print(f"the shipped 100,000-design sweep, run whole: {result['full_sweep_s']:.0f} s")
+        RESULTS.parent.mkdir(exist_ok=True)
+        RESULTS.write_text(json.dumps(result, indent=1))
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,337 @@
+"""The sweep commands of the ``sewmech`` command line: ``sweep`` (evaluate a sweep file's
+designs in chunks, in this process or on Dask) and ``sweep-summary`` (the feasible region, the
+outputs' distributions and the best designs of a sweep's output). Registered on the shared app
+of :mod:`sewmech.app.cli_common` when :mod:`sewmech.app.cli` imports this module."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import typer
+from rich.markup import escape
+from rich.table import Table
+
+from ..engine.errors import OptionError
+from .cli_common import command, console, err_console, print_json
+
+
+@command("sweep")
+def sweep_cmd(
+    file: Path = typer.Argument(..., help="sweep file (TOML, docs/sweeps.md)"),
+    out: Path = typer.Option(..., help="directory of the results: one Parquet file per chunk,"
+                             " the curves in Zarr; a directory of the same sweep is resumed"),
+    scheduler: str = typer.Option(None, help="address of a Dask scheduler to run on, e.g."
+                                  " tcp://10.0.0.5:8786 (default: a local cluster)"),
+    workers: int = typer.Option(None, help="worker processes of the local cluster (default:"
+                                " one per core); 0 evaluates in this process, without Dask"),
+    chunk: int = typer.Option(None, help="designs per chunk, each one batch call and one"
+                              " Parquet file (default 250; a resumed sweep keeps its own)"),
+    retries: int = typer.Option(2, help="attempts after a chunk's first failure before it is"
+                                " reported failed"),
+    as_json: bool = typer.Option(False, "--json", help="print the run's figures as JSON"),
+):
+    """Evaluate every design of a sweep file (a grid or a random, Latin-hypercube or Sobol
+    sample of the machine's dimensions): outputs per design to Parquet, curves to Zarr,
+    resuming an interrupted run."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        ProgressColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+    from rich.text import Text
+
+    from ..design.sweep import chunk_bounds
+    from ..design.sweep_file import load_sweep
+    from .sweep_run import done_chunks, read_record, run_sweep
+
+    if not 0 <= retries <= 10:
+        raise OptionError("--retries", f"must be in 0 .. 10, got {retries}", "Give e.g."
+                          " --retries 2")
+    sweep = load_sweep(file)
+    root = out.expanduser()
+
+    class Rate(ProgressColumn):
+        def render(self, task):
+            rate = task.fields.get("rate")
+            return Text(f"{rate:,.0f} designs/s" if rate else "", style="progress.data.speed")
+
+    import time
+
+    t0 = [time.perf_counter(), 0]
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TextColumn("designs"), Rate(), TimeElapsedColumn(), TimeRemainingColumn(),
+                  console=err_console, transient=True, disable=as_json) as progress:
+        task = progress.add_task(escape(sweep.spec.sweep.name), total=sweep.n_designs)
+        started = [False]
+
+        def on_chunk(k: int, n: int) -> None:
+            if not started[0]:  # (the designs found done count from the start)
+                started[0] = True
+                t0[0] = time.perf_counter()
+                t0[1] = 0
+            t0[1] += n
+            dt = time.perf_counter() - t0[0]
+            progress.update(task, advance=n, rate=t0[1] / dt if dt > 0 else None)
+
+        if (root / "sweep.json").is_file():  # resumed: the designs found done
+            with contextlib.suppress(Exception):  # (run_sweep says what is wrong)
+                rec = read_record(root, "--out")
+                bounds = chunk_bounds(sweep.n_designs, int(rec["chunk"]))
+                have = done_chunks(root)
+                progress.update(task, completed=sum(b - a for k, (a, b) in enumerate(bounds)
+                                                    if k in have))
+        try:
+            r = run_sweep(sweep, root, scheduler=scheduler, workers=workers, chunk=chunk,
+                          retries=retries, on_chunk=on_chunk)
+        except KeyboardInterrupt:
+            n = len(done_chunks(root)) if root.is_dir() else 0
+            err_console.print(f"{n} chunks are written in {escape(str(root))}; run the same"
+                              " command again to compute the rest", highlight=False)
+            raise
+    feasible, total = _count_feasible(root)
+    rate = r.designs_computed / r.seconds if r.seconds > 0 else math.nan
+    data = {"sweep": sweep.spec.sweep.name, "out": str(root), "n_designs": sweep.n_designs,
+            "n_chunks": r.n_chunks, "chunks_found_done": r.done_before,
+            "chunks_computed": len(r.computed), "designs_computed": r.designs_computed,
+            "seconds": r.seconds, "designs_per_second": rate if math.isfinite(rate) else None,
+            "feasible": feasible, "designs_written": total}
+    if as_json:
+        print_json(data)
+        return
+    how = (f"{len(r.computed)} chunks computed in {r.seconds:.1f} s ({rate:,.0f} designs/s)"
+           if r.computed else "nothing left to compute")
+    console.print(f"{escape(sweep.spec.sweep.name)}: {sweep.n_designs:,} designs in"
+                  f" {r.n_chunks} chunks; {r.done_before} found done, {how}", highlight=False)
+    console.print(f"feasible: {feasible:,} of {total:,} designs"
+                  f" ({100.0 * feasible / max(total, 1):.1f} %); `sewmech sweep-summary"
+                  f" {escape(str(root))}` shows them", highlight=False)
+
+
+def _count_feasible(root: Path) -> tuple[int, int]:
+    import pyarrow.parquet as pq
+
+    from .sweep_run import chunk_path, done_chunks
+
+    feasible = total = 0
+    for k in sorted(done_chunks(root)):
+        col = pq.read_table(chunk_path(root, k), columns=["feasible"]).column(0)
+        total += len(col)
+        feasible += int(np.count_nonzero(col.to_numpy(zero_copy_only=False)))
+    return feasible, total
+
+
+def load_results(root: Path, option: str = "DIR") -> tuple[dict, dict[str, np.ndarray], int]:
+    """A sweep directory's record, its columns (the chunks written, in design order) and the
+    number of chunks written."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from .sweep_run import chunk_path, done_chunks, read_record
+
+    record = read_record(root, option)
+    have = sorted(done_chunks(root))
+    if not have:
+        raise OptionError(option, f"{root}: no chunk of the sweep is written yet",
+                          "Run `sewmech sweep` into it first")
+    table = pa.concat_tables([pq.read_table(chunk_path(root, k)) for k in have])
+    cols = {name: table.column(name).to_numpy(zero_copy_only=False)
+            for name in table.column_names}
+    return record, cols, len(have)
+
+
+@command("sweep-summary")
+def sweep_summary_cmd(
+    directory: Path = typer.Argument(..., help="the --out directory of `sewmech sweep`"),
+    out: Path = typer.Option(None, help="also write the figures (scatter matrix, histograms:"
+                             " PNG, SVG), the best designs (CSV) and the summary (JSON) here"),
+    color_by: str = typer.Option(None, help="the output that colours the scatter matrix"
+                                 " (default: the first output)"),
+    sort_by: str = typer.Option(None, help="the output the best designs are sorted by"
+                                " (default: the first output)"),
+    descending: bool = typer.Option(False, help="best = largest --sort-by (default: smallest)"),
+    best: int = typer.Option(10, help="how many of the best feasible designs to list"),
+    as_json: bool = typer.Option(False, "--json", help="print the summary as JSON"),
+):
+    """The feasible region of a sweep and the distributions of its outputs: feasible fraction,
+    each output's range, the best feasible designs; with --out a scatter matrix of the
+    parameters coloured by an output and histograms."""
+    root = directory.expanduser()
+    if not 1 <= best <= 10_000:
+        raise OptionError("--best", f"must be in 1 .. 10000, got {best}", "Give e.g. --best 10")
+    record, cols, n_written = load_results(root)
+    if out is not None:
+        from .outdir import preflight
+
+        preflight(out, command="sweep-summary")
+    params = [p["parameter"] for p in record["parameters"]]
+    outputs = [o["column"] for o in record["outputs"]]
+    units = record["columns"]
+    for option, value in (("--color-by", color_by), ("--sort-by", sort_by)):
+        if value is not None and value not in outputs:
+            raise OptionError(option, f"'{value}' is not an output of this sweep",
+                              f"Outputs: {', '.join(outputs) or 'none'}")
+    sort_by = sort_by or (outputs[0] if outputs else None)
+    color_by = color_by or (outputs[0] if outputs else None)
+    feasible = cols["feasible"].astype(bool)
+    n = len(feasible)
+    summary = {"sweep": record["name"], "machine": record["machine"]["name"],
+               "n_designs": record["n_designs"], "designs_written": n,
+               "chunks_written": n_written, "n_chunks": record["n_chunks"],
+               "complete": n_written == record["n_chunks"],
+               "assembles": int(np.count_nonzero(cols["assembles"])),
+               "feasible": int(np.count_nonzero(feasible)),
+               "feasible_fraction": float(np.count_nonzero(feasible) / n) if n else None,
+               "outputs": {}, "feasible_region": {}, "sort_by": sort_by,
+               "descending": descending, "best": []}
+    for name in outputs:
+        v = cols[name].astype(float)
+        fin = np.isfinite(v)
+        fv = v[feasible & fin]
+        summary["outputs"][name] = {
+            "unit": units.get(name, ""), "evaluated": int(np.count_nonzero(fin)),
+            "min": _num(v[fin].min()) if fin.any() else None,
+            "max": _num(v[fin].max()) if fin.any() else None,
+            "feasible_min": _num(fv.min()) if fv.size else None,
+            "feasible_max": _num(fv.max()) if fv.size else None}
+    for name in params:
+        v = cols[name][feasible]
+        summary["feasible_region"][name] = {"unit": units.get(name, ""),
+                                            "min": _num(v.min()) if v.size else None,
+                                            "max": _num(v.max()) if v.size else None}
+    rows = np.nonzero(feasible)[0]
+    if sort_by is not None and rows.size:
+        key = cols[sort_by][rows].astype(float)
+        order = np.argsort(-key if descending else key, kind="stable")
+        rows = rows[order]
+    shown = ["design", *params, *outputs]
+    for i in rows[:best]:
+        summary["best"].append({c: _num(cols[c][i]) if c != "design" else int(cols[c][i])
+                                for c in shown})
+    if out is not None:
+        _write_summary(out, summary, record, cols, params, outputs, color_by, rows[:best])
+    if as_json:
+        print_json(summary)
+        return
+    state = "complete" if summary["complete"] else (f"partial: {n_written} of"
+                                                    f" {record['n_chunks']} chunks written")
+    console.print(f"{escape(record['name'])} ({escape(record['machine']['name'])}):"
+                  f" {n:,} designs ({state}); {summary['assembles']:,} assemble,"
+                  f" {summary['feasible']:,} feasible"
+                  f" ({100.0 * (summary['feasible_fraction'] or 0.0):.2f} %)", highlight=False)
+    t = Table(title="outputs")
+    for c in ("output", "unit", "evaluated", "min", "max", "feasible min", "feasible max"):
+        t.add_column(c)
+    for name, s in summary["outputs"].items():
+        t.add_row(escape(name), s["unit"], f"{s['evaluated']:,}", *(_fmt(s[k]) for k in (
+            "min", "max", "feasible_min", "feasible_max")))
+    console.print(t)
+    if summary["best"]:
+        t = Table(title=f"best {len(summary['best'])} feasible designs by {escape(sort_by)}"
+                        f" ({'largest' if descending else 'smallest'} first)")
+        for c in shown:
+            unit = units.get(c, "")
+            t.add_column(escape(c) + (f" [{unit}]" if unit else ""), justify="right")
+        for b in summary["best"]:
+            t.add_row(*(str(b[c]) if c == "design" else _fmt(b[c]) for c in shown))
+        console.print(t)
+    else:
+        console.print("no feasible design", highlight=False)
+
+
+def _num(x) -> float | None:
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _fmt(x) -> str:
+    return "-" if x is None else f"{x:.6g}"
+
+
+def _write_summary(out: Path, summary: dict, record: dict, cols: dict, params: list,
+                   outputs: list, color_by: str | None, best_rows: np.ndarray) -> None:
+    import csv
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .figures import save_figure
+    from .io import atomic_write
+    from .outdir import output_dir
+
+    feasible = cols["feasible"].astype(bool)
+    units = record["columns"]
+    rng = np.random.default_rng(0)
+    shown = np.arange(len(feasible))
+    if shown.size > 20_000:  # a readable and quick figure: a fixed random subset
+        shown = np.sort(rng.choice(shown, 20_000, replace=False))
+    with output_dir(out, command="sweep-summary") as root:
+        k = len(params)
+        fig, axes = plt.subplots(k, k, figsize=(2.2 * k + 1.5, 2.2 * k + 0.5), squeeze=False,
+                                 constrained_layout=True)
+        f_shown = shown[feasible[shown]]
+        i_shown = shown[~feasible[shown]]
+        c = cols[color_by][f_shown].astype(float) if color_by else None
+        sc = None
+        for a in range(k):
+            for b in range(k):
+                ax = axes[a, b]
+                xa, xb = cols[params[b]], cols[params[a]]
+                if a == b:
+                    ax.hist([xa[feasible], xa], bins=30, color=["C2", "0.8"],
+                            label=["feasible", "all"], histtype="stepfilled", alpha=0.7)
+                else:
+                    ax.scatter(xa[i_shown], xb[i_shown], s=2, color="0.85", lw=0)
+                    sc = ax.scatter(xa[f_shown], xb[f_shown], s=3, c=c, lw=0, cmap="viridis")
+                if a == k - 1:
+                    ax.set_xlabel(f"{params[b]} [{units.get(params[b], '')}]", fontsize=7)
+                if b == 0:
+                    ax.set_ylabel(f"{params[a]} [{units.get(params[a], '')}]", fontsize=7)
+                ax.tick_params(labelsize=6)
+        if sc is not None and color_by:
+            fig.colorbar(sc, ax=axes, label=f"{color_by} [{units.get(color_by, '')}]"
+                         " (feasible designs; grey: not feasible)", shrink=0.8)
+        fig.suptitle(f"{record['name']}: {summary['feasible']:,} of"
+                     f" {summary['designs_written']:,} designs feasible", fontsize=9)
+        save_figure(fig, root, "scatter-matrix")
+        if outputs:
+            m = len(outputs)
+            ncol = min(3, m)
+            nrow = math.ceil(m / ncol)
+            fig, axes = plt.subplots(nrow, ncol, figsize=(4 * ncol, 3 * nrow), squeeze=False,
+                                     constrained_layout=True)
+            for j, name in enumerate(outputs):
+                ax = axes[j // ncol, j % ncol]
+                v = cols[name].astype(float)
+                fin = np.isfinite(v)
+                if fin.any():
+                    bins = np.histogram_bin_edges(v[fin], bins=40)
+                    ax.hist(v[fin], bins=bins, color="0.75", label="evaluated")
+                    ax.hist(v[fin & feasible], bins=bins, color="C2", label="feasible")
+                ax.set_xlabel(f"{name} [{units.get(name, '')}]", fontsize=8)
+                ax.set_ylabel("designs", fontsize=8)
+                ax.legend(fontsize=7)
+                ax.grid(True, alpha=0.3)
+            for j in range(m, nrow * ncol):
+                axes[j // ncol, j % ncol].set_visible(False)
+            fig.suptitle(f"{record['name']}: outputs", fontsize=9)
+            save_figure(fig, root, "histograms")
+        names = ["design", *params, *outputs, "feasible"]
+        with atomic_write(root / "best.csv") as fh:
+            w = csv.writer(fh)
+            w.writerow([n + (f" [{units[n]}]" if units.get(n) else "") for n in names])
+            for i in best_rows:
+                w.writerow([repr(cols[n][i].item()) if n not in ("design", "feasible")
+                            else cols[n][i].item() for n in names])
+        with atomic_write(root / "summary.json") as fh:
+            json.dump(summary, fh, indent=1)
+

@@ -1,0 +1,263 @@
+"""Design sweeps, the numeric part: the designs of a sweep file (a grid or a seeded random,
+Latin-hypercube or Sobol sample) and the evaluation of a chunk of them in batch calls.
+
+A sweep is split into chunks of consecutive designs, design ``i`` always the same whatever the
+chunk size or the worker: :func:`sample` draws designs ``start .. stop`` alone (a Sobol sample
+fast-forwarded to ``start``, random designs from seeded blocks of :data:`BLOCK`, a Latin
+hypercube drawn whole and sliced, a grid by unravelling the index). :func:`evaluate_chunk`
+evaluates one chunk: the whole-turn assembly and every metric with the batch calls the
+optimisers use (:func:`sewmech.design.problem.metric_batch`), the peak driving torque and
+shaking force with one :class:`~sewmech.dynamics.DynamicsPlan` call, the curves with one
+kinematics call. Running chunks on Dask and writing them is the app's
+(:mod:`sewmech.app.sweep_run`); nothing here reads or writes files.
+
+Columns: ``design`` (the index), every parameter in its file unit (mm, deg), ``assembles``
+(the mechanism assembles at every whole degree of the turn at both ends of every setting
+input), every output (its unit: mm, deg for ``*_deg`` metrics, N mm, N; NaN where the design
+cannot be evaluated) and ``feasible`` (it assembles and every output is a number within its
+limits). A NaN is never feasible.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from .sweep_file import DYNAMICS_METRICS, Sweep
+
+#: random designs are drawn in blocks of this many, each from its own seed (seed, block)
+BLOCK = 4096
+
+
+def sample(sweep: Sweep, start: int, stop: int) -> np.ndarray:
+    """Designs ``start .. stop - 1`` of the sweep, (stop - start, n_parameters), in the
+    parameters' file units (mm, deg)."""
+    spec = sweep.spec
+    n = sweep.n_designs
+    if not 0 <= start <= stop <= n:
+        raise ValueError(f"designs {start} .. {stop} are outside the sweep's 0 .. {n}")
+    lo = np.array([p.lower for p in spec.parameters])
+    hi = np.array([p.upper for p in spec.parameters])
+    d = len(lo)
+    method, seed = spec.sampling.method, spec.sampling.seed
+    if method == "grid":
+        shape = tuple(p.points for p in spec.parameters)
+        idx = np.unravel_index(np.arange(start, stop, dtype=np.int64), shape)
+        return np.column_stack([np.linspace(p.lower, p.upper, p.points)[i]
+                                for p, i in zip(spec.parameters, idx)]).reshape(-1, d)
+    if method == "sobol":
+        from scipy.stats import qmc
+
+        engine = qmc.Sobol(d, scramble=True, rng=np.random.default_rng(seed))
+        if start:  # (fast_forward(0) overflows in scipy)
+            engine.fast_forward(start)
+        with warnings.catch_warnings():  # (balance needs n a power of 2: documented)
+            warnings.simplefilter("ignore", UserWarning)
+            u = engine.random(stop - start)
+    elif method == "lhs":
+        u = _latin_hypercube(d, n, seed)[start:stop]
+    else:
+        u = np.empty((stop - start, d))
+        for b in range(start // BLOCK, (stop - 1) // BLOCK + 1 if stop > start else 0):
+            block = np.random.default_rng([seed, b]).random((BLOCK, d))
+            a0, a1 = max(start, b * BLOCK), min(stop, (b + 1) * BLOCK)
+            u[a0 - start:a1 - start] = block[a0 - b * BLOCK:a1 - b * BLOCK]
+    return lo + u * (hi - lo)
+
+
+@functools.lru_cache(maxsize=2)
+def _latin_hypercube(d: int, n: int, seed: int) -> np.ndarray:
+    from scipy.stats import qmc
+
+    u = qmc.LatinHypercube(d, rng=np.random.default_rng(seed)).random(n)
+    u.setflags(write=False)
+    return u
+
+
+def params_of(sweep: Sweep, X: np.ndarray) -> np.ndarray:
+    """Parameter vectors (m, n_machine_parameters; internal units) of designs X (file units):
+    the machine's values with the sweep's parameters replaced."""
+    m = sweep.machine
+    P = np.tile(np.asarray(m.defaults, dtype=float), (len(X), 1))
+    P[:, sweep.index] = np.asarray(X, dtype=float) * np.asarray(sweep.factor)
+    return P
+
+
+@dataclass
+class Chunk:
+    """One evaluated chunk: ``columns`` (name -> (m,) array, in :func:`column_units` order) and
+    ``curves`` (channel -> (m, n_phi) array at the curves' angles)."""
+
+    start: int
+    columns: dict[str, np.ndarray]
+    curves: dict[str, np.ndarray]
+
+
+def column_units(sweep: Sweep) -> dict[str, str]:
+    """Every column of the sweep's table with its unit, in order."""
+    from ..sewing.gradients import METRICS
+
+    out = {"design": "", **dict(zip(sweep.names, sweep.units)), "assembles": ""}
+    ch_units = {"p": "mm", "v": "mm/s", "a": "mm/s^2", "theta": "rad", "omega": "rad/s",
+                "epsilon": "rad/s^2"}
+    for o in sweep.spec.outputs:
+        name = o.metric
+        if name in DYNAMICS_METRICS:
+            unit = DYNAMICS_METRICS[name]
+        elif name in METRICS:
+            unit = "deg" if name.endswith("_deg") else "mm"
+        else:
+            channel = name.split(":", 1)[-1]
+            kind = channel.split("_")[0]
+            unit = ch_units.get(kind)
+            if unit is None:  # a joint variable: its own unit
+                var = channel.split("_", 1)[1]
+                m = sweep.machine
+                unit = m.variable_units[m.variable_names.index(var)]
+        out[o.column] = unit
+    out["feasible"] = ""
+    return out
+
+
+def curve_phi_deg(sweep: Sweep) -> np.ndarray:
+    """The angles of the curves, deg (one turn in the curves' step)."""
+    c = sweep.spec.curves
+    if c is None:
+        return np.zeros(0)
+    return np.arange(round(360.0 / c.step_deg)) * c.step_deg
+
+
+def evaluate_chunk(sweep: Sweep, start: int, stop: int) -> Chunk:
+    """Designs ``start .. stop - 1`` evaluated in batch calls (see the module doc)."""
+    from .problem import assembles_batch, metric_batch
+
+    spec = sweep.spec
+    X = sample(sweep, start, stop)
+    P = params_of(sweep, X)
+    ok = assembles_batch(sweep.machine, P)
+    kin_outputs = [o for o in spec.outputs if o.metric not in DYNAMICS_METRICS]
+    values, _ = metric_batch(sweep.machine, kin_outputs, P, ok)
+    dyn = _dynamics(sweep, P, ok) if spec.dynamics is not None else {}
+    cols: dict[str, np.ndarray] = {"design": np.arange(start, stop, dtype=np.int64)}
+    for j, name in enumerate(sweep.names):
+        cols[name] = X[:, j].copy()
+    cols["assembles"] = ok
+    feasible = ok.copy()
+    for o in spec.outputs:
+        v = dyn[o.metric] if o.metric in DYNAMICS_METRICS else \
+            values[(o.metric, o.regulator_deg, o.phi_deg)]
+        v = np.asarray(v, dtype=float).copy()
+        cols[o.column] = v
+        with np.errstate(invalid="ignore"):
+            feasible &= np.isfinite(v)
+            if o.min is not None:
+                feasible &= v >= o.min
+            if o.max is not None:
+                feasible &= v <= o.max
+    cols["feasible"] = feasible
+    curves = _curves(sweep, P) if spec.curves is not None else {}
+    return Chunk(start, cols, curves)
+
+
+def _dynamics(sweep: Sweep, P: np.ndarray, ok: np.ndarray) -> dict[str, np.ndarray]:
+    """Peak |driving torque| (N mm) and peak |shaking force| (N) over a turn, at the
+    machine's default settings and the sweep's speed, the machine's loads and masses; NaN for
+    designs that do not assemble or whose force equations are singular somewhere."""
+    from ..engine.dynamics import SingularForceSystem
+
+    plan = _dynamics_plan(sweep)
+    torque = np.full(len(P), np.nan)
+    shaking = np.full(len(P), np.nan)
+    rows = np.nonzero(ok)[0]
+    if rows.size == 0:
+        return {"peak_torque": torque, "peak_shaking_force": shaking}
+
+    def peaks(Q):
+        r = plan(Q)
+        return (np.abs(r.input_torque).max(axis=-1),
+                np.linalg.norm(r.shaking_force, axis=-1).max(axis=-1))
+
+    try:
+        torque[rows], shaking[rows] = peaks(P[rows])
+    except SingularForceSystem:  # one design at a time, the singular ones left NaN
+        for k in rows:
+            try:
+                torque[k], shaking[k] = (x[0] for x in peaks(P[k:k + 1]))
+            except SingularForceSystem:
+                pass
+    return {"peak_torque": torque, "peak_shaking_force": shaking}
+
+
+def _dynamics_plan(sweep: Sweep):
+    plan = getattr(sweep, "_dynamics_plan", None)
+    if plan is None:
+        from ..engine.dynamics import DynamicsPlan
+
+        d = sweep.spec.dynamics
+        phi = np.radians(np.arange(round(360.0 / d.step_deg)) * d.step_deg)
+        plan = DynamicsPlan(sweep.machine, phi, rpm=d.rpm, gravity=d.gravity,
+                            on_failure="mask")
+        sweep._dynamics_plan = plan
+    return plan
+
+
+def _curves(sweep: Sweep, P: np.ndarray) -> dict[str, np.ndarray]:
+    """The curves' channels of every design over a turn (NaN where a position does not
+    assemble), at the curves' settings."""
+    from ..engine.kinematics import kinematics
+
+    c = sweep.spec.curves
+    inputs = {n: math.radians(v) for n, v in c.inputs.items()} or None
+    r = kinematics(sweep.machine, np.radians(curve_phi_deg(sweep)), params=P, inputs=inputs,
+                   on_failure="mask")
+    out = {}
+    for ch in c.channels:
+        v = np.array(r.channel(ch)[0], dtype=float)
+        v[~r.feasible.reshape(v.shape)] = np.nan
+        out[ch] = v
+    return out
+
+
+def chunk_bounds(n_designs: int, chunk: int) -> list[tuple[int, int]]:
+    """(start, stop) of every chunk of ``chunk`` designs (the last one may be shorter)."""
+    return [(a, min(a + chunk, n_designs)) for a in range(0, n_designs, chunk)]
+
+
+# ---- on workers ---------------------------------------------------------------------------------
+#: the sweeps this process has built, by the digest of their texts (a worker builds each once)
+_BUILT: dict[str, Sweep] = {}
+
+
+def texts_of(sweep: Sweep) -> tuple[str, str, str, str]:
+    """What a worker needs to rebuild the sweep without reading a file: the sweep file's and
+    the machine file's names and texts."""
+    return (sweep.text, sweep.file, sweep.machine_text, sweep.machine_file)
+
+
+def evaluate_texts(texts: tuple[str, str, str, str], start: int, stop: int) -> Chunk:
+    """:func:`evaluate_chunk` for a sweep given by its texts (:func:`texts_of`), built once per
+    process: a Dask task."""
+    import hashlib
+
+    key = hashlib.sha256("\0".join(texts).encode("utf-8")).hexdigest()
+    sweep = _BUILT.get(key)
+    if sweep is None:
+        sweep = _BUILT[key] = Sweep.from_texts(*texts)
+    return evaluate_chunk(sweep, start, stop)
+
+
+def prepare_worker() -> None:
+    """A worker process's start: one thread per kernel call (each Dask thread runs a chunk on
+    its core) and the compiled kernels loaded from numba's cache now rather than in the first
+    task."""
+    from ..engine._threads import set_threads
+    from ..engine.kinematics import kinematics
+    from ..engine.machine import load_machine
+
+    set_threads(1)
+    m = load_machine("fourbar-benchmark")
+    kinematics(m, np.radians(np.arange(0.0, 360.0, 30.0)), on_failure="mask")
