@@ -178,15 +178,24 @@ class Problem:
         """A metric's value and its derivative by the variables (per file unit) at x; raises
         SewmechError where the design cannot be evaluated (it does not assemble)."""
         design = tuple(np.asarray(x, dtype=float))
-        key = (ref.metric, ref.regulator_deg, ref.phi_deg, design)
+
+        def compute():
+            value, d = _metric(self.machine, ref, self.params(x))
+            return value, None if d is None else d[self.index] * self.factor
+
+        return self._remember((ref.metric, ref.regulator_deg, ref.phi_deg, design), design,
+                              compute)
+
+    def _remember(self, key, design: tuple, compute):
+        """``compute()`` once per key (the last 256 kept), each distinct design counted once in
+        :attr:`evaluations`."""
         if key not in self._memo:
             if design not in self._designs:
                 self._designs.add(design)
                 self.evaluations += 1
             if len(self._memo) > 256:
                 self._memo.clear()
-            value, d = _metric(self.machine, ref, self.params(x))
-            self._memo[key] = (value, None if d is None else d[self.index] * self.factor)
+            self._memo[key] = compute()
         return self._memo[key]
 
     def design_ok(self, x: np.ndarray) -> bool:
@@ -311,16 +320,12 @@ class Problem:
     def value(self, x: np.ndarray) -> tuple[float, np.ndarray, bool]:
         """:meth:`batch` of one design (remembered): objective, constraints, assembles."""
         design = tuple(np.asarray(x, dtype=float))
-        key = ("value", design)
-        if key not in self._memo:
-            if design not in self._designs:
-                self._designs.add(design)
-                self.evaluations += 1
-            if len(self._memo) > 256:
-                self._memo.clear()
+
+        def compute():
             f, g, ok = self.batch(np.asarray(design)[None, :])
-            self._memo[key] = (float(f[0]), g[0], bool(ok[0]))
-        return self._memo[key]
+            return float(f[0]), g[0], bool(ok[0])
+
+        return self._remember(("value", design), design, compute)
 
     def report(self, x: np.ndarray) -> dict:
         """Each constraint's value and whether it holds (to 1e-9 of its scale), and whether the
