@@ -66,7 +66,7 @@ CONNECT_TIMEOUT = "20s"
 #: environment of every worker process: one thread each for numba (sewmech's kernel threads),
 #: OpenMP and the BLAS libraries, so that N processes use N cores
 WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
-              "OPENBLAS_NUM_THREADS": "1"}
+              "OPENBLAS_NUM_THREADS": "1", "SEWMECH_LOCAL_WORKER": "1"}
 
 
 class SweepError(SewmechError):
@@ -453,9 +453,18 @@ class _Warm(WorkerPlugin):
     idempotent = True
 
     def setup(self, worker=None):
+        import signal
+        import threading
+
         from ..design.sweep import prepare_worker
 
         prepare_worker()
+        # a local cluster's workers share the terminal's process group: Ctrl-C is for the
+        # command, which stops them itself (no traceback from each worker); a worker of the
+        # user's own cluster keeps its Ctrl-C
+        if os.environ.get("SEWMECH_LOCAL_WORKER") == "1" and (
+                threading.current_thread() is threading.main_thread()):
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     def teardown(self, worker=None):
         pass
