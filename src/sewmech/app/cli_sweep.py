@@ -171,7 +171,7 @@ def sweep_summary_cmd(
         from .outdir import preflight
 
         preflight(out, command="sweep-summary")
-    params = [p["parameter"] for p in record["parameters"]]
+    params = [p.get("column", p["parameter"]) for p in record["parameters"]]
     outputs = [o["column"] for o in record["outputs"]]
     units = record["columns"]
     for option, value in (("--color-by", color_by), ("--sort-by", sort_by)):

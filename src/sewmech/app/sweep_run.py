@@ -109,7 +109,8 @@ def _record(sweep: Sweep, chunk: int) -> dict:
             "n_designs": sweep.n_designs, "chunk": chunk,
             "n_chunks": len(chunk_bounds(sweep.n_designs, chunk)),
             "sampling": spec.sampling.model_dump(),
-            "parameters": [p.model_dump() for p in spec.parameters],
+            "parameters": [{**p.model_dump(), "column": c}
+                           for p, c in zip(spec.parameters, sweep.columns)],
             "outputs": [{**o.model_dump(), "column": o.column} for o in spec.outputs],
             "columns": column_units(sweep),
             "curves": None if spec.curves is None else {
