@@ -123,7 +123,7 @@ def test_every_output_equals_an_independent_evaluation_of_single_designs(small, 
     for r in rows[::3] + [r for r in rows if r["feasible"]][:2]:
         values = {"lift_cam.arc0.cx": r["lift_cam.arc0.cx"],
                   "lift_cam.arc0.radius": r["lift_cam.arc0.radius"],
-                  "regulator.phase": math.radians(r["regulator.phase"])}
+                  "regulator.phase": math.radians(r["regulator.phase_deg"])}
         m = m0.with_parameters(values)
         ok = True
         for reg in (-30.0, 30.0):
@@ -164,7 +164,7 @@ def test_curves_equal_the_kinematics_of_each_design(small, reference):
         m = small.machine.with_parameters({
             "lift_cam.arc0.cx": r["lift_cam.arc0.cx"],
             "lift_cam.arc0.radius": r["lift_cam.arc0.radius"],
-            "regulator.phase": math.radians(r["regulator.phase"])})
+            "regulator.phase": math.radians(r["regulator.phase_deg"])})
         k = sewmech.kinematics(m, phi, inputs={"regulator": math.radians(30.0)})
         i = r["design"]
         np.testing.assert_allclose(c["p_feed_dog.tip_x"][i], k.channel("p_feed_dog.tip_x")[0],

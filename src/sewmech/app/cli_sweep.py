@@ -171,7 +171,7 @@ def sweep_summary_cmd(
         from .outdir import preflight
 
         preflight(out, command="sweep-summary")
-    params = [p["parameter"] for p in record["parameters"]]
+    params = [p.get("column", p["parameter"]) for p in record["parameters"]]
     outputs = [o["column"] for o in record["outputs"]]
     units = record["columns"]
     for option, value in (("--color-by", color_by), ("--sort-by", sort_by)):
@@ -233,14 +233,16 @@ def sweep_summary_cmd(
         t.add_row(escape(name), s["unit"], f"{s['evaluated']:,}", *(_fmt(s[k]) for k in (
             "min", "max", "feasible_min", "feasible_max")))
     console.print(t)
-    if summary["best"]:
+    if summary["best"]:  # a column per design: the names are long, the numbers short
         t = Table(title=f"best {len(summary['best'])} feasible designs by {escape(sort_by)}"
                         f" ({'largest' if descending else 'smallest'} first)")
-        for c in shown:
-            unit = units.get(c, "")
-            t.add_column(escape(c) + (f" [{unit}]" if unit else ""), justify="right")
+        t.add_column("design")
         for b in summary["best"]:
-            t.add_row(*(str(b[c]) if c == "design" else _fmt(b[c]) for c in shown))
+            t.add_column(str(b["design"]), justify="right")
+        for c in shown[1:]:
+            unit = units.get(c, "")
+            t.add_row(escape(c + (f" [{unit}]" if unit else "")),
+                      *(f"{b[c]:.5g}" if b[c] is not None else "-" for b in summary["best"]))
         console.print(t)
     else:
         console.print("no feasible design", highlight=False)

@@ -66,7 +66,7 @@ CONNECT_TIMEOUT = "20s"
 #: environment of every worker process: one thread each for numba (sewmech's kernel threads),
 #: OpenMP and the BLAS libraries, so that N processes use N cores
 WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
-              "OPENBLAS_NUM_THREADS": "1"}
+              "OPENBLAS_NUM_THREADS": "1", "SEWMECH_LOCAL_WORKER": "1"}
 
 
 class SweepError(SewmechError):
@@ -109,7 +109,8 @@ def _record(sweep: Sweep, chunk: int) -> dict:
             "n_designs": sweep.n_designs, "chunk": chunk,
             "n_chunks": len(chunk_bounds(sweep.n_designs, chunk)),
             "sampling": spec.sampling.model_dump(),
-            "parameters": [p.model_dump() for p in spec.parameters],
+            "parameters": [{**p.model_dump(), "column": c}
+                           for p, c in zip(spec.parameters, sweep.columns)],
             "outputs": [{**o.model_dump(), "column": o.column} for o in spec.outputs],
             "columns": column_units(sweep),
             "curves": None if spec.curves is None else {
@@ -453,9 +454,18 @@ class _Warm(WorkerPlugin):
     idempotent = True
 
     def setup(self, worker=None):
+        import signal
+        import threading
+
         from ..design.sweep import prepare_worker
 
         prepare_worker()
+        # a local cluster's workers share the terminal's process group: Ctrl-C is for the
+        # command, which stops them itself (no traceback from each worker); a worker of the
+        # user's own cluster keeps its Ctrl-C
+        if os.environ.get("SEWMECH_LOCAL_WORKER") == "1" and (
+                threading.current_thread() is threading.main_thread()):
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     def teardown(self, worker=None):
         pass

@@ -11,7 +11,8 @@ shaking force with one :class:`~sewmech.dynamics.DynamicsPlan` call, the curves 
 kinematics call. Running chunks on Dask and writing them is the app's
 (:mod:`sewmech.app.sweep_run`); nothing here reads or writes files.
 
-Columns: ``design`` (the index), every parameter in its file unit (mm, deg), ``assembles``
+Columns: ``design`` (the index), every parameter in its file unit (mm; deg for an angle, its
+column named ``NAME_deg``), ``assembles``
 (the mechanism assembles at every whole degree of the turn at both ends of every setting
 input), every output (its unit: mm, deg for ``*_deg`` metrics, N mm, N; NaN where the design
 cannot be evaluated) and ``feasible`` (it assembles and every output is a number within its
@@ -101,7 +102,7 @@ def column_units(sweep: Sweep) -> dict[str, str]:
     """Every column of the sweep's table with its unit, in order."""
     from ..sewing.gradients import METRICS
 
-    out = {"design": "", **dict(zip(sweep.names, sweep.units)), "assembles": ""}
+    out = {"design": "", **dict(zip(sweep.columns, sweep.units)), "assembles": ""}
     ch_units = {"p": "mm", "v": "mm/s", "a": "mm/s^2", "theta": "rad", "omega": "rad/s",
                 "epsilon": "rad/s^2"}
     for o in sweep.spec.outputs:
@@ -143,7 +144,7 @@ def evaluate_chunk(sweep: Sweep, start: int, stop: int) -> Chunk:
     values, _ = metric_batch(sweep.machine, kin_outputs, P, ok)
     dyn = _dynamics(sweep, P, ok) if spec.dynamics is not None else {}
     cols: dict[str, np.ndarray] = {"design": np.arange(start, stop, dtype=np.int64)}
-    for j, name in enumerate(sweep.names):
+    for j, name in enumerate(sweep.columns):
         cols[name] = X[:, j].copy()
     cols["assembles"] = ok
     feasible = ok.copy()

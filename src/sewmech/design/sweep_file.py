@@ -173,6 +173,9 @@ class Sweep:
         self.factor = [math.pi / 180.0 if u == "rad" else 1.0 for u in units]
         self.units = tuple("deg" if u == "rad" else u for u in units)
         self.names = tuple(p.parameter for p in spec.parameters)
+        #: the parameters' columns: angles in deg, named so (``regulator.phase_deg``)
+        self.columns = tuple(f"{n}_deg" if u == "deg" else n
+                             for n, u in zip(self.names, self.units))
 
     @property
     def n_designs(self) -> int:
@@ -266,6 +269,7 @@ def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
     probe = kinematics(machine, [0.0])
     channels = probe.channel_names()
     columns = {p.parameter for p in spec.parameters}
+    columns |= {f"{p.parameter}_deg" for p in spec.parameters}
     columns |= {"design", "assembles", "feasible"}
     s = machine.spec.sewing
     for k, o in enumerate(spec.outputs):
