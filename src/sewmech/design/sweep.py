@@ -14,7 +14,8 @@ kinematics call. Running chunks on Dask and writing them is the app's
 Columns: ``design`` (the index), every parameter in its file unit (mm; deg for an angle, its
 column named ``NAME_deg``), ``assembles``
 (the mechanism assembles at every whole degree of the turn at both ends of every setting
-input), every output (its unit: mm, deg for ``*_deg`` metrics, N mm, N; NaN where the design
+input, every closed-form unit at least 0.01 mm from failing there, which keeps it assembled
+between the degrees too), every output (its unit: mm, deg for ``*_deg`` metrics, N mm, N; NaN where the design
 cannot be evaluated) and ``feasible`` (it assembles and every output is a number within its
 limits). A NaN is never feasible.
 """
