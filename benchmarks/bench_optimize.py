@@ -19,7 +19,8 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 from test_problem import closed_form_crank  # noqa: E402
 
-from sewmech.design.problem import Problem, load_problem, optimize  # noqa: E402
+from sewmech.design.optimize import optimize  # noqa: E402
+from sewmech.design.problem import Problem, load_problem  # noqa: E402
 
 PROBLEMS = HERE.parent / "examples" / "problems"
 RESULTS = HERE / "results" / "optimize.json"

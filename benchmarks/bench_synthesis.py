@@ -147,7 +147,8 @@ def main() -> int:
     except ImportError:
         print("pylinkage is not installed: `make bench` installs it")
         return 0
-    from sewmech.design.problem import Problem, load_problem, optimize
+    from sewmech.design.optimize import optimize
+    from sewmech.design.problem import Problem, load_problem
 
     m = sewmech.load_machine("fourbar-benchmark")
     T = targets(m)

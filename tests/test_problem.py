@@ -10,11 +10,12 @@ from pathlib import Path
 
 import pytest
 from scipy.optimize import brentq
+from sewmech.cli import app
 from typer.testing import CliRunner
 
 import sewmech
-from sewmech.cli import app
-from sewmech.design.problem import Problem, load_problem, optimize
+from sewmech.design.optimize import optimize
+from sewmech.design.problem import Problem, load_problem
 from sewmech.engine.errors import MachineFileError, OptionError
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -178,7 +179,8 @@ def test_differential_evolution_evaluates_a_population_per_batch_call(tmp_path):
     penalised objective gives it 1e12, never NaN."""
     import numpy as np
 
-    from sewmech.design.problem import _penalised, batch_values
+    from sewmech.design.optimize import _penalised
+    from sewmech.design.problem import batch_values
 
     text = CONSTRAINED.replace("upper = 18.0", "upper = 36.0")
     spec, m = load_problem(write(tmp_path, text))
@@ -228,7 +230,7 @@ def test_a_design_that_fails_between_grid_angles_is_never_feasible(tmp_path):
     says the same."""
     import numpy as np
 
-    from sewmech.design.problem import ASSEMBLY_CLEARANCE_MM, assembles_batch
+    from sewmech.design.evaluate import ASSEMBLY_CLEARANCE_MM, assembles_batch
     from sewmech.engine.assembly import prove_assembly
 
     r, ad, l1 = 15.0, 38.0, 30.0
@@ -327,7 +329,8 @@ def test_the_take_up_problem_by_slsqp_with_the_thread_figures_exact_derivatives(
     step away along any variable is better (a brute-force check of the answer)."""
     import numpy as np
 
-    from sewmech.design.problem import ASSEMBLY_CLEARANCE_MM, batch_values
+    from sewmech.design.evaluate import ASSEMBLY_CLEARANCE_MM
+    from sewmech.design.problem import batch_values
     from sewmech.sewing.thread import thread_balance
 
     spec, m = load_problem(ROOT / "examples" / "problems" / "take-up.toml")

@@ -35,7 +35,8 @@ def optimize_cmd(
     meet the objective while every constraint holds."""
     from rich.progress import Progress
 
-    from ..design.problem import Problem, load_problem, optimize
+    from ..design.optimize import optimize
+    from ..design.problem import Problem, load_problem
 
     spec, machine = load_problem(problem)
     p = Problem(spec, machine)

@@ -23,7 +23,7 @@ _FEED = ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
 
 def _is_channel(metric: str) -> bool:
     """A kinematic channel at an angle (p_POINT_x, theta_LINK, ...), not a named metric."""
-    from ..design.problem import THREAD_METRICS
+    from ..design.evaluate import THREAD_METRICS
     from ..sewing.gradients import METRICS
 
     return not (metric in METRICS or metric in THREAD_METRICS or metric.startswith("range:"))

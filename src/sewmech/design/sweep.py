@@ -6,7 +6,7 @@ chunk size or the worker: :func:`sample` draws designs ``start .. stop`` alone (
 fast-forwarded to ``start``, random designs from seeded blocks of :data:`BLOCK`, a Latin
 hypercube drawn whole and sliced, a grid by unravelling the index). :func:`evaluate_chunk`
 evaluates one chunk: the whole-turn assembly and every metric with the batch calls the
-optimisers use (:func:`sewmech.design.problem.metric_batch`), the peak driving torque and
+optimisers use (:func:`sewmech.design.evaluate.metric_batch`), the peak driving torque and
 shaking force with one :class:`~sewmech.dynamics.DynamicsPlan` call, the curves with one
 kinematics call. Running chunks on Dask and writing them is the app's
 (:mod:`sewmech.app.sweep_run`); nothing here reads or writes files.
@@ -135,7 +135,7 @@ def curve_phi_deg(sweep: Sweep) -> np.ndarray:
 
 def evaluate_chunk(sweep: Sweep, start: int, stop: int) -> Chunk:
     """Designs ``start .. stop - 1`` evaluated in batch calls (see the module doc)."""
-    from .problem import assembles_batch, metric_batch
+    from .evaluate import assembles_batch, metric_batch
 
     spec = sweep.spec
     X = sample(sweep, start, stop)

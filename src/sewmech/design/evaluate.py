@@ -1,0 +1,191 @@
+"""Metrics and the whole-turn assembly check for batches of designs, values only, and one
+metric with its derivative: what the design problems (:mod:`sewmech.design.problem`, whose
+``batch_values`` and assembly margin build on this, and :mod:`sewmech.design.optimize`) and the
+sweeps (:mod:`sewmech.design.sweep`) evaluate.
+
+Units: parameters internal (mm, rad) unless a function says file units; metrics in their own
+units (mm, deg for the ``*_deg`` metrics, rad for link angles).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..engine.errors import OptionError, SewmechError
+from ..engine.machine import Machine
+from ..sewing.thread_gradients import THREAD_FIGURES, thread_gradient
+
+#: how far (mm) every closed-form unit must stay from failing to assemble at the grid angles of
+#: the searches' assembly check: a margin m(phi) that clears this at 1 deg steps cannot fall
+#: below zero between them unless |m''| exceeds 0.01 / (h^2 / 8) = 260 mm/rad^2, several times
+#: what the links of a sewing machine give (their lengths, 10-130 mm). Without it a search
+#: pressed against the assembly limit ended a few micrometres beyond it between grid angles.
+ASSEMBLY_CLEARANCE_MM = 0.01
+
+
+def setting_extremes(machine: Machine) -> dict[str, np.ndarray] | None:
+    """Both ends of every setting input (rad; its default where a range is not declared), as
+    a (2, 1) column per input to broadcast against a batch of designs; None without inputs."""
+    if not machine.spec.inputs:
+        return None
+    return {n: np.array([math.radians(i.min_deg if i.min_deg is not None else i.default_deg),
+                         math.radians(i.max_deg if i.max_deg is not None else i.default_deg)]
+                        )[:, None]
+            for n, i in machine.spec.inputs.items()}
+
+
+def _setting_extremes(machine: Machine) -> list[dict | None]:
+    """The setting inputs at their lower and at their upper ends (rad), or [None]: one
+    design's two calls (:func:`setting_extremes` as two dicts)."""
+    ext = setting_extremes(machine)
+    if ext is None:
+        return [None]
+    return [{n: float(v[k, 0]) for n, v in ext.items()} for k in (0, 1)]
+
+
+#: designs per kinematics call of the whole-turn assembly check: 256 x 2 settings x 360
+#: angles of JB1-3's points are about 0.3 GB, whatever the batch
+ASSEMBLY_CHUNK = 256
+
+
+def assembles_batch(machine: Machine, P: np.ndarray) -> np.ndarray:
+    """Which designs of the batch P (m, n_params) assemble over the whole turn as the searches
+    and sweeps see it: on a 1 deg grid at both ends of every setting input, every closed-form
+    unit's assembly margin at least :data:`ASSEMBLY_CLEARANCE_MM` at every grid angle. One
+    kinematics call per :data:`ASSEMBLY_CHUNK` designs. (m,) bool."""
+    from ..engine.kinematics import kinematics
+    from ..engine.margins import conditions
+
+    P = np.atleast_2d(np.asarray(P, dtype=float))
+    phi = np.radians(np.arange(360.0))
+    inputs = setting_extremes(machine)
+    # every unit solved (asking for no outputs would solve none), but only the points and the
+    # links the margins read kept when they need every unit (less memory and time)
+    points = list(machine.point_names)
+    links = sorted({lk for c in conditions(machine, np.asarray(machine.defaults))
+                    for lk in c.links})
+    sel = {"points": points, "links": links, "variables": []} \
+        if len(machine.selection(points, links, [])[-1]) == len(machine.program) else {}
+    ok = np.empty(len(P), dtype=bool)
+    for a in range(0, len(P), ASSEMBLY_CHUNK):
+        Q = P[a:a + ASSEMBLY_CHUNK]
+        m = len(Q)
+        r = kinematics(machine, phi, params=Q if inputs is None else Q[None, :, :],
+                       inputs=inputs, on_failure="mask", **sel)
+        good = r.feasible.reshape(-1, m, len(phi)).all(axis=(0, 2))
+        for c in conditions(machine, Q.T[:, :, None]):  # (n_params, m, 1): per design
+            margin = np.asarray(c.fn(r)[0]).reshape(-1, m, len(phi))
+            good &= np.where(np.isnan(margin), -np.inf, margin).min(axis=(0, 2)) >= \
+                ASSEMBLY_CLEARANCE_MM
+        ok[a:a + m] = good
+    return ok
+
+
+#: the needle-thread balance's figures (:func:`sewmech.sewing.thread.thread_balance`) as
+#: metrics: metric name -> ThreadBalance property; their exact derivatives are
+#: :func:`sewmech.sewing.thread_gradients.thread_gradient`'s
+THREAD_METRICS = THREAD_FIGURES
+
+
+def _metric(machine: Machine, ref, P: np.ndarray) -> tuple[float, np.ndarray | None]:
+    """A metric's value and its derivative by every parameter (None for a value-only metric),
+    for the design P; ``ref`` names it (``metric``, ``regulator_deg``, ``phi_deg``, as a
+    problem file's :class:`~sewmech.design.problem.MetricRef`)."""
+    from ..sewing.gradients import METRICS
+
+    name = ref.metric
+    if name in THREAD_METRICS:
+        g = thread_gradient(machine, name, params=P)
+        return g.value, g.d_dparam
+    if name in METRICS:
+        feed = name in ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
+        reg = ref.regulator_deg
+        if feed and reg is None:
+            s = machine.spec.sewing
+            if s is None or s.regulator is None:
+                raise OptionError("metric", f"{name} needs a machine with a stitch regulator")
+            reg = machine.spec.inputs[s.regulator].default_deg
+        g = METRICS[name](machine, reg, params=P)
+        return g.value, g.d_dparam
+    from ..engine.sensitivity import sensitivities
+
+    if name.startswith("range:"):
+        from ..engine.extremes import extremes
+
+        channel = name.split(":", 1)[1]
+        ex = extremes(machine, channel, params=P)
+        phi = np.array([ex.maximum.phi, ex.minimum.phi])
+        S = sensitivities(machine, phi, params=P, outputs=[channel])
+        v, d, _ = S.channel(channel)
+        return float(v[0] - v[1]), d[0] - d[1]
+    try:
+        S = sensitivities(machine, np.radians([ref.phi_deg]), params=P, outputs=[name])
+        v, d, _ = S.channel(name)
+    except KeyError as exc:
+        raise OptionError("metric", exc.args[0]) from None
+    return float(v[0]), d[0]
+
+
+def _channel_rates(channel: str) -> tuple[str, str]:
+    """The rate and acceleration channels of a position channel (for locating its extremes)."""
+    kind, _, rest = channel.partition("_")
+    pairs = {"p": ("v", "a"), "theta": ("omega", "epsilon"), "q": ("qd", "qdd")}
+    if kind not in pairs:
+        raise OptionError("metric", f"range:{channel}: a range is of a position channel"
+                          " (p_POINT_x, theta_LINK, q_VAR)")
+    return f"{pairs[kind][0]}_{rest}", f"{pairs[kind][1]}_{rest}"
+
+
+def metric_batch(machine: Machine, refs, P: np.ndarray, ok: np.ndarray | None = None
+                 ) -> tuple[dict, np.ndarray]:
+    """The metrics ``refs`` (each with ``metric``, ``regulator_deg``, ``phi_deg``: a sewing
+    metric, a thread metric, ``range:CHANNEL`` or a channel at ``phi_deg``) for the batch of
+    designs P (m, n_parameters; internal units), values only, and which designs assemble over
+    the whole turn (:func:`assembles_batch`, unless given as ``ok``): ({(metric,
+    regulator_deg, phi_deg): values (m,)}, (m,) bool). Values of designs that do not assemble
+    are NaN."""
+    from ..engine._events import extreme_rows
+    from ..engine.kinematics import kinematics
+    from ..sewing.gradients import METRICS, metric_values
+
+    m = machine
+    P = np.atleast_2d(np.asarray(P, dtype=float))
+    phi = np.radians(np.arange(360.0))
+    if ok is None:
+        ok = assembles_batch(m, P)
+    out = {}
+    for ref in refs:
+        key = (ref.metric, ref.regulator_deg, ref.phi_deg)
+        if key in out:
+            continue
+        name = ref.metric
+        if name in THREAD_METRICS:  # (one design at a time: the thread balance has no batch)
+            from ..sewing.thread import thread_balance
+
+            vals = np.full(len(P), np.nan)
+            for k in np.nonzero(ok)[0]:
+                try:
+                    vals[k] = getattr(thread_balance(m, params=P[k]), THREAD_METRICS[name])
+                except SewmechError:
+                    pass
+        elif name in METRICS:
+            reg = ref.regulator_deg
+            if reg is None and m.spec.sewing is not None and m.spec.sewing.regulator:
+                reg = m.spec.inputs[m.spec.sewing.regulator].default_deg
+            vals = metric_values(m, name, reg, P)
+        elif name.startswith("range:"):
+            channel = name.split(":", 1)[1]
+            rate, acc = _channel_rates(channel)
+            k = kinematics(m, phi, params=P, omega=1.0, on_failure="mask")
+            V, S, C = (k.channel(c)[0].reshape(len(P), len(phi)) for c in (channel, rate, acc))
+            if channel.startswith("theta_"):
+                V = np.unwrap(V, axis=1)
+            h = 2.0 * math.pi / len(phi)
+            vals = extreme_rows(V, S, C, h, +1)[1] - extreme_rows(V, S, C, h, -1)[1]
+        else:
+            k = kinematics(m, np.radians([ref.phi_deg]), params=P, on_failure="mask")
+            vals = k.channel(name)[0][..., 0]
+        out[key] = np.where(ok, vals, np.nan)
+    return out, ok
