@@ -45,11 +45,12 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import Field, model_validator
 
 from ..engine.errors import MachineFileError, SewmechError
 from ..engine.machine import Machine, load_machine
 from ..engine.spec import load_toml_model
+from ._models import Bounds, Header, MetricRef, Strict
 from .evaluate import (
     ASSEMBLY_CLEARANCE_MM,  # noqa: F401  (named in the docs of design_ok and assembly_margin)
     _metric,
@@ -59,36 +60,18 @@ from .evaluate import (
 )
 
 
-class _Spec(BaseModel):
-    model_config = ConfigDict(extra="forbid", strict=True)
+class ProblemInfo(Header):
+    """The ``[problem]`` table."""
 
 
-class ProblemInfo(_Spec):
-    name: str
-    machine: str
-    description: str = ""
-
-
-class Variable(_Spec):
-    parameter: str
-    lower: float
-    upper: float
+class Variable(Bounds):
     start: float | None = None
 
     @model_validator(mode="after")
-    def _order(self):
-        if not (math.isfinite(self.lower) and math.isfinite(self.upper)
-                and self.lower < self.upper):
-            raise ValueError(f"need lower < upper, got {self.lower} .. {self.upper}")
+    def _start(self):
         if self.start is not None and not self.lower <= self.start <= self.upper:
             raise ValueError(f"start {self.start} is outside {self.lower} .. {self.upper}")
         return self
-
-
-class MetricRef(_Spec):
-    metric: str
-    regulator_deg: float | None = None
-    phi_deg: float = 0.0
 
 
 class Part(MetricRef):
@@ -104,7 +87,7 @@ class Part(MetricRef):
         return self
 
 
-class Objective(_Spec):
+class Objective(Strict):
     form: Literal["weighted_sum", "weighted_uniform"] = "weighted_sum"
     parts: list[Part] = Field(min_length=1)
 
@@ -126,7 +109,7 @@ class Constraint(MetricRef):
         return self
 
 
-class ProblemSpec(_Spec):
+class ProblemSpec(Strict):
     problem: ProblemInfo
     variables: list[Variable] = Field(min_length=1)
     objective: Objective

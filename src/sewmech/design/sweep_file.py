@@ -47,11 +47,12 @@ import math
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import Field, model_validator
 
 from ..engine.errors import MachineFileError
 from ..engine.machine import Machine, load_machine, machine_from_toml, shipped_machines
 from ..engine.spec import load_toml_model, read_toml_text
+from ._models import Bounds, Header, MetricRef, Strict
 
 DOC = "docs/sweeps.md"
 #: the outputs the force analysis gives (one DynamicsPlan call per chunk of designs)
@@ -60,17 +61,11 @@ DYNAMICS_METRICS = {"peak_torque": "N mm", "peak_shaking_force": "N"}
 MAX_DESIGNS = 10**10
 
 
-class _Spec(BaseModel):
-    model_config = ConfigDict(extra="forbid", strict=True)
+class SweepInfo(Header):
+    """The ``[sweep]`` table."""
 
 
-class SweepInfo(_Spec):
-    name: str
-    machine: str
-    description: str = ""
-
-
-class Sampling(_Spec):
+class Sampling(Strict):
     method: Literal["grid", "random", "lhs", "sobol"]
     designs: int | None = Field(None, ge=1, le=MAX_DESIGNS)
     seed: int = Field(0, ge=0)
@@ -85,24 +80,11 @@ class Sampling(_Spec):
         return self
 
 
-class SweepParameter(_Spec):
-    parameter: str
-    lower: float
-    upper: float
+class SweepParameter(Bounds):
     points: int | None = Field(None, ge=2, le=100_000)
 
-    @model_validator(mode="after")
-    def _order(self):
-        if not (math.isfinite(self.lower) and math.isfinite(self.upper)
-                and self.lower < self.upper):
-            raise ValueError(f"need lower < upper, got {self.lower} .. {self.upper}")
-        return self
 
-
-class Output(_Spec):
-    metric: str
-    regulator_deg: float | None = None
-    phi_deg: float = 0.0
+class Output(MetricRef):
     name: str | None = Field(None, min_length=1, max_length=100)
     min: float | None = None
     max: float | None = None
@@ -128,19 +110,19 @@ class Output(_Spec):
         return f"{self.metric}@{self.phi_deg:g}deg"
 
 
-class Dynamics(_Spec):
+class Dynamics(Strict):
     rpm: float | None = Field(None, gt=0.0, le=20_000.0)
     step_deg: float = Field(2.0, ge=0.1, le=30.0)
     gravity: bool = True
 
 
-class Curves(_Spec):
+class Curves(Strict):
     channels: list[str] = Field(min_length=1)
     step_deg: float = Field(5.0, ge=0.1, le=90.0)
     inputs: dict[str, float] = Field(default_factory=dict)
 
 
-class SweepSpec(_Spec):
+class SweepSpec(Strict):
     sweep: SweepInfo
     sampling: Sampling
     parameters: list[SweepParameter] = Field(min_length=1, max_length=64)

@@ -28,11 +28,12 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import Field, field_validator
 
 from ..engine.errors import MachineFileError, OptionError
 from ..engine.machine import Machine
 from ..engine.spec import load_toml_model
+from ._models import Strict
 
 #: ISO 286-1 nominal size ranges (upper limits, mm) and standard tolerances IT5 .. IT13 (um)
 #: (ISO 286-1:2010, "Geometrical product specifications - ISO code system for tolerances on
@@ -65,11 +66,7 @@ def it_tolerance_mm(nominal_mm: float, grade: int) -> float:
     return IT_TABLE_UM[grade][k] * 1e-3
 
 
-class _Spec(BaseModel):
-    model_config = ConfigDict(extra="forbid", strict=True)
-
-
-class Defaults(_Spec):
+class Defaults(Strict):
     it_grade: int | None = 9
     angle_deg: float = Field(0.0, ge=0.0)
     distribution: Literal["normal", "uniform"] = "normal"
@@ -91,7 +88,7 @@ class Defaults(_Spec):
         return v
 
 
-class ToleranceSpec(_Spec):
+class ToleranceSpec(Strict):
     """A validated tolerance file (see the module docstring)."""
 
     defaults: Defaults = Field(default_factory=Defaults)
