@@ -49,7 +49,8 @@ from distributed.diagnostics.plugin import WorkerPlugin
 from ..design.sweep import Chunk, chunk_bounds, column_units, curve_phi_deg, evaluate_chunk
 from ..design.sweep_file import Sweep
 from ..engine.errors import OptionError, OutputError, SewmechError
-from .outdir import LOCK, dir_lock, dir_mode, file_mode
+from .io import atomic_write
+from .outdir import LOCK, dir_lock, dir_mode
 
 RECORD = "sweep.json"
 CHUNKS = "chunks"
@@ -204,8 +205,6 @@ def prepare_dir(root: Path, sweep: Sweep, chunk: int | None, option: str = "--ou
 
 
 def _write_json(path: Path, data: dict) -> None:
-    from .io import atomic_write
-
     with atomic_write(path) as fh:
         json.dump(data, fh, indent=1)
 
@@ -259,19 +258,10 @@ def write_chunk(root: Path, sweep: Sweep, k: int, c: Chunk) -> None:
                        metadata={"unit": units[name]} if units[name] else None)
               for name in units]
     table = pa.table({name: c.columns[name] for name in units}, schema=pa.schema(fields))
-    final = chunk_path(root, k)
-    fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent)
-    try:
-        os.fchmod(fd, file_mode())
-        with os.fdopen(fd, "wb") as fh:
-            pq.write_table(table, fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, final)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
+    # under a temporary name beside it, renamed when whole (the names the sweep counts as its
+    # own: io.atomic_write's)
+    with atomic_write(chunk_path(root, k), "wb", encoding=None) as fh:
+        pq.write_table(table, fh)
 
 
 # ---- running ------------------------------------------------------------------------------------
