@@ -173,19 +173,19 @@ class App:
                         headers={"Server-Timing": f"{what};dur={ms:.1f}"})
 
     async def export_toml(self, request: Request):
-        s = self.get(request.path_params["token"])
-        data = await _json(request)
-        text = await run_in_threadpool(s.export_toml, data.get("set"))
-        name = PurePath(s.file_name).stem + "-edited.toml"
-        return Response(text, media_type="application/toml; charset=utf-8",
-                        headers={"Content-Disposition": f'attachment; filename="{name}"'})
+        return await self._download(request, "export_toml", "-edited.toml", "application/toml")
 
     async def export_csv(self, request: Request):
+        return await self._download(request, "curves_csv", "-curves.csv", "text/csv")
+
+    async def _download(self, request: Request, method: str, suffix: str, media: str):
+        """A file of the session's current values (``Session.<method>``) as a download named
+        after the machine's file."""
         s = self.get(request.path_params["token"])
         data = await _json(request)
-        text = await run_in_threadpool(s.curves_csv, data.get("set"))
-        name = PurePath(s.file_name).stem + "-curves.csv"
-        return Response(text, media_type="text/csv; charset=utf-8",
+        text = await run_in_threadpool(getattr(s, method), data.get("set"))
+        name = PurePath(s.file_name).stem + suffix
+        return Response(text, media_type=f"{media}; charset=utf-8",
                         headers={"Content-Disposition": f'attachment; filename="{name}"'})
 
 
