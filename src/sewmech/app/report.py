@@ -317,9 +317,9 @@ def _run_section(name: str):
 class _Sections:
     """The report's sections that need nothing of the others (feed, dynamics, thread, the
     comparison), started at once in the worker processes: each worker takes the next one when
-    it is done, and this process, once its own part is drawn, takes what is left from the
-    back of the queue, so that no core waits while a section waits. :meth:`results` gives
-    them in page order."""
+    it is done, and this process, once its own part is drawn, takes the next one too, always
+    the longest left (so that the last ones to finish are short and no core waits while a
+    section waits). :meth:`results` gives them in page order."""
 
     def __init__(self, pool, machine, root, variants, names):
         _SHARED.update(machine=machine, root=root, variants=variants)
@@ -354,7 +354,7 @@ class _Sections:
                 with self.lock:
                     if not self.queue:
                         break
-                    name = self.queue.pop()
+                    name = self.queue.popleft()
                 here[name] = _run_section(name)
             for name in self.names:
                 yield name, here[name] if name in here else self.futures[name].result()
