@@ -21,6 +21,12 @@ from .figures import Figures, table_html
 _FEED = ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
 
 
+def _start_and_answer(before, after):
+    """(design, line style, label) of the start (grey, dashed) and of the answer."""
+    return ((before, {"color": "0.5", "ls": "--"}, "start"),
+            (after, {"color": "C0"}, "answer"))
+
+
 def _is_channel(metric: str) -> bool:
     """A kinematic channel at an angle (p_POINT_x, theta_LINK, ...), not a named metric."""
     from ..design.evaluate import THREAD_METRICS
@@ -188,8 +194,7 @@ def _feed_paths(figs: Figures, machine, reg, before, after) -> None:
     reg = machine.spec.inputs[s.regulator].default_deg if reg is None else reg
     fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
     cols = {}
-    for params, style, label in ((before, dict(color="0.5", ls="--"), "start"),
-                                 (after, dict(color="C0"), "answer")):
+    for params, style, label in _start_and_answer(before, after):
         c = feed_cycles(machine, reg, params=params, on_failure="mask")
         ax.plot(c.x, c.y, label=f"{label}: stitch {float(c.stitch_mm):.3f} mm, lift"
                 f" {float(c.lift_mm):.3f} mm", **style)
@@ -215,8 +220,7 @@ def _overfeed(figs: Figures, machine, before, after) -> None:
 
     fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
     cols = {}
-    for params, style, label in ((before, dict(color="0.5", ls="--"), "start"),
-                                 (after, dict(color="C0"), "answer")):
+    for params, style, label in _start_and_answer(before, after):
         b = thread_balance(machine, params=params)
         ax.plot(b.phi_deg, b.overfeed, label=f"{label}: least while the loop grows"
                 f" {b.min_overfeed_while_loop_grows:.2f} mm", **style)
@@ -243,8 +247,7 @@ def _channel(figs: Figures, machine, channel: str, before, after) -> None:
     fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
     cols = {"phi_deg": np.degrees(phi)}
     angle = channel.startswith("theta_")
-    for params, style, label in ((before, dict(color="0.5", ls="--"), "start"),
-                                 (after, dict(color="C0"), "answer")):
+    for params, style, label in _start_and_answer(before, after):
         v = kinematics(machine, phi, params=params, on_failure="mask").channel(channel)[0]
         v = np.degrees(np.unwrap(v)) if angle else v
         ax.plot(np.degrees(phi), v, label=label, **style)

@@ -52,7 +52,6 @@ from ..engine.machine import Machine, load_machine
 from ..engine.spec import load_toml_model
 from ._models import Bounds, Header, MetricRef, Strict
 from .evaluate import (
-    ASSEMBLY_CLEARANCE_MM,  # noqa: F401  (named in the docs of design_ok and assembly_margin)
     _metric,
     _setting_extremes,
     assembles_batch,
@@ -195,7 +194,7 @@ class Problem:
     def design_ok(self, x: np.ndarray) -> bool:
         """The design assembles over the whole turn as the searches see it (the kinematics on
         a 1 deg grid at the setting inputs' extremes, every closed-form unit at least
-        :data:`ASSEMBLY_CLEARANCE_MM` from failing at every grid angle, which keeps it
+        :data:`~sewmech.design.evaluate.ASSEMBLY_CLEARANCE_MM` from failing at every grid angle, which keeps it
         assembled between the grid angles too). The answer's verdict is :meth:`report`'s exact
         proof."""
         key = ("assembles", tuple(np.asarray(x, dtype=float)))
@@ -266,7 +265,7 @@ class Problem:
     def assembly_margin(self, x: np.ndarray) -> tuple[float, np.ndarray]:
         """The smallest assembly margin (mm) of any closed-form unit over the whole turn, at
         both ends of every setting input, and its derivative by the variables (mm per file
-        unit): the margin that SLSQP keeps at least :data:`ASSEMBLY_CLEARANCE_MM`. Each
+        unit): the margin that SLSQP keeps at least :data:`~sewmech.design.evaluate.ASSEMBLY_CLEARANCE_MM`. Each
         condition's margin (:func:`sewmech.engine.margins.conditions`) is read on a 1 deg grid
         from the points it names (so also where its unit fails), its least value located by
         Brent's method on its slope; the derivative is the margin's at that angle (where its
