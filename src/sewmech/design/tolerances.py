@@ -30,7 +30,8 @@ import numpy as np
 from ..engine.errors import OptionError
 from ..engine.machine import Machine
 from ..engine.sensitivity import sensitivities
-from ..sewing.gradients import METRICS, metric_values
+from ..sewing.gradients import METRICS, Gradient, metric_values
+from ..sewing.samples import WINDOWED, sample_feed_values
 from .tolerance_file import ToleranceSpec, costs_of, tolerances_of
 
 
@@ -76,17 +77,25 @@ def metric_gradient(machine: Machine, metric: str, *, regulator_deg: float | Non
                     phi_deg: float = 0.0) -> tuple[float, np.ndarray, str]:
     """A metric (a key of :data:`sewmech.sewing.gradients.METRICS`) or a position channel at
     ``phi_deg``: its value, its derivatives by every parameter and its unit."""
+    value, d, unit, _ = _gradient(machine, metric, regulator_deg, phi_deg)
+    return value, d, unit
+
+
+def _gradient(machine: Machine, metric: str, regulator_deg: float | None, phi_deg: float
+              ) -> tuple[float, np.ndarray, str, Gradient | None]:
+    """:func:`metric_gradient` and the metric's :class:`Gradient` (its events; None for a
+    channel)."""
     if metric in METRICS:
         g = METRICS[metric](machine, _setting(machine, regulator_deg) if metric in FEED
                             else None)
-        return g.value, g.d_dparam, g.unit
+        return g.value, g.d_dparam, g.unit, g
     inputs = _inputs(machine, regulator_deg)
     try:
         S = sensitivities(machine, np.radians([phi_deg]), inputs=inputs, outputs=[metric])
         v, d, unit = S.channel(metric)
     except KeyError as exc:
         raise OptionError("--output", exc.args[0], "Metrics: " + ", ".join(METRICS)) from None
-    return float(v[0]), d[0], unit
+    return float(v[0]), d[0], unit, None
 
 
 def _setting(machine: Machine, regulator_deg: float | None) -> float:
@@ -105,23 +114,29 @@ def _inputs(machine: Machine, regulator_deg: float | None):
     return {s.regulator: math.radians(regulator_deg)}
 
 
-#: the shaft-angle grid of the Monte Carlo's feed metrics, deg: their events on it are within
+#: the shaft-angle grid of the Monte Carlo's other metrics, deg: their events on it are within
 #: 1.5e-5 mm of the located ones on JB1-3 (docs/accuracy.md), and the nominal design is computed
 #: on the same grid, so that the deviations keep no bias of it
 MC_STEP_DEG = 5.0
 
 
 def sample_values(machine: Machine, metric: str, P: np.ndarray, *,
-                  regulator_deg: float | None = None, phi_deg: float = 0.0) -> np.ndarray:
-    """The metric for a batch of designs ``P`` (n, n_params), one batch call."""
+                  regulator_deg: float | None = None, phi_deg: float = 0.0,
+                  nominal: Gradient | None = None) -> tuple[np.ndarray, dict]:
+    """The metric for a batch of designs ``P`` (n, n_params; row 0 the nominal design) and
+    how it was evaluated. The feed metrics, given their ``nominal`` :class:`Gradient`, in
+    windows around its events (:mod:`sewmech.sewing.samples`); the other metrics in one batch
+    call on a ``MC_STEP_DEG`` grid; a channel at ``phi_deg``."""
+    if metric in WINDOWED and nominal is not None:
+        return sample_feed_values(machine, metric, _setting(machine, regulator_deg), P, nominal)
     if metric in METRICS:
         return metric_values(machine, metric, _setting(machine, regulator_deg) if metric in FEED
-                             else None, P, step_deg=MC_STEP_DEG)
+                             else None, P, step_deg=MC_STEP_DEG), {"grid_deg": MC_STEP_DEG}
     from ..engine.kinematics import kinematics
 
     r = kinematics(machine, np.radians([phi_deg]), params=P,
                    inputs=_inputs(machine, regulator_deg), on_failure="mask")
-    return r.channel(metric)[0][..., 0]
+    return r.channel(metric)[0][..., 0], {}
 
 
 def tolerance_analysis(machine: Machine, metric: str, spec: ToleranceSpec | None = None, *,
@@ -139,8 +154,7 @@ def tolerance_analysis(machine: Machine, metric: str, spec: ToleranceSpec | None
         raise OptionError("--band", f"must be a number > 0, got {band!r}")
     tol = tolerances_of(machine, spec, where)
     dist = (spec or ToleranceSpec()).defaults.distribution
-    value, d, unit = metric_gradient(machine, metric, regulator_deg=regulator_deg,
-                                     phi_deg=phi_deg)
+    value, d, unit, nominal = _gradient(machine, metric, regulator_deg, phi_deg)
     on = tol > 0
     contrib = (d * tol) ** 2
     rss = float(np.sqrt(contrib.sum()))
@@ -153,17 +167,26 @@ def tolerance_analysis(machine: Machine, metric: str, spec: ToleranceSpec | None
     rng = np.random.default_rng(seed)
     t = tol[on]
     if dist == "normal":
-        dev = rng.normal(size=(samples, t.size)) * (t / 3.0)
+        dev = rng.standard_normal(size=(samples, t.size))
+        dev *= t / 3.0
     else:
-        dev = rng.uniform(-1.0, 1.0, size=(samples, t.size)) * t
-    P = np.tile(np.asarray(machine.defaults, dtype=float), (samples + 1, 1))
-    P[1:, on] += dev  # row 0: the nominal design, evaluated the same way
-    vals = sample_values(machine, metric, P, regulator_deg=regulator_deg, phi_deg=phi_deg)
+        dev = rng.random(size=(samples, t.size))
+        dev *= 2.0 * t
+        dev -= t
+    # row 0: the nominal design (at the setting), evaluated the same way
+    base = machine.parameters(inputs=_inputs(machine, regulator_deg)) \
+        if _inputs(machine, regulator_deg) else np.asarray(machine.defaults, dtype=float)
+    P = np.empty((samples + 1, base.size))
+    P[:] = base
+    P[1:, np.flatnonzero(on)] += dev
+    vals, how = sample_values(machine, metric, P, regulator_deg=regulator_deg,
+                              phi_deg=phi_deg, nominal=nominal)
     ok = np.isfinite(vals[1:])
     dv = vals[1:][ok] - vals[0]
     mc = {"n": int(samples), "assembled": int(ok.sum()), "mean": float(np.mean(dv)),
           "std": float(np.std(dv, ddof=1)), "p99": float(np.quantile(np.abs(dv), 0.99)),
-          "min": float(dv.min()), "max": float(dv.max()), "seed": int(seed)}
+          "min": float(dv.min()), "max": float(dv.max()), "seed": int(seed),
+          "evaluation": how}
     alloc = rule = None
     if band is not None:
         alloc, rule = allocate(machine, d, costs_of(machine, spec), on, band, dist)

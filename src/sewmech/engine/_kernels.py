@@ -707,6 +707,7 @@ def _eval_designs(d0, d1, units, params, p_lo, p_hi, march_phi, mc, ms, march_st
             n_moving += 1
     n_failed = 0
     n_par = params.shape[1]
+    n_slot = min(BLOCK, n_march)  # the block slots a short march uses
     for d in range(d0, d1):
         bad = -1  # the first parameter outside [p_lo, p_hi] (a NaN is outside too)
         for j in range(n_par):
@@ -731,7 +732,7 @@ def _eval_designs(d0, d1, units, params, p_lo, p_hi, march_phi, mc, ms, march_st
                 i = units[u, 1]
                 x = params[d, units[u, 2]]
                 y = params[d, units[u, 3]]
-                for kb in range(BLOCK):
+                for kb in range(n_slot):
                     p[kb, i, 0] = x
                     p[kb, i, 1] = y
                     v[kb, i, 0] = 0.0

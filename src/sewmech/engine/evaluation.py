@@ -23,6 +23,7 @@ from functools import cached_property
 
 import numpy as np
 
+from ._kernels import OP_CRANK, OP_LOOP
 from .kinematics import KinematicsPlan, kinematics
 from .machine import Machine
 from .results import CHANNEL_KINDS, KinematicsResult
@@ -79,6 +80,54 @@ class Evaluation:
             cols.append(g.theta[:, idx] if kind == 0 else g.q[:, idx])
         return m.unknowns[:, 3].astype(np.int64), np.stack(cols, axis=1)
 
+    @cached_property
+    def _init_rates(self) -> tuple[np.ndarray, np.ndarray]:
+        """The loop unknowns' first and second derivatives by the shaft angle at every grid
+        angle, (n_grid, n_unknowns) each (the grid is at omega = 1 rad/s)."""
+        m = self.machine
+        if not m.has_loops:
+            return np.empty((self.n_grid, 0)), np.empty((self.n_grid, 0))
+        g = self.grid
+        d1 = [g.omega[:, i] if kind == 0 else g.q_dot[:, i] for kind, i, _, _ in m.unknowns]
+        d2 = [g.epsilon[:, i] if kind == 0 else g.q_ddot[:, i] for kind, i, _, _ in m.unknowns]
+        return np.stack(d1, axis=1), np.stack(d2, axis=1)
+
+    def unknown_selection(self, points: list[str]) -> dict:
+        """The links and joint variables that are unknowns of the loop units the ``points``
+        depend on, as a selection for :meth:`at_angles` (with :meth:`unknowns_of` reading them
+        back)."""
+        m = self.machine
+        rows = m.selection(points, [], [])[-1]
+        links, variables = set(), set()
+        for row in m.program[rows]:
+            if row[0] != OP_LOOP:
+                continue
+            n, u0 = int(m.groups[row[1], 0]), int(m.groups[row[1], 1])
+            for kind, i, _, _ in m.unknowns[u0:u0 + n]:
+                (links if kind == 0 else variables).add(
+                    (m.link_names if kind == 0 else m.variable_names)[i])
+        return {"points": list(points), "links": sorted(links), "variables": sorted(variables)}
+
+    def unknowns_of(self, r: KinematicsResult, step: np.ndarray) -> np.ndarray:
+        """The loop unknowns of the designs of ``r`` (an :meth:`at_angles` result that
+        selected :meth:`unknown_selection`) carried ``step`` (m,) (rad) further along their
+        second-order Taylor polynomial: initial values for the next :meth:`at_angles`,
+        (m, n_unknowns; 0 for the unknowns of loops ``r`` did not solve)."""
+        cols = []
+        for kind, i, _, _ in self.machine.unknowns:
+            name = (self.machine.link_names if kind == 0 else self.machine.variable_names)[i]
+            if name not in (r.link_names if kind == 0 else r.variable_names):
+                cols.append(np.zeros(step.size))
+                continue
+            if kind == 0:
+                j = r.link_names.index(self.machine.link_names[i])
+                q, q1, q2 = r.theta[:, 0, j], r.omega[:, 0, j], r.epsilon[:, 0, j]
+            else:
+                j = r.variable_names.index(self.machine.variable_names[i])
+                q, q1, q2 = r.q[:, 0, j], r.q_dot[:, 0, j], r.q_ddot[:, 0, j]
+            cols.append(q + step * (q1 + 0.5 * step * q2))
+        return np.stack(cols, axis=1) if cols else np.empty((step.size, 0))
+
     def at(self, phi, **selection) -> KinematicsResult:
         """The exact motion at shaft angles ``phi`` (rad, any), at omega = 1 rad/s: one compiled
         call; loop units continue from the grid solution at the grid angle just below the first
@@ -87,13 +136,61 @@ class Evaluation:
         P = self.params
         start = None
         if self.machine.has_loops and phi.size:
-            k = int(np.floor(float(np.mod(phi[0], 2.0 * math.pi)) / self.h)) % self.n_grid
+            k = self._below(phi[0])
             idx, values = self._inits
             P = self.params.copy()
             P[idx] = values[k]
             start = float(self.phi[k])
         plan = KinematicsPlan(self.machine, phi, omega=1.0, start_phi=start,
                               max_step_deg=math.degrees(self.h), **selection)
+        return plan(P)
+
+    def _below(self, phi: float) -> int:
+        """The grid angle at or just below ``phi`` (rad, any), as its index (a grid angle
+        itself, up to round-off, is its own)."""
+        return int(np.floor(float(np.mod(phi, 2.0 * math.pi)) / self.h + 1e-9)) % self.n_grid
+
+    @cached_property
+    def _shaft_cranks(self) -> tuple[np.ndarray, np.ndarray]:
+        """Parameter indices of the phase and the speed ratio of every crank the shaft turns
+        (not the setting links, whose angle is an input)."""
+        u = self.machine.program
+        shaft = (u[:, 0] == OP_CRANK) & (u[:, 4] < 0)
+        return u[shaft, 2].astype(np.int64), u[shaft, 3].astype(np.int64)
+
+    def at_angles(self, params, phi, *, guess: np.ndarray | None = None,
+                  overwrite: bool = False, **selection) -> KinematicsResult:
+        """A batch of designs ``params`` (m, n_parameters) close to this one, each at its own
+        shaft angle ``phi`` (m,) (rad), at omega = 1 rad/s, in one compiled call (the result
+        has one angle, 0).
+
+        The shaft angle enters the motion only through the cranks it turns (theta = phase +
+        ratio phi), so a design at phi_d is the design with every such crank's phase advanced
+        by ratio phi_d, at angle 0. Each design's loop units are assembled by Newton's method
+        from ``guess`` (m, n_unknowns; e.g. :meth:`unknowns_of` an earlier result) or from
+        this design's solution carried from the grid angle nearest phi_d along its Taylor
+        polynomial. A design that does not assemble reads as infeasible. ``overwrite``: ``params`` is the caller's float array
+        and may take the changed phases and initial values itself (the caller restores them).
+        ``selection``: ``points``, ``links``, ``variables``."""
+        P = params if overwrite else np.array(params, dtype=float)
+        phi = np.asarray(phi, dtype=float)
+        if P.ndim != 2 or phi.shape != P.shape[:1]:
+            raise ValueError("at_angles(): params (m, n_parameters) and phi (m,)")
+        phase, ratio = self._shaft_cranks
+        for j, r in zip(phase, ratio):
+            P[:, j] += P[:, r] * phi
+        if self.machine.has_loops:
+            idx, values = self._inits
+            if guess is None:
+                x = np.mod(phi, 2.0 * math.pi) / self.h
+                k = np.rint(x).astype(np.int64)
+                d = ((x - k) * self.h)[:, None]
+                k %= self.n_grid
+                d1, d2 = self._init_rates
+                guess = values[k] + d * (d1[k] + 0.5 * d * d2[k])
+            P[:, idx] = guess
+        plan = KinematicsPlan(self.machine, [0.0], omega=1.0, start_phi=0.0,
+                              on_failure="mask", **selection)
         return plan(P)
 
     # ---- events ------------------------------------------------------------------------------

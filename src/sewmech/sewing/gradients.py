@@ -19,7 +19,7 @@ too (mm per rad of regulator setting).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -42,6 +42,9 @@ class Gradient:
     parameter_names: tuple[str, ...]
     d_dparam: np.ndarray
     events_deg: dict
+    #: the derivative of an event's shaft angle by every parameter (rad per parameter unit),
+    #: by event name, where the metric's derivative needed it
+    events_d: dict = field(default_factory=dict, repr=False)
 
     def as_dict(self) -> dict[str, float]:
         return {n: float(x) for n, x in zip(self.parameter_names, self.d_dparam)}
@@ -92,7 +95,8 @@ def stitch_length_gradient(machine: Machine, regulator_deg: float, *, params=Non
     fwd = 1.0 if s.forward == "+x" else -1.0
     return Gradient("stitch_length", float(fwd * (x[1] - x[0])), "mm",
                     machine.parameter_names, fwd * (dX[1] - dX[0]),
-                    {"rise": float(np.degrees(phi[0])), "fall": float(np.degrees(phi[1]))})
+                    {"rise": float(np.degrees(phi[0])), "fall": float(np.degrees(phi[1]))},
+                    {"rise": dphi[0], "fall": dphi[1]})
 
 
 def extremum_angle(machine: Machine, point: str, axis: int, phi0: float, *, params=None,
@@ -122,11 +126,16 @@ def feed_lift_gradient(machine: Machine, regulator_deg: float, *, params=None) -
     inputs = {s.regulator: math.radians(regulator_deg)}
     phi = extremum_angle(machine, s.feed_dog, 1, math.radians(float(c.top_deg)), params=params,
                          inputs=inputs)
-    S = sensitivities(machine, np.array([phi]), params=params, inputs=inputs,
+    S = sensitivities(machine, np.array([phi]), params=params, inputs=inputs, rates=True,
                       outputs=[f"p_{s.feed_dog}_y"])
     y, dy, _ = S.channel(f"p_{s.feed_dog}_y")
+    # the top moves too (v_y = 0 there): d phi / dp = -w (d v_y / dp) / a_y at the speed w
+    _, dv, _ = S.channel(f"v_{s.feed_dog}_y")
+    w = float(S.kin.omega_shaft[..., 0])
+    dtop = -w * dv[0] / float(S.kin.point(s.feed_dog).a[..., 0, 1])
     return Gradient("feed_lift", float(y[0] - s.plate_y), "mm", machine.parameter_names,
-                    dy[0], {"top": math.degrees(phi), "regulator": regulator_deg})
+                    dy[0], {"top": math.degrees(phi), "regulator": regulator_deg},
+                    {"top": dtop})
 
 
 def dog_height_at_needle_plate_gradient(machine: Machine, regulator_deg: float, *,
@@ -151,7 +160,8 @@ def dog_height_at_needle_plate_gradient(machine: Machine, regulator_deg: float, 
     d = dyd[0] + r.point(s.feed_dog).v[0, 1] * dphi
     return Gradient("dog_height_at_needle_plate", float(yd[0] - s.plate_y), "mm",
                     machine.parameter_names, d,
-                    {"needle_at_plate": float(np.degrees(phi[0])), "regulator": regulator_deg})
+                    {"needle_at_plate": float(np.degrees(phi[0])), "regulator": regulator_deg},
+                    {"needle_at_plate": dphi})
 
 
 def _top(machine: Machine, point: str, params, also: tuple[str, ...] = ()
