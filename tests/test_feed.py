@@ -89,6 +89,27 @@ def test_cam_design_values_as_batch_parameters(jb):
         jb.parameters({"feed_cam.stroke": 25.0})
 
 
+def test_a_cam_design_value_that_gives_no_cam_is_located(jb):
+    """One design: a ParameterError naming the cam's design value, what fails and the way
+    out. A batch: only the designs that give no convex cam are infeasible (NaN arcs), the
+    others are evaluated, and the error of a raising call says why."""
+    from sewmech.engine.cams import constant_width_fault
+    from sewmech.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="feed_cam.dwell.*dwell < 180 deg") as e:
+        jb.parameters({"feed_cam.dwell": math.radians(190.0)})
+    assert e.value.parameter == "feed_cam.dwell" and "convex" in e.value.hint
+    with pytest.raises(ParameterError, match="no convex constant-width cam for width 20 mm"):
+        jb.parameters({"feed_cam.dwell": math.radians(179.0)})
+    assert constant_width_fault(20.0, [6.0, 6.0], [1.0, 3.2]).endswith(
+        "got 183.346 deg (design (1,))")
+    P = jb.parameters({"feed_cam.stroke": np.array([6.0, 21.0, 7.0])})
+    r = sewmech.kinematics(jb, np.radians([10.0, 20.0]), params=P, on_failure="mask")
+    assert r.feasible.all(axis=1).tolist() == [True, False, True]
+    with pytest.raises(ParameterError, match="design \\(1,\\).*feed_cam's design values"):
+        sewmech.kinematics(jb, np.radians([10.0, 20.0]), params=P)
+
+
 def test_bad_constant_width_cam_is_a_file_error():
     from sewmech.errors import MachineFileError
     from sewmech.spec import parse_machine

@@ -34,7 +34,8 @@ CONSTANT_WIDTH_KEYS = ("width", "stroke", "dwell", "orientation")
 
 
 def constant_width_arcs(width: ArrayLike, stroke: ArrayLike, dwell: ArrayLike,
-                        orientation: ArrayLike = 0.0) -> dict[str, np.ndarray]:
+                        orientation: ArrayLike = 0.0, *,
+                        nan_invalid: bool = False) -> dict[str, np.ndarray]:
     """The six arcs of a constant-width dwell cam, for one design or a batch.
 
     Parameters
@@ -52,24 +53,27 @@ def constant_width_arcs(width: ArrayLike, stroke: ArrayLike, dwell: ArrayLike,
     shape ``batch + (6,)``: the arcs in counter-clockwise order of their normals, starting with
     the inner dwell arc.
 
+    With ``nan_invalid`` the designs whose values give no convex cam get NaN arcs (the
+    kinematics then marks them infeasible, naming the arc) instead of a ValueError for all.
+
     Raises
     ------
     ValueError
-        When the values give no convex cam (a radius not positive).
+        When the values give no convex cam (a radius not positive) and not ``nan_invalid``:
+        the message says which condition fails (:func:`constant_width_fault`).
     """
     W, S, d, o = np.broadcast_arrays(*(np.asarray(x, dtype=float)
                                       for x in (width, stroke, dwell, orientation)))
-    if np.any(S < 0) or np.any(S >= W):
-        raise ValueError("a constant-width cam needs 0 <= stroke < width")
-    if np.any(d < 0) or np.any(d >= math.pi):
-        raise ValueError("a constant-width cam needs 0 <= dwell < 180 deg")
+    bad = constant_width_fault(W, S, d)
+    if bad is not None and not nan_invalid:
+        raise ValueError(bad)
     k = np.sin(d / 2.0)
     R0 = (W - S) / 2.0
     R1 = (W - 2.0 * k * R0) / (2.0 * (1.0 - k))
     R2 = W - R1
-    if np.any(R2 <= 0.0) or np.any(R1 <= 0.0):
-        raise ValueError("no convex constant-width cam for these values: reduce the dwell or the"
-                         " stroke, or widen the cam")
+    if nan_invalid:  # a batch: the designs that give no convex cam get NaN arcs
+        none = ~_convex(W, S, d)
+        R0, R1, R2 = (np.where(none, np.nan, R) for R in (R0, R1, R2))
     half = d / 2.0
     # boundaries of the arcs' normal ranges (relative to the orientation)
     bounds = np.stack([-half, half, np.full_like(d, math.pi / 2), math.pi - half, math.pi + half,
@@ -83,6 +87,34 @@ def constant_width_arcs(width: ArrayLike, stroke: ArrayLike, dwell: ArrayLike,
     centres = np.stack([c0, c1, c2, c0, c1, c2], axis=-2)
     return {"cx": centres[..., 0], "cy": centres[..., 1], "radius": radius,
             "normal_from": bounds[..., :-1], "normal_to": bounds[..., 1:]}
+
+
+def _convex(W, S, d) -> np.ndarray:
+    """Where width W, stroke S (mm) and dwell d (rad) give a convex constant-width cam."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        k = np.sin(d / 2.0)
+        R0 = (W - S) / 2.0
+        R1 = (W - 2.0 * k * R0) / (2.0 * (1.0 - k))
+        return (S >= 0) & (S < W) & (d >= 0) & (d < math.pi) & (R1 > 0.0) & (W - R1 > 0.0)
+
+
+def constant_width_fault(width, stroke, dwell) -> str | None:
+    """Why width, stroke (mm) and dwell (rad) give no convex constant-width cam (for the
+    first design of a batch that does not), or None when every design does."""
+    W, S, d = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (width, stroke, dwell)))
+    ok = _convex(W, S, d)
+    if ok.all():
+        return None
+    i = np.unravel_index(int(np.argmin(ok)), ok.shape) if ok.ndim else ()
+    w, s, dd = float(W[i]), float(S[i]), float(d[i])
+    at = f" (design {tuple(int(x) for x in i)})" if ok.ndim and ok.size > 1 else ""
+    if not 0.0 <= s < w:
+        return (f"a constant-width cam needs 0 <= stroke < width, got stroke {s:g} mm and width"
+                f" {w:g} mm{at}")
+    if not 0.0 <= dd < math.pi:
+        return f"a constant-width cam needs 0 <= dwell < 180 deg, got {math.degrees(dd):g} deg{at}"
+    return (f"no convex constant-width cam for width {w:g} mm, stroke {s:g} mm and dwell"
+            f" {math.degrees(dd):g} deg{at}: reduce the dwell or the stroke, or widen the cam")
 
 
 def support(arcs: dict[str, np.ndarray], normal: ArrayLike) -> np.ndarray:

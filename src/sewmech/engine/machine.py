@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _kernels as K
-from .cams import CONSTANT_WIDTH_KEYS, constant_width_arcs
+from .cams import CONSTANT_WIDTH_KEYS, constant_width_arcs, constant_width_fault
 from .counterweights import PARAMETERS as CW_PARAMETERS
 from .counterweights import Counterweight
 from .errors import MachineFileError, ParameterError, name_index
@@ -398,7 +398,18 @@ class Machine:
                 continue
             items[self.parameter_index(name)] = value
         for cam, given in designs.items():  # a cam design value moves all six arcs
-            arcs = constant_width_arcs(**{**self.cam_designs[cam], **given})
+            values = {**self.cam_designs[cam], **given}
+            batch = any(np.ndim(v) for v in given.values())
+            fault = None if batch else constant_width_fault(
+                values["width"], values["stroke"], values["dwell"])
+            if fault is not None:
+                key = next(iter(given))
+                raise ParameterError(f"{cam}.{key}", (), float(given[key]), fault,
+                                     f"Choose {cam}'s width, stroke and dwell so that the cam"
+                                     " is convex (`sewmech check --parameters` shows them)")
+            # a batch: the designs that give no convex cam get NaN arcs, which the kinematics
+            # reports as infeasible designs naming the arc
+            arcs = constant_width_arcs(**values, nan_invalid=batch)
             for key, values in arcs.items():
                 for k in range(6):
                     items[self.parameter_index(f"{cam}.arc{k}.{key}")] = values[..., k]
@@ -528,6 +539,11 @@ def domain_message(name: str, value: float, unit: str, lo: float, hi: float, *,
             return "{:.6g} {}".format(*file_value(x, unit))
         return f"{x:.6g} {unit}" if unit != "1" else f"{x:.6g}"
 
+    cam, _, rest = name.partition(".arc")
+    if math.isnan(value) and rest:  # a constant-width cam's arcs, rebuilt from design values
+        return (f"is nan: {cam}'s design values (width, stroke, dwell) give no convex"
+                " constant-width cam for this design",
+                "Keep the stroke below the width and the dwell small enough for them")
     if not math.isfinite(value):
         return (f"is {value}: every number must be finite",
                 "nan and inf are not values sewmech can compute with; give the number")
