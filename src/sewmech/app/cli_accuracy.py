@@ -172,6 +172,15 @@ def tolerance_cmd(
     console.print(f"  Monte Carlo ({mc['n']} designs): std {mc['std']:.4g} {u} (RSS / 3 ="
                   f" {res.rss / 3:.4g}), p99 of |deviation| {mc['p99']:.4g} {u}, range"
                   f" {mc['min']:.4g} .. {mc['max']:.4g}")
+    how = mc.get("evaluation", {})
+    if "located" in how:
+        console.print(f"    events located on each design ({how['located']} from their"
+                      f" predicted angles, {how['whole_turn']} from their whole turn;"
+                      f" {how['checked']} checked on the whole turn, within"
+                      f" {how['check_max_mm']:.1g} mm)")
+    if mc["assembled"] < mc["n"]:
+        console.print(f"    {mc['n'] - mc['assembled']} designs not counted: they cannot be"
+                      " assembled, or the metric's event cannot be located on them")
     table = Table(title="contributions (share of the RSS variance)")
     for col in ("parameter", "tolerance", "derivative", "share"):
         table.add_column(col, justify="left" if col == "parameter" else "right")
