@@ -130,9 +130,32 @@ def _diff(dst, do, src, so, m, maps, mo, sub, mq):
 
 
 @njit(nogil=True, **_OPTS)
-def tangents(p0, p1, level, units, params, n_phi, qoff, qm, row_out, rin, ppos, tin, maps,
-             max_m, max_n, max_t, groups, unknowns, terms, cams, arcs, n_pt, n_l, pcol, lcol,
-             vcol, PS, THS, QS, T):
+def tangents(p0, p1, units, params, n_phi, qoff, qm, row_out, rin, ppos, tin, maps, max_m,
+             max_n, max_t, groups, unknowns, terms, cams, arcs, n_pt, n_l, pcol, lcol, vcol, PS,
+             THS, QS, T):
+    """The position tangents of positions p0 .. p1 - 1 (arguments as :func:`_walk`'s, level
+    0): compiled apart from :func:`tangents_rates`, the level a constant, so that none of the
+    rates' code is in its loops."""
+    return _walk(p0, p1, 0, units, params, n_phi, qoff, qm, row_out, rin, ppos, tin, maps,
+                 max_m, max_n, max_t, groups, unknowns, terms, cams, arcs, n_pt, n_l, pcol,
+                 lcol, vcol, PS, THS, QS, T)
+
+
+@njit(nogil=True, **_OPTS)
+def tangents_rates(p0, p1, units, params, n_phi, qoff, qm, row_out, rin, ppos, tin, maps,
+                   max_m, max_n, max_t, groups, unknowns, terms, cams, arcs, n_pt, n_l, pcol,
+                   lcol, vcol, PS, THS, QS, T):
+    """The tangents of the positions, velocities and accelerations (level 2) of positions
+    p0 .. p1 - 1 (arguments as :func:`_walk`'s)."""
+    return _walk(p0, p1, 2, units, params, n_phi, qoff, qm, row_out, rin, ppos, tin, maps,
+                 max_m, max_n, max_t, groups, unknowns, terms, cams, arcs, n_pt, n_l, pcol,
+                 lcol, vcol, PS, THS, QS, T)
+
+
+@njit(inline="always", **_OPTS)  # (numba inlines functions of at most 30 arguments)
+def _walk(p0, p1, level, units, params, n_phi, qoff, qm, row_out, rin, ppos, tin, maps, max_m,
+          max_n, max_t, groups, unknowns, terms, cams, arcs, n_pt, n_l, pcol, lcol, vcol, PS,
+          THS, QS, T):
     """The tangents of positions p0 .. p1 - 1.
 
     units : the program rows solved (solve order); params (n_design, n_params), position k

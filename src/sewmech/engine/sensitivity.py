@@ -290,9 +290,11 @@ def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None 
         THS = r.theta.reshape(1, n, n_l)
         QS = r.q.reshape(1, n, n_v)
     T = np.empty((level + 1, n, plan.layout.width))
-    args = (level, plan.tables[0], par, n_phi, *plan.tables[1:], kernel_input(PS),
+    args = (plan.tables[0], par, n_phi, *plan.tables[1:], kernel_input(PS),
             kernel_input(THS), kernel_input(QS), T)
-    from ._tangents import tangents  # compiled on the first call (a few seconds), then cached
+    from . import _tangents  # compiled on the first call (half a minute), then cached
+
+    tangents = _tangents.tangents_rates if rates else _tangents.tangents
 
     if n >= _PARALLEL_MIN_POSITIONS:
         bad = run_chunks(tangents, n, args)
