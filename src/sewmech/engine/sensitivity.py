@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from . import _tangents
 from ._supports import TangentLayout, tangent_layout
 from ._threads import run_chunks
 from .errors import AnalysisError, name_index
@@ -66,7 +67,7 @@ class Sensitivities:
     def __init__(self, kin: KinematicsResult, plan: _Plan, tangents: tuple[np.ndarray, ...]):
         self.kin = kin
         self._plan = plan
-        self._t = tangents  # per level (n_positions, layout width)
+        self._t = tangents  # per level (blocks, layout width, LANES): see _tangents
         self._shape = kin.p.shape[:-2]  # batch + (n_phi,)
         self._dense_cache: dict = {}
 
@@ -87,16 +88,16 @@ class Sensitivities:
             return self._dense_cache[key]
         plan, t = self._plan, self._t[level]
         sel = plan.sel[family]
-        n = t.shape[0]
+        n = int(np.prod(self._shape))
         point = family == "p"
         out = np.zeros((n, len(sel)) + ((2,) if point else ()) + (len(plan.parameter_names),))
         for c, q in enumerate(plan.quantity[family][sel]):
             off, m, sup = plan.layout.qoff[q], plan.layout.qm[q], plan.support[q]
             if point:
-                out[:, c, 0, sup] = t[:, off:off + m]
-                out[:, c, 1, sup] = t[:, off + m:off + 2 * m]
+                out[:, c, 0, sup] = _lanes(t, off, m, n)
+                out[:, c, 1, sup] = _lanes(t, off + m, m, n)
             else:
-                out[:, c, sup] = t[:, off:off + m]
+                out[:, c, sup] = _lanes(t, off, m, n)
         out = out.reshape(self._shape + out.shape[1:])
         self._dense_cache[key] = out
         return out
@@ -154,7 +155,7 @@ class Sensitivities:
             value = value[..., i]
             if family == "v":
                 unit = r.variable_units[i] + unit
-        d = self._t[level][:, off:off + m].reshape(self._shape + (m,))
+        d = _lanes(self._t[level], off, m, int(np.prod(self._shape))).reshape(self._shape + (m,))
         return value, d, plan.support[q], unit
 
     def channel(self, name: str) -> tuple[np.ndarray, np.ndarray, str]:
@@ -196,6 +197,14 @@ class Sensitivities:
         else:
             i = name_index(r.variable_names, rest, "joint variable")
         return level, family, attr, unit, i, comp
+
+
+def _lanes(t: np.ndarray, off: int, m: int, n: int) -> np.ndarray:
+    """Columns off .. off + m - 1 of a level's tangents (blocks, width, LANES) as (n, m): the
+    n positions in order."""
+    if m == 0:  # a constant (the frame's angle)
+        return np.zeros((n, 0))
+    return t[:, off:off + m, :].transpose(0, 2, 1).reshape(-1, m)[:n]
 
 
 @dataclass(frozen=True)
@@ -289,17 +298,15 @@ def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None 
         PS = r.p.reshape(1, n, n_pt, 2)
         THS = r.theta.reshape(1, n, n_l)
         QS = r.q.reshape(1, n, n_v)
-    T = np.empty((level + 1, n, plan.layout.width))
+    blocks = -(-n // _tangents.LANES)
+    T = np.empty((level + 1, blocks, plan.layout.width, _tangents.LANES))
     args = (plan.tables[0], par, n_phi, *plan.tables[1:], kernel_input(PS),
             kernel_input(THS), kernel_input(QS), T)
-    from . import _tangents  # compiled on the first call (half a minute), then cached
-
-    tangents = _tangents.tangents_rates if rates else _tangents.tangents
-
+    kernel = _tangents.tangents_rates if rates else _tangents.tangents
     if n >= _PARALLEL_MIN_POSITIONS:
-        bad = run_chunks(tangents, n, args)
+        bad = run_chunks(kernel, blocks, args)
     else:
-        bad = tangents(0, n, *args)
+        bad = kernel(0, blocks, *args)
     if bad:
         raise AnalysisError(f"machine '{machine.name}'", "a cam contact lies on no arc of its"
                             " profile", "Check the cam's arcs (sewmech check)")

@@ -33,7 +33,8 @@ def warm() -> float:
     kin = kinematics(m, phi)  # the interpreter
     inverse_dynamics(m, phi)  # the force solver with its block solvers
     pair_geometry(m, kin)  # force directions of the pairs
-    sensitivities(m, phi, rates=True)  # the tangent kernel (every level, every unit type)
+    sensitivities(m, phi)  # the tangent kernels (positions; every level), every unit type
+    sensitivities(m, phi, rates=True)
     return time.perf_counter() - t
 
 
