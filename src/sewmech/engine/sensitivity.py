@@ -286,8 +286,9 @@ def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None 
     n_phi = shape[-1]
     n = int(np.prod(shape))
     par = _design_params(machine, params, inputs)
-    par = kernel_input(np.broadcast_to(par, shape[:-1] + par.shape[-1:])
-                       .reshape(-1, par.shape[-1]))
+    if par.shape[:-1] != shape[:-1]:  # (the designs as the kinematics broadcast them)
+        par = np.broadcast_to(par, shape[:-1] + par.shape[-1:])
+    par = kernel_input(par.reshape(-1, par.shape[-1]))
     n_pt, n_l, n_v = (len(plan.sel[k]) for k in "plv")
     level = 2 if rates else 0
     if rates:  # positions, velocities, accelerations stacked (levels, n, ...)
