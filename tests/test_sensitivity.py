@@ -342,7 +342,8 @@ def test_compact_point_and_dense_forms_agree():
     assert S.parameter_names == m.parameter_names
     i = S.kin.point_names.index("needle.point")
     v, d, sup, unit = S.compact("p_needle.point_y")
-    _, full, _ = S.channel("p_needle.point_y")
+    v0, full, _ = S.channel("p_needle.point_y")
+    np.testing.assert_array_equal(v, v0)
     assert unit == "mm" and d.shape == (3, len(sup)) and len(sup) < len(m.parameter_names)
     np.testing.assert_array_equal(full[:, sup], d)
     np.testing.assert_array_equal(np.delete(full, sup, axis=-1), 0.0)
