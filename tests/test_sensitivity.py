@@ -329,3 +329,24 @@ def test_outputs_solve_only_what_the_channels_need(channels):
         assert len(part.kin.point_names) < len(whole.kin.point_names)
     with pytest.raises(KeyError, match="not a channel"):
         sensitivities(m, phi, outputs=["needle.point"])
+
+
+def test_compact_point_and_dense_forms_agree():
+    """The compact form (a channel's derivatives by its support only), one point's block and
+    the dense arrays hold the same numbers; every parameter outside a channel's support has a
+    zero derivative (checked against central differences above) and the names are the
+    machine's."""
+    m = sewmech.load_machine("jb1-3")
+    phi = np.radians([5.0, 123.0, 250.0])
+    S = sensitivities(m, phi, rates=True, outputs=["p_needle.point_y"])
+    assert S.parameter_names == m.parameter_names
+    i = S.kin.point_names.index("needle.point")
+    v, d, sup, unit = S.compact("p_needle.point_y")
+    v0, full, _ = S.channel("p_needle.point_y")
+    np.testing.assert_array_equal(v, v0)
+    assert unit == "mm" and d.shape == (3, len(sup)) and len(sup) < len(m.parameter_names)
+    np.testing.assert_array_equal(full[:, sup], d)
+    np.testing.assert_array_equal(np.delete(full, sup, axis=-1), 0.0)
+    np.testing.assert_array_equal(S.dp[:, i, 1], full)
+    for level, dense in enumerate((S.dp, S.dv, S.da)):
+        np.testing.assert_array_equal(S.point("needle.point", level), dense[:, i])

@@ -346,6 +346,12 @@ class Machine:
         return {}
 
     @cached_property
+    def _tangent_plans(self) -> dict:
+        """The tangent layouts of sensitivities() calls, per output selection
+        (:mod:`sewmech.engine.sensitivity`)."""
+        return {}
+
+    @cached_property
     def _evaluations(self) -> dict:
         """The shared evaluations of designs (:func:`sewmech.engine.evaluation.evaluation`)."""
         return {}

@@ -1,8 +1,9 @@
 """Compile the kernels once, ahead of the first command: ``python -m sewmech.engine.warm``.
 
-numba compiles the interpreter and the force solver on their first call and keeps the machine
-code on disk (beside the sources); compiling takes 20-25 s on a 2-core machine, which a user
-would otherwise meet on their first command. ``make install`` (and so ``make demo`` and ``make
+numba compiles the interpreter, the force solver and the design sensitivities' tangent kernel
+on their first call and keeps the machine code on disk (beside the sources); compiling takes
+about 75 s on a 2-core machine (the two tangent kernels about 45 s of it), which a user would
+otherwise meet on their first command (the tangent kernels only on their first sensitivities). ``make install`` (and so ``make demo`` and ``make
 test``) runs this right after installing, so every command finds the kernels compiled. Running
 it again costs about a second (it only loads them).
 
@@ -24,6 +25,7 @@ def warm() -> float:
     from .dynamics import inverse_dynamics, pair_geometry
     from .kinematics import kinematics
     from .machine import load_machine
+    from .sensitivity import sensitivities
 
     t = time.perf_counter()
     m = load_machine("jb1-3")  # closed-form units, loop units and cams: every code path
@@ -31,6 +33,8 @@ def warm() -> float:
     kin = kinematics(m, phi)  # the interpreter
     inverse_dynamics(m, phi)  # the force solver with its block solvers
     pair_geometry(m, kin)  # force directions of the pairs
+    sensitivities(m, phi)  # the tangent kernels (positions; every level), every unit type
+    sensitivities(m, phi, rates=True)
     return time.perf_counter() - t
 
 

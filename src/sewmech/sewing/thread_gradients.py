@@ -93,7 +93,7 @@ def _overfeed_derivatives(machine: Machine, b, x: dict, P: np.ndarray, grid: lis
     phi = np.radians(b.phi_deg[grid])
     S = sensitivities(machine, phi, params=P, outputs=[f"p_{q}_y" for q in points])
     pos = {q: S.kin.point(q).p for q in points}  # (n_grid, 2)
-    dpos = {q: S.dp[:, S.kin.point_names.index(q)] for q in points}  # (n_grid, 2, n_params)
+    dpos = {q: S.point(q) for q in points}  # (n_grid, 2, n_params)
     row = {k: j for j, k in enumerate(grid)}
     C = np.stack([pos[g] for g in guides], axis=1)  # (n_grid, n_guides, 2)
     dC = np.stack([dpos[g] for g in guides], axis=1)  # (n_grid, n_guides, 2, n_params)
