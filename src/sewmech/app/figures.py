@@ -39,6 +39,7 @@ def render(fig, root: Path, stem: str) -> bytes:
     if engine is not None:  # lay the figure out once; both formats keep its positions
         engine.execute(fig)
         fig.set_layout_engine(None)
+    _freeze_ticks(fig)
     png = io.BytesIO()
     # zlib level 1: the same pixels, written in a fraction of the time (files 10-20 % larger)
     fig.savefig(png, format="png", dpi=PNG_DPI, pil_kwargs={"compress_level": 1})
@@ -49,6 +50,24 @@ def render(fig, root: Path, stem: str) -> bytes:
         with atomic_write(Path(root) / f"{stem}.{ext}", "wb", encoding=None) as fh:
             fh.write(payload)
     return png.getvalue()
+
+
+def _freeze_ticks(fig) -> None:
+    """Fix every axis's major ticks and their labels where they are now, so that the two
+    formats draw them without asking the locator and the formatter again (each draw did, for
+    every axis: about a tenth of the drawing; the files are the same). An axis whose labels
+    share an offset (``1e-3`` at its end) keeps its own formatter."""
+    from matplotlib.ticker import FixedFormatter, FixedLocator
+
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            fmt = axis.get_major_formatter()
+            locs = axis.get_majorticklocs()
+            labels = fmt.format_ticks(locs)
+            if getattr(fmt, "get_offset", lambda: "")():
+                continue
+            axis.set_major_locator(FixedLocator(locs))
+            axis.set_major_formatter(FixedFormatter(labels))
 
 
 def save_figure(fig, root: Path, stem: str) -> None:
