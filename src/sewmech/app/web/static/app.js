@@ -73,6 +73,10 @@ async function openMachine(body) {
 }
 
 async function opened(data, upload = false) {
+  // answers still on their way for the machine before are not this one's: the edit count
+  // moves on (so checks in flight are dropped) and checks not yet asked for are not asked
+  S.edited += 1;
+  clearTimeout(S.checksTimer);
   S.token = data.session;
   S.machine = data.machine;
   S.params = Object.fromEntries(data.machine.parameters.map((p) => [p.name, p]));
@@ -163,10 +167,12 @@ async function evaluate(t0) {
   S.inFlight = true;
   const edit = S.edited;
   const values = {...S.values};
+  const token = S.token;
   $("status").textContent = "computing…";
   try {
     const t1 = performance.now();
-    const turn = await api(`/api/sessions/${S.token}/turn`, {set: values});
+    const turn = await api(`/api/sessions/${token}/turn`, {set: values});
+    if (token !== S.token) return;  // another machine was opened meanwhile
     S.serverMs = performance.now() - t1;
     S.turn = turn; S.turnValues = values;
     clearError();
@@ -180,7 +186,7 @@ async function evaluate(t0) {
       ` ${S.serverMs.toFixed(0)} ms with the request, ${S.drawMs.toFixed(0)} ms to draw`;
     if (edit === S.edited) scheduleChecks(values);
   } catch (err) {
-    showError(err);
+    if (token === S.token) showError(err);
   } finally {
     S.inFlight = false;
     if (S.pending) { S.pending = false; schedule(performance.now()); }
@@ -189,10 +195,11 @@ async function evaluate(t0) {
 
 function scheduleChecks(values) {
   clearTimeout(S.checksTimer);
+  const token = S.token;
   S.checksTimer = setTimeout(async () => {
     const edit = S.edited;
     try {
-      const c = await api(`/api/sessions/${S.token}/checks`, {set: values});
+      const c = await api(`/api/sessions/${token}/checks`, {set: values});
       if (edit === S.edited) { S.checks = c; renderChecks(); drawPlots(); }
     } catch (err) {
       if (edit === S.edited) {
