@@ -2,9 +2,10 @@
 
 numba compiles the interpreter, the force solver and the design sensitivities' tangent kernel
 on their first call and keeps the machine code on disk (beside the sources); compiling takes
-about 75 s on a 2-core machine (the two tangent kernels about 45 s of it), which a user would
-otherwise meet on their first command (the tangent kernels only on their first sensitivities). ``make install`` (and so ``make demo`` and ``make
-test``) runs this right after installing, so every command finds the kernels compiled. Running
+about 75-90 s on a 2-core machine (the two tangent kernels about 50 s of it), which a user
+would otherwise meet on their first command (the tangent kernels on their first
+sensitivities). ``make install`` (and so ``make demo`` and ``make test``) runs this right
+after installing, so every command finds the kernels compiled. Running
 it again costs about a second (it only loads them).
 
 It also writes the package's bytecode (``__pycache__``): where ``PYTHONDONTWRITEBYTECODE`` is
