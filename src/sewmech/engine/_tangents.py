@@ -566,6 +566,17 @@ def _rrr(r, m, level, units, params, qoff, qm, rin, ppos, maps, n_pt, pcol, lcol
                     _diff(S, 9 * M1, t, oc + LS + m, m, maps, mb, q2 + LS + m2, m2)
 
 
+@njit(inline="always", **_OPTS)
+def _along(s, e, gx, gy, angle):
+    """The unit vector u of a slider's line from the offset (gx, gy) = s u + e n = (s + i e) u
+    of its point (n = J u), without trigonometry unless s = e = 0 (then from the line's
+    ``angle``, rad)."""
+    se2 = s * s + e * e
+    if se2 > 0.0:
+        return (s * gx + e * gy) / se2, (s * gy - e * gx) / se2
+    return math.cos(angle), math.sin(angle)
+
+
 @njit(**_OPTS)
 def _rrp(r, m, level, units, params, qoff, qm, rin, ppos, maps, n_pt, n_l, pcol, lcol, vcol, PS,
          THS, QS, t, blk0, blk1, width, n_phi, LS, S, M1, C, lanes):
@@ -596,17 +607,9 @@ def _rrp(r, m, level, units, params, qoff, qm, rin, ppos, maps, n_pt, n_l, pcol,
             p = lanes[blk, 0, j]
             s = QS[0, p, vc]
             e = params[lanes[blk, 1, j], je]
-            # C - G = s u + e n = (s + i e) u: u without trigonometry unless s = e = 0
-            se2 = s * s + e * e
-            if se2 > 0.0:
-                gx = PS[0, p, ci, 0] - PS[0, p, cg, 0]
-                gy = PS[0, p, ci, 1] - PS[0, p, cg, 1]
-                ux = (s * gx + e * gy) / se2
-                uy = (s * gy - e * gx) / se2
-            else:
-                beta = THS[0, p, lcol[Ls]]
-                ux = math.cos(beta)
-                uy = math.sin(beta)
+            # C - G = s u + e n = (s + i e) u
+            ux, uy = _along(s, e, PS[0, p, ci, 0] - PS[0, p, cg, 0],
+                            PS[0, p, ci, 1] - PS[0, p, cg, 1], THS[0, p, lcol[Ls]])
             ll = params[lanes[blk, 1, j], jl]
             r1x = PS[0, p, ci, 0] - PS[0, p, cb, 0]
             r1y = PS[0, p, ci, 1] - PS[0, p, cb, 1]
@@ -910,17 +913,9 @@ def _rpr(r, m, level, units, params, qoff, qm, rin, ppos, maps, n_pt, n_l, pcol,
             p = lanes[blk, 0, j]
             s = QS[0, p, vc]
             e = params[lanes[blk, 1, j], je]
-            # B - A = s u + e n = (s + i e) u: u without trigonometry unless s = e = 0
-            se2 = s * s + e * e
-            if se2 > 0.0:
-                gx = PS[0, p, cb, 0] - PS[0, p, cp, 0]
-                gy = PS[0, p, cb, 1] - PS[0, p, cp, 1]
-                ux = (s * gx + e * gy) / se2
-                uy = (s * gy - e * gx) / se2
-            else:
-                th = THS[0, p, lc]
-                ux = math.cos(th)
-                uy = math.sin(th)
+            # B - A = s u + e n = (s + i e) u
+            ux, uy = _along(s, e, PS[0, p, cb, 0] - PS[0, p, cp, 0],
+                            PS[0, p, cb, 1] - PS[0, p, cp, 1], THS[0, p, lc])
             C[j] = ux
             C[_B + j] = uy
             C[2 * _B + j] = -uy
