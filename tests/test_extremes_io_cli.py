@@ -216,10 +216,15 @@ def test_cli_feed_json_and_kinematics_input():
 
 def test_figures_with_their_ticks_fixed_draw_the_same(tmp_path):
     """render() fixes each axis's ticks and labels after the layout (so that the PNG and the SVG
-    do not ask the locators and formatters again): its PNG is byte for byte the one the same
-    figure gives without that, for linear, logarithmic, offset (1e-3 at the axis end) and date-
-    free polar axes, and the axis with an offset keeps its formatter."""
+    do not ask the locators and formatters again) and answers the fonts' height metrics from
+    a cache: its PNG is byte for byte the one the same figure gives without either, its SVG
+    the same but for matplotlib's random ids, for linear, logarithmic, offset (1e-3 at the
+    axis end) and polar axes, and the axis with an offset keeps its formatter; the renderers
+    are left as they were."""
     import io
+    import re
+
+    from matplotlib.backends.backend_agg import RendererAgg
 
     import matplotlib
     import numpy as np
@@ -246,6 +251,7 @@ def test_figures_with_their_ticks_fixed_draw_the_same(tmp_path):
     assert (tmp_path / "fixed.svg").stat().st_size > 0
     from matplotlib.ticker import FixedFormatter, FixedLocator
 
+    assert not hasattr(RendererAgg, "_get_font_height_metrics")
     assert isinstance(fig.axes[0].xaxis.get_major_locator(), FixedLocator)
     assert isinstance(fig.axes[0].yaxis.get_major_formatter(), FixedFormatter)
     assert not isinstance(fig.axes[2].yaxis.get_major_formatter(), FixedFormatter)
@@ -256,4 +262,15 @@ def test_figures_with_their_ticks_fixed_draw_the_same(tmp_path):
     buf = io.BytesIO()
     ref.savefig(buf, format="png", dpi=PNG_DPI, pil_kwargs={"compress_level": 1})
     assert png == buf.getvalue()
+    # the SVG too, but for the ids matplotlib draws at random and the date
+    svg = io.BytesIO()
+    with matplotlib.rc_context({"svg.fonttype": "none"}):
+        ref.savefig(svg, format="svg")
+
+    def norm(text):
+        text = re.sub(r'(id="|#|url\(#)[A-Za-z0-9_]*?[0-9a-f]{10}', r"\1X", text)
+        return re.sub(r"<dc:date>.*?</dc:date>", "", text)
+
+    mine = norm((tmp_path / "fixed.svg").read_text())
+    assert mine == norm(svg.getvalue().decode()) and "<text" in mine
     plt.close("all")
