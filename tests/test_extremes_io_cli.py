@@ -224,13 +224,12 @@ def test_figures_with_their_ticks_fixed_draw_the_same(tmp_path):
     import io
     import re
 
-    from matplotlib.backends.backend_agg import RendererAgg
-
     import matplotlib
     import numpy as np
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import RendererAgg
 
     from sewmech.app.figures import PNG_DPI, render
 
