@@ -17,6 +17,7 @@ import io
 import multiprocessing
 import os
 import pickle
+import sys
 from concurrent.futures import Future, ProcessPoolExecutor
 from pathlib import Path
 
@@ -127,33 +128,51 @@ def _freeze_ticks(fig) -> None:
             axis.set_major_formatter(FixedFormatter(labels))
 
 
+def subplots(nrows: int = 1, ncols: int = 1, **kw):
+    """``matplotlib.pyplot.subplots`` without pyplot: a :class:`matplotlib.figure.Figure` of
+    its own (the keywords of ``Figure.subplots`` go to the axes, the rest to the figure). The
+    report's figures are drawn and saved, never shown, so they need no pyplot window manager;
+    and a report process that never imports pyplot saves its 0.17 s before the workers
+    start."""
+    import inspect
+
+    from matplotlib.figure import Figure
+
+    axes = set(inspect.signature(Figure.subplots).parameters) - {"self", "nrows", "ncols"}
+    fig = Figure(**{k: v for k, v in kw.items() if k not in axes})
+    return fig, fig.subplots(nrows, ncols, **{k: v for k, v in kw.items() if k in axes})
+
+
+def close(fig) -> None:
+    """Let go of ``fig``: a figure pyplot made is closed there (one of :func:`subplots`
+    is not pyplot's and needs nothing)."""
+    plt = sys.modules.get("matplotlib.pyplot")
+    if plt is not None:
+        plt.close(fig)
+
+
 def save_figure(fig, root: Path, stem: str) -> None:
     """Write ``fig`` as ``root/stem.png`` and ``.svg`` (:func:`render`) and close it, also when
     writing fails."""
-    import matplotlib.pyplot as plt
-
     try:
         render(fig, root, stem)
     finally:
-        plt.close(fig)
+        close(fig)
 
 
 def _render_pickled(payload: bytes, root: str, stem: str) -> bytes:
     """A worker's job: the figure arrives pickled."""
-    import matplotlib.pyplot as plt
-
     fig = pickle.loads(payload)
     try:
         return render(fig, Path(root), stem)
     finally:
-        plt.close(fig)
+        close(fig)
 
 
 def _worker_start():
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot  # noqa: F401  (loaded once per worker, not per figure)
 
     from ..engine import _threads
 
@@ -198,8 +217,6 @@ class Figures:
 
     def add(self, fig, name: str, title: str, caption: str, data: pd.DataFrame,
             table: pd.DataFrame | None = None) -> None:
-        import matplotlib.pyplot as plt
-
         stem = f"{self.machine}-{name}"
         with atomic_write(self.root / f"{stem}.csv") as fh:
             data.to_csv(fh, index=False, float_format="%.10g")
@@ -213,12 +230,12 @@ class Figures:
             try:
                 png = render(fig, self.root, stem)
             finally:
-                plt.close(fig)
+                close(fig)
             future: Future = Future()
             future.set_result(png)
         else:
             payload = pickle.dumps(fig)
-            plt.close(fig)
+            close(fig)
             future = self.pool.submit(_render_pickled, payload, str(self.root), stem)
         self._items.append(_Pending(future, head, tail))
 

@@ -32,7 +32,7 @@ from ..engine.machine import Machine, file_value
 from ..sewing import feed as FD
 from ..sewing import timing as T
 from ..sewing.checks import check_timing
-from .figures import Figures, figure_pool, table_html
+from .figures import Figures, figure_pool, subplots, table_html
 from .outdir import output_dir
 
 MM_TO_M = 1e-3
@@ -54,8 +54,7 @@ def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0
     reference = require_reference(machine)  # and one whose angle convention is false
     import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot  # before the workers are forked: they inherit it
+    matplotlib.use("Agg")  # (the figures are Figure objects of their own: no pyplot)
 
     with output_dir(out_dir, command="report") as root, _few_collections():
         pool = figure_pool(workers)
@@ -98,8 +97,6 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     s = T.roles(machine)
     has_feed = s.feed_dog is not None and s.regulator is not None
     # the sections that stand alone start now, in the workers if there are any
@@ -130,7 +127,7 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
         cols.append(("shuttle", s.shuttle_link, "link"))
     if s.take_up_eye:
         cols.append(("take-up eye", s.take_up_eye, "point"))
-    fig, axs = plt.subplots(3, len(cols), figsize=(4.2 * len(cols), 7.5), sharex=True,
+    fig, axs = subplots(3, len(cols), figsize=(4.2 * len(cols), 7.5), sharex=True,
                             constrained_layout=True, squeeze=False)
     data = {"phi_deg": phi_deg}
     for j, (title, name, kind) in enumerate(cols):
@@ -159,7 +156,7 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
     # ---- take-up eye path ----------------------------------------------------------------
     if s.take_up_eye:
         p = res.point(s.take_up_eye).p
-        fig, ax = plt.subplots(figsize=(5.5, 5.5), constrained_layout=True)
+        fig, ax = subplots(figsize=(5.5, 5.5), constrained_layout=True)
         ax.plot(p[:, 0], p[:, 1], lw=1.6)
         for k in range(0, n, max(1, int(round(30 / step_deg)))):
             ax.plot(p[k, 0], p[k, 1], "o", ms=3, color="C1")
@@ -183,7 +180,7 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
         dog = fres.point(s.feed_dog).p
         dog_up = dog[:, 1] > s.plate_y
     rows = 1 + bool(s.shuttle_link) + bool(s.take_up_eye) + 2 * has_feed
-    fig, axs = plt.subplots(rows, 1, figsize=(9, 2.3 * rows + 0.6), sharex=True,
+    fig, axs = subplots(rows, 1, figsize=(9, 2.3 * rows + 0.6), sharex=True,
                             constrained_layout=True, squeeze=False)
     axs = axs[:, 0]
     tdata = {"phi_deg": phi_deg}
@@ -400,8 +397,6 @@ class _Sections:
 
 def _feed_section(figs: Figures, machine: Machine, step) -> dict:
     """Dog trajectories, stitch curve with scale marks, sensitivity grid (figures + tables)."""
-    import matplotlib.pyplot as plt
-
     lo, hi = FD.regulator_range_deg(machine)
     curve = FD.stitch_curve(machine, 121)  # the figure's curve, and the marks' start
     marks = FD.scale_marks(machine, 0.5, curve=curve)
@@ -411,7 +406,7 @@ def _feed_section(figs: Figures, machine: Machine, step) -> dict:
     wanted = sorted({-longest, -half, 0.0, half, longest} & set(by_len))
     regs = np.array([by_len[w] for w in wanted])
     c = FD.feed_cycles(machine, regs)
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.6), constrained_layout=True)
+    fig, (ax, bx) = subplots(1, 2, figsize=(11, 4.6), constrained_layout=True)
     data = {"phi_deg": c.phi_deg}
     for k, reg in enumerate(regs):
         lab = f"{c.stitch_mm[k]:+.2f} mm (regulator {reg:+.2f} deg)"
@@ -441,7 +436,7 @@ def _feed_section(figs: Figures, machine: Machine, step) -> dict:
              " above the plate line.", pd.DataFrame(data))
     step("feed trajectories")
 
-    fig, (ax, bx) = plt.subplots(2, 1, figsize=(8, 6.4), sharex=True, constrained_layout=True)
+    fig, (ax, bx) = subplots(2, 1, figsize=(8, 6.4), sharex=True, constrained_layout=True)
     ax.plot(curve.regulator_deg, curve.stitch_mm, lw=1.6)
     ax.plot([m.regulator_deg for m in marks], [m.stitch_mm for m in marks], "o", ms=4,
             color="C1", label="scale marks (every 0.5 mm)")
@@ -468,7 +463,7 @@ def _feed_section(figs: Figures, machine: Machine, step) -> dict:
     n = len(sens.labels)
     ncol = min(4, n)
     nrow = math.ceil(n / ncol)
-    fig, axs = plt.subplots(nrow, ncol, figsize=(3.3 * ncol, 2.8 * nrow), squeeze=False,
+    fig, axs = subplots(nrow, ncol, figsize=(3.3 * ncol, 2.8 * nrow), squeeze=False,
                             constrained_layout=True)
     sc = sens.cycles
     sdata = {"phi_deg": sc.phi_deg}
@@ -500,13 +495,11 @@ def _feed_section(figs: Figures, machine: Machine, step) -> dict:
 
 def _thread_section(figs: Figures, machine: Machine):
     """Thread balance: supply, demand and its parts, overfeed, with its own checks."""
-    import matplotlib.pyplot as plt
-
     from ..sewing import thread as TH
 
     b = TH.thread_balance(machine)
     checks = TH.check_thread(machine, b)
-    fig, (ax, bx) = plt.subplots(2, 1, figsize=(9, 6.4), sharex=True, constrained_layout=True)
+    fig, (ax, bx) = subplots(2, 1, figsize=(9, 6.4), sharex=True, constrained_layout=True)
     ax.plot(b.phi_deg, b.supply, lw=1.8, label="take-up supply S")
     ax.plot(b.phi_deg, b.demand, lw=1.8, label="demand D (relative to the stitch set)")
     k = int(np.argmin(b.supply))
@@ -549,13 +542,11 @@ def _thread_section(figs: Figures, machine: Machine):
 
 def _consumption_figure(figs: Figures, machine: Machine):
     """Thread per stitch against stitch length and fabric thickness, with the industry formula."""
-    import matplotlib.pyplot as plt
-
     from ..sewing import thread as TH
 
     d = machine.spec.thread.thread_diameter
     length = np.linspace(1.0, 4.0, 31)
-    fig, ax = plt.subplots(figsize=(7.5, 4.2), constrained_layout=True)
+    fig, ax = subplots(figsize=(7.5, 4.2), constrained_layout=True)
     rows = []
     for k, t in enumerate((0.5, 1.0, 2.0, 4.0, 6.0)):
         c = TH.consumption_per_stitch(length, t, d)
@@ -579,14 +570,12 @@ def _consumption_figure(figs: Figures, machine: Machine):
 
 def _adjust_figure(figs: Figures, machine: Machine):
     """The adjustable take-up: margin over (thickness, setting) and the recommended setting."""
-    import matplotlib.pyplot as plt
-
     from ..sewing import thread as TH
 
     adj = machine.spec.thread.adjust
     r = TH.adjust_take_up(machine, adj.parameter, np.linspace(adj.min, adj.max, 57))
     unit = machine.parameter_units[machine.parameter_index(adj.parameter)]
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    fig, (ax, bx) = subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
     im = ax.pcolormesh(r.settings, r.thickness_mm, r.margin, cmap="RdYlGn", vmin=-5, vmax=5,
                        shading="nearest")
     ax.contour(r.settings, r.thickness_mm, r.margin, levels=[0.0], colors="k", linewidths=1)
@@ -647,11 +636,9 @@ def _key_figures(m: Machine) -> dict:
 
 def _comparison(figs: Figures, machines: Sequence[Machine]):
     """Key figures, dog paths and stitch curves of machine variants side by side."""
-    import matplotlib.pyplot as plt
-
     table = pd.DataFrame({m.name: _key_figures(m) for m in machines})
     table.insert(0, "figure", table.index)
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.4), constrained_layout=True)
+    fig, (ax, bx) = subplots(1, 2, figsize=(11, 4.4), constrained_layout=True)
     data = {}
     for m in machines:
         s = m.spec.sewing

@@ -22,7 +22,7 @@ REPORT_GRADE = 9
 
 def accuracy_section(figs, machine: Machine) -> dict:
     """Add the accuracy figure to ``figs``; return {"table": DataFrame, "html": str}."""
-    import matplotlib.pyplot as plt
+    from .figures import subplots
 
     spec = ToleranceSpec.model_validate({"defaults": {"it_grade": REPORT_GRADE}})
     tol = tolerances_of(machine, spec)
@@ -47,7 +47,7 @@ def accuracy_section(figs, machine: Machine) -> dict:
     order = [j for j in np.argsort(-c)[:12] if c[j] > 0]
     share = c[order] / c.sum()
     names = [machine.parameter_names[j] for j in order]
-    fig, ax = plt.subplots(figsize=(8, 0.35 * len(names) + 1.6), constrained_layout=True)
+    fig, ax = subplots(figsize=(8, 0.35 * len(names) + 1.6), constrained_layout=True)
     ax.barh(range(len(names))[::-1], 100 * share, color="C0")
     ax.set_yticks(range(len(names))[::-1], names, fontsize=8)
     ax.set_xlabel("share of the stitch length's RSS variance [%]")

@@ -56,7 +56,7 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
     ``paper`` (:func:`sewmech.design.balancing.paper_workflow`, or None), ``key`` (a table of
     key figures) and ``html`` (the section's text blocks: intro, comparison and the paper's
     workflow)."""
-    import matplotlib.pyplot as plt
+    from .figures import subplots
 
     B = balance_basis(machine, counterweights, rpm=rpm, moment_point=moment_point)
     shaft_cw = shaft_counterweight(machine)
@@ -90,7 +90,7 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
                     for n, c in main.counterweights.items())
 
     # ---- components of Q (the paper's figures 3 and 4) ------------------------------------
-    fig, axs = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True, constrained_layout=True)
+    fig, axs = subplots(1, 2, figsize=(10, 3.8), sharey=True, constrained_layout=True)
     for ax, q, title in ((axs[0], before["F"], "as the file has it"),
                          (axs[1], after["F"], f"balanced ({criterion})")):
         ax.plot(phi_deg, q[:, 0], label="Qx")
@@ -116,7 +116,7 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
                            "Qy_after_N": after["F"][:, 1]}))
 
     # ---- hodographs of every criterion ------------------------------------------------------
-    fig, ax = plt.subplots(figsize=(6.2, 6.2), constrained_layout=True)
+    fig, ax = subplots(figsize=(6.2, 6.2), constrained_layout=True)
     ax.plot(before["F"][:, 0], before["F"][:, 1], color="k", lw=1.6, label="as the file has it")
     data = {"phi_deg": phi_deg, "Qx_before_N": before["F"][:, 0],
             "Qy_before_N": before["F"][:, 1]}
@@ -139,7 +139,7 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
 
     # ---- bearings as polar plots -------------------------------------------------------------
     if B.has_bearings:
-        fig, axs = plt.subplots(1, 2, figsize=(10, 5), subplot_kw={"projection": "polar"},
+        fig, axs = subplots(1, 2, figsize=(10, 5), subplot_kw={"projection": "polar"},
                                 constrained_layout=True)
         bdata = {"phi_deg": phi_deg}
         for ax, key, side in ((axs[0], "Bf", "front"), (axs[1], "Br", "rear")):
@@ -180,7 +180,7 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
                 return max(figures["bearing_front_peak_N"], figures["bearing_rear_peak_N"])
             return figures[key]
 
-        fig, ax = plt.subplots(figsize=(7.5, 5.6), constrained_layout=True)
+        fig, ax = subplots(figsize=(7.5, 5.6), constrained_layout=True)
         # the cloud as pixels (also in the SVG): thousands of markers as paths cost more than
         # they show
         sc = ax.scatter(fx, fy, c=fc, s=6, cmap="viridis", alpha=0.5, rasterized=True)

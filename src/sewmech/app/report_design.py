@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ..engine.errors import SewmechError
-from .figures import Figures, table_html
+from .figures import Figures, subplots, table_html
 
 _FEED = ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
 
@@ -99,10 +99,8 @@ def _metrics_table(problem, x_after: np.ndarray) -> pd.DataFrame:
 
 
 def _convergence(figs: Figures, data: dict) -> None:
-    import matplotlib.pyplot as plt
-
     h = np.array(data["history"], dtype=float)
-    fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
+    fig, ax = subplots(figsize=(7, 4), constrained_layout=True)
     ax.plot(np.arange(len(h)), h, "o-", ms=3)
     if h.size and np.all(h[np.isfinite(h)] > 0):
         ax.set_yscale("log")
@@ -117,11 +115,9 @@ def _convergence(figs: Figures, data: dict) -> None:
 
 
 def _front(figs: Figures, data: dict) -> None:
-    import matplotlib.pyplot as plt
-
     front = data["front"]
     F = np.array(front["f"])
-    fig, ax = plt.subplots(figsize=(6.5, 5), constrained_layout=True)
+    fig, ax = subplots(figsize=(6.5, 5), constrained_layout=True)
     sc = ax.scatter(F[:, 0], F[:, 1], c=F[:, 2] if F.shape[1] > 2 else "C0", s=18)
     k = front["compromise"]
     ax.scatter([F[k, 0]], [F[k, 1]], marker="*", s=200, color="C3",
@@ -142,12 +138,10 @@ def _front(figs: Figures, data: dict) -> None:
 def _mechanism(figs: Figures, name: str, before, after, machine) -> None:
     """Every point's path over a turn for the start (grey) and the answer (colour), the links
     at phi = 0."""
-    import matplotlib.pyplot as plt
-
     from ..engine.kinematics import kinematics
 
     phi = np.radians(np.arange(0.0, 361.0, 2.0))
-    fig, ax = plt.subplots(figsize=(7.5, 7), constrained_layout=True)
+    fig, ax = subplots(figsize=(7.5, 7), constrained_layout=True)
     cols = {}
     links: dict = {}
     for pt, owners in machine.point_links.items():
@@ -186,13 +180,11 @@ def _mechanism(figs: Figures, name: str, before, after, machine) -> None:
 
 
 def _feed_paths(figs: Figures, machine, reg, before, after) -> None:
-    import matplotlib.pyplot as plt
-
     from ..sewing.feed import feed_cycles
 
     s = machine.spec.sewing
     reg = machine.spec.inputs[s.regulator].default_deg if reg is None else reg
-    fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
+    fig, ax = subplots(figsize=(7, 4.2), constrained_layout=True)
     cols = {}
     for params, style, label in _start_and_answer(before, after):
         c = feed_cycles(machine, reg, params=params, on_failure="mask")
@@ -214,11 +206,9 @@ def _feed_paths(figs: Figures, machine, reg, before, after) -> None:
 
 
 def _overfeed(figs: Figures, machine, before, after) -> None:
-    import matplotlib.pyplot as plt
-
     from ..sewing.thread import thread_balance
 
-    fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
+    fig, ax = subplots(figsize=(7, 4.2), constrained_layout=True)
     cols = {}
     for params, style, label in _start_and_answer(before, after):
         b = thread_balance(machine, params=params)
@@ -239,12 +229,10 @@ def _overfeed(figs: Figures, machine, before, after) -> None:
 
 
 def _channel(figs: Figures, machine, channel: str, before, after) -> None:
-    import matplotlib.pyplot as plt
-
     from ..engine.kinematics import kinematics
 
     phi = np.radians(np.arange(0.0, 361.0, 1.0))
-    fig, ax = plt.subplots(figsize=(7, 4.2), constrained_layout=True)
+    fig, ax = subplots(figsize=(7, 4.2), constrained_layout=True)
     cols = {"phi_deg": np.degrees(phi)}
     angle = channel.startswith("theta_")
     for params, style, label in _start_and_answer(before, after):

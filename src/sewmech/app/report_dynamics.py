@@ -34,7 +34,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
     rpm: shaft speed (default: the file's); loads: process loads (default: the file's);
     gravity: the links' weights.
     """
-    import matplotlib.pyplot as plt
+    from .figures import subplots
 
     s = machine.spec.sewing
     settings = dict(inputs or {})
@@ -51,7 +51,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
     rows = []
 
     # ---- driving torque -------------------------------------------------------------------------
-    fig, ax = plt.subplots(figsize=(9, 4), constrained_layout=True)
+    fig, ax = subplots(figsize=(9, 4), constrained_layout=True)
     ax.plot(phi_deg, full.input_torque * 1e-3, lw=1.6, label="with the process loads")
     ax.plot(phi_deg, noload.input_torque * 1e-3, lw=1.2, ls="--", label="no load")
     ax.plot(phi_deg, rest.input_torque * 1e-3, lw=1.0, ls=":", label="at rest (loads, weights)")
@@ -83,7 +83,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
 
     # ---- energy, reduced inertia, speed fluctuation -------------------------------------------
     sf = speed_fluctuation(machine, rpm=rpm, n_phi=720, loads=loads, **common)
-    fig, axs = plt.subplots(3, 1, figsize=(9, 7.5), sharex=True, constrained_layout=True)
+    fig, axs = subplots(3, 1, figsize=(9, 7.5), sharex=True, constrained_layout=True)
     axs[0].plot(phi_deg, full.kinetic_energy * 1e-3, label="kinetic T")
     axs[0].plot(phi_deg, (full.potential_energy - full.potential_energy.mean()) * 1e-3,
                 label="potential V (about its mean)")
@@ -115,7 +115,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
 
     # ---- shaking force and moment ---------------------------------------------------------------
     F = full.shaking_force
-    fig, axs = plt.subplots(1, 2, figsize=(10, 4.6), constrained_layout=True)
+    fig, axs = subplots(1, 2, figsize=(10, 4.6), constrained_layout=True)
     axs[0].plot(F[:, 0], F[:, 1], lw=1.4)
     for k in range(0, 360, 30):
         axs[0].plot(F[k, 0], F[k, 1], "o", ms=3, color="C1")
@@ -143,7 +143,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
     # ---- upper-shaft bearings -------------------------------------------------------------------
     if machine.spec.shaft is not None:
         br = full.bearings
-        fig, axs = plt.subplots(1, 2, figsize=(10, 4.8), constrained_layout=True,
+        fig, axs = subplots(1, 2, figsize=(10, 4.8), constrained_layout=True,
                                 subplot_kw={"projection": "polar"})
         data = {"phi_deg": phi_deg}
         for a, (label, B, z) in zip(axs, (("front", br.front, br.z_front),
@@ -183,7 +183,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
                          float(n[k]), "N"))
     peak_df = pd.DataFrame(peak)
     forces = peak_df[peak_df.unit == "N"].sort_values("peak")
-    fig, ax = plt.subplots(figsize=(9, 0.28 * len(forces) + 1.2), constrained_layout=True)
+    fig, ax = subplots(figsize=(9, 0.28 * len(forces) + 1.2), constrained_layout=True)
     ax.barh(forces.pair, forces.peak, color="C0", label="peak")
     ax.barh(forces.pair, forces["mean"], color="C1", alpha=0.7, label="mean")
     ax.set_xlabel("force [N]")
@@ -197,7 +197,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
 
     # ---- force transmission ---------------------------------------------------------------------
     pa = pressure_angles(machine, phi, inputs=settings)
-    fig, ax = plt.subplots(figsize=(9, 4.2), constrained_layout=True)
+    fig, ax = subplots(figsize=(9, 4.2), constrained_layout=True)
     for name, a in pa.angles.items():
         ax.plot(phi_deg, a, lw=1.2, label=name)
     ax.axhline(45.0, color="k", lw=0.8, ls="--")
@@ -216,7 +216,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
              pd.DataFrame({"phi_deg": phi_deg, **pa.angles}), table=worst.round(2))
 
     if s is not None and s.regulator is not None:
-        fig, ax = plt.subplots(figsize=(9, 4), constrained_layout=True)
+        fig, ax = subplots(figsize=(9, 4), constrained_layout=True)
         data = {"phi_deg": np.arange(0.0, 360.0, 5.0)}
         table = []
         for k, mm in enumerate([machine] + list(variants)):
@@ -246,7 +246,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
 
     if s is not None:
         nf = needle_force(machine, NEEDLE_VIEW_TORQUE_NMM, rpm=rpm)
-        fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
+        fig, ax = subplots(figsize=(7, 4), constrained_layout=True)
         order = np.argsort(nf.depth)
         ax.plot(nf.depth[order], nf.force[order], lw=1.6, label=f"available at"
                 f" {NEEDLE_VIEW_TORQUE_NMM * 1e-3:g} N m on the shaft")
