@@ -54,7 +54,12 @@ def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0
     reference = require_reference(machine)  # and one whose angle convention is false
     import matplotlib
 
-    matplotlib.use("Agg")  # (the figures are Figure objects of their own: no pyplot)
+    matplotlib.use("Agg")
+    # what drawing needs, loaded before the workers are forked (they inherit it instead of
+    # each loading it again); the figures are Figure objects of their own: no pyplot
+    import matplotlib.backends.backend_agg
+    import matplotlib.backends.backend_svg
+    import matplotlib.figure
 
     with output_dir(out_dir, command="report") as root, _few_collections():
         pool = figure_pool(workers)
