@@ -117,9 +117,18 @@ def test_cli_check_reports_file_errors(tmp_path):
 
 
 def test_cli_report_writes_page_figures_and_tables(tmp_path):
+    import gc
+    import sys
+
     out_dir = tmp_path / "rep"
+    before = (gc.get_threshold(), gc.get_freeze_count(), gc.isenabled())
+    had_pyplot = "matplotlib.pyplot" in sys.modules  # (another test may have loaded it)
     out = runner.invoke(app, ["report", "jb1-3", "--out", str(out_dir), "--step-deg", "2"])
     assert out.exit_code == 0, out.stdout
+    # the collector is as it was (it is off and everything loaded frozen while a report is
+    # built), and drawing the report's figures needed no pyplot
+    assert (gc.get_threshold(), gc.get_freeze_count(), gc.isenabled()) == before
+    assert had_pyplot or "matplotlib.pyplot" not in sys.modules
     page = (out_dir / "index.html").read_text()
     checks = pd.read_csv(out_dir / "jb1-3-checks.csv")
     assert f"All {len(checks)} checks pass" in page and len(checks) == 11
