@@ -131,7 +131,9 @@ def main() -> int:
     best, med = min(walls), statistics.median(walls)
     rows = [("sewmech report jb1-3, warm (best / median of %d)" % RUNS,
              f"{best:.2f} / {med:.2f} s",
-             f"<= {TARGET_REPORT_S:g} s: {'met' if best <= TARGET_REPORT_S else 'MISSED'}"),
+             # the verdict reads the median: one lucky run must not decide it
+             f"<= {TARGET_REPORT_S:g} s (median): "
+             f"{'met' if med <= TARGET_REPORT_S else 'MISSED'}"),
             ("  in one process, figures drawn here", f"{parts['total_s']:.2f} s", ""),
             ("    compute (and building the figures)", f"{parts['compute_s']:.2f} s", ""),
             ("    drawing the figures (layout, PNG, SVG)", f"{parts['draw_s']:.2f} s", ""),
