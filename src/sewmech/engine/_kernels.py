@@ -311,6 +311,23 @@ def rpr_guide(bx, by, bvx, bvy, bax, bay, ax_, ay_, avx, avy, aax, aay, e, branc
 # ---- loop groups ---------------------------------------------------------------------------------
 
 
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+def arc_of(cam, rho, d, params, cams_i, arcs_i):
+    """The arc of cam ``cam`` (an index into arcs_i) whose normal-angle range (cam frame) holds
+    the contact normal's angle ``rho`` (rad) for design d; -1 for none. Shared by the loop
+    solver and the tangent kernel, so both pick the same arc."""
+    for ka in range(cams_i[cam, 2], cams_i[cam, 2] + cams_i[cam, 3]):
+        a0 = params[d, arcs_i[ka, 3]]
+        x = rho
+        while x < a0:
+            x += TWO_PI
+        while x >= a0 + TWO_PI:
+            x -= TWO_PI
+        if x < params[d, arcs_i[ka, 4]]:
+            return ka
+    return -1
+
+
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
 def _loop_steps(u, g, k0, nb, grp, unk, terms, cams_i, arcs_i, params, d, march_phi, march_omega,
                 march_eps, march_store, tol, max_iter, p, v, a, th, om, ep, lc, ls, s, sd, sdd,
@@ -461,18 +478,7 @@ def _loop_steps(u, g, k0, nb, grp, unk, terms, cams_i, arcs_i, params, d, march_
                         tc = th[kb, cl]
                         wc = om[kb, cl]
                         ec = ep[kb, cl]
-                        rho = psi - tc
-                        arc = -1  # the arc whose normal-angle range (cam frame) holds rho
-                        for ka in range(cams_i[cam, 2], cams_i[cam, 2] + cams_i[cam, 3]):
-                            a0 = params[d, arcs_i[ka, 3]]
-                            r = rho
-                            while r < a0:
-                                r += TWO_PI
-                            while r >= a0 + TWO_PI:
-                                r -= TWO_PI
-                            if r < params[d, arcs_i[ka, 4]]:
-                                arc = ka
-                                break
+                        arc = arc_of(cam, psi - tc, d, params, cams_i, arcs_i)
                         if arc < 0:
                             arc_missing = True
                             break

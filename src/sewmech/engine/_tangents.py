@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from ._kernels import (OP_CRANK, OP_FIXED, OP_LOOP, OP_POINT, OP_RPR, OP_RRP, OP_RRR, SRC_LINK,
-                       SRC_PARAM, TERM_POINT, TERM_VEC, TWO_PI)
+                       SRC_PARAM, TERM_POINT, TERM_VEC, arc_of)
 
 _OPTS = dict(cache=True, error_model="numpy", fastmath={"contract"})
 
@@ -1008,22 +1008,6 @@ def _rpr(r, m, level, units, params, qoff, qm, rin, ppos, maps, n_pt, n_l, pcol,
 
 
 @njit(inline="always", **_OPTS)
-def _arc_of(cam, rho, d, params, cams, arcs):
-    """The arc (index into arcs) whose normal-angle range holds rho, as the kernel picks it;
-    -1 for none."""
-    for ka in range(cams[cam, 2], cams[cam, 2] + cams[cam, 3]):
-        a0 = params[d, arcs[ka, 3]]
-        x = rho
-        while x < a0:
-            x += TWO_PI
-        while x >= a0 + TWO_PI:
-            x -= TWO_PI
-        if x < params[d, arcs[ka, 4]]:
-            return ka
-    return -1
-
-
-@njit(inline="always", **_OPTS)
 def _src(Rh, rx, ry, C, cx, cy, t, so, maps, mo, mq, own, m):
     """A term's source tangent t[so:] times the lanes' vectors (C[cx], C[cy]) added to the
     right-hand sides (rows rx, ry): through the map of the input (mo, mq), or, for the
@@ -1138,7 +1122,7 @@ def _loop(g, pp, m, level, params, qoff, qm, tin, maps, groups, unknowns, terms,
                     else:  # TERM_CAM: p_cp + R(theta_c) c_k + (R_k + off) e^{i psi}
                         tc = THS[0, p, ccol] if ccol >= 0 else 0.0
                         if lev == 0:
-                            ka = _arc_of(cam, psi - tc, d, params, cams, arcs)
+                            ka = arc_of(cam, psi - tc, d, params, cams, arcs)
                             if ka < 0:
                                 return True
                             TR[k0, 2, j] = ka
