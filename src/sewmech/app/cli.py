@@ -541,5 +541,16 @@ def demo_cmd(out: Path = typer.Option(Path("out/demo"), help="output directory (
 
 
 def main():  # pragma: no cover - entry point
-    app()
+    try:
+        app()
+    finally:
+        # the process ends now: everything alive is frozen, so that the interpreter's
+        # shutdown does not walk it again in its garbage collections (after a report, half a
+        # second: every object numba, pandas and matplotlib made). Objects are still freed by
+        # their reference counts; only cyclic garbage is left to the operating system (every
+        # file sewmech writes is closed by its own `with`, and stdout and stderr are flushed
+        # by the interpreter)
+        import gc
+
+        gc.freeze()
 
