@@ -106,6 +106,29 @@ def test_cli_machines_check_kinematics(tmp_path):
     assert out.exit_code == 0 and (tmp_path / "jb1-3-kinematics.json").exists()
 
 
+def test_report_garbage_left_to_the_process_end_when_asked():
+    """write_report(collect_garbage=False) (what the `sewmech` process uses): the collector's
+    settings come back, and what the report made is frozen (kept, never collected) instead of
+    unfrozen; with True (the default) the caller's state comes back exactly."""
+    import subprocess
+    import sys
+
+    code = (
+        "import gc\n"
+        "from sewmech.app.report import _few_collections\n"
+        "before = gc.get_threshold(); n0 = gc.get_freeze_count()\n"
+        "with _few_collections(True):\n"
+        "    assert gc.get_threshold()[0] == 0 and gc.get_freeze_count() > 0\n"
+        "assert (gc.get_threshold(), gc.get_freeze_count()) == (before, n0)\n"
+        "with _few_collections(False):\n"
+        "    cycle = []; cycle.append(cycle); cycle = None\n"
+        "assert gc.get_threshold() == before and gc.get_freeze_count() > 0\n"
+        "assert gc.collect() == 0  # the cycle is kept: frozen, not walked\n"
+        "print('ok')\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr
+
+
 def test_cli_check_reports_file_errors(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("[machine]\nname = 'x'\n[convention]\nreference_event='top'\n"
@@ -254,12 +277,20 @@ def test_figures_with_their_ticks_fixed_draw_the_same(tmp_path):
         d.plot(np.linspace(0, 6, 30), np.linspace(1, 2, 30))
         return fig
 
+    from matplotlib.backends.backend_svg import RendererSVG
+
+    from sewmech.app import figures as F
+
+    render(figure(), tmp_path, "warm")  # fills the caches the figures share
+    assert F._EXTENTS and F._HEIGHTS
     fig = figure()
-    png = render(fig, tmp_path, "fixed")
+    png = render(fig, tmp_path, "fixed")  # every text measured from the caches
     assert (tmp_path / "fixed.svg").stat().st_size > 0
     from matplotlib.ticker import FixedFormatter, FixedLocator
 
     assert not hasattr(RendererAgg, "_get_font_height_metrics")
+    for cls in (RendererAgg, RendererSVG):  # matplotlib's own measurement is back
+        assert not hasattr(cls.get_text_width_height_descent, "measure")
     assert isinstance(fig.axes[0].xaxis.get_major_locator(), FixedLocator)
     assert isinstance(fig.axes[0].yaxis.get_major_formatter(), FixedFormatter)
     assert not isinstance(fig.axes[2].yaxis.get_major_formatter(), FixedFormatter)

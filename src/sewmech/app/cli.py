@@ -520,7 +520,8 @@ def report_cmd(
         task = progress.add_task(f"report {m.name}", total=len(steps))
         index = write_report(m, out, step_deg=step_deg, variants=variants,
                              advance=lambda name: progress.update(task, advance=1,
-                                                                  description=name))
+                                                                  description=name),
+                             collect_garbage=not _PROCESS_ENDS)
     table = Table(title=f"{m.name}: checks")
     for col in ("check", "value", "expected", "result"):
         table.add_column(col)
@@ -540,7 +541,15 @@ def demo_cmd(out: Path = typer.Option(Path("out/demo"), help="output directory (
     report_cmd.__wrapped__(DEFAULT_MACHINE, out, 1.0, None, sets)
 
 
+#: True in the ``sewmech`` process (set by :func:`main`): the process ends with the command, so a
+#: report leaves its garbage to the process's end (``write_report(collect_garbage=False)``); a
+#: command run inside a Python session (typer's test runner, a notebook) collects it as usual
+_PROCESS_ENDS = False
+
+
 def main():  # pragma: no cover - entry point
+    global _PROCESS_ENDS
+    _PROCESS_ENDS = True
     try:
         app()
     finally:
