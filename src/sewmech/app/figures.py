@@ -11,7 +11,6 @@ the same happens in this process.
 from __future__ import annotations
 
 import base64
-import contextlib
 import html
 import io
 import multiprocessing
@@ -24,6 +23,7 @@ from pathlib import Path
 import matplotlib
 import pandas as pd
 
+from .fastdraw import fast_text, freeze_ticks
 from .io import atomic_write
 
 #: the PNG resolution of every figure, dots per inch
@@ -37,12 +37,12 @@ def render(fig, root: Path, stem: str) -> bytes:
     # its text extents measured (about 6 % less drawing; positions are fractions of the figure,
     # so the SVG is laid out the same)
     fig.set_dpi(PNG_DPI)
-    with _font_heights():
+    with fast_text():
         engine = fig.get_layout_engine()
         if engine is not None:  # lay the figure out once; both formats keep its positions
             engine.execute(fig)
             fig.set_layout_engine(None)
-        _freeze_ticks(fig)
+        freeze_ticks(fig)
         png = io.BytesIO()
         # zlib level 1: the same pixels, written in a fraction of the time (files 10-20 % larger)
         fig.savefig(png, format="png", dpi=PNG_DPI, pil_kwargs={"compress_level": 1})
@@ -53,123 +53,6 @@ def render(fig, root: Path, stem: str) -> bytes:
         with atomic_write(Path(root) / f"{stem}.{ext}", "wb", encoding=None) as fh:
             fh.write(payload)
     return png.getvalue()
-
-
-#: a font's height metrics at a resolution, by (font properties, dpi): see _font_heights
-_HEIGHTS: dict = {}
-#: a line of text's (width, height, descent) by (renderer class, text, font properties, dpi,
-#: hinting): see _font_heights
-_EXTENTS: dict = {}
-
-
-def _dpi(renderer) -> float:
-    """The renderer's resolution (the SVG backend's is fixed: 72 dpi)."""
-    from matplotlib.backends.backend_svg import FigureCanvasSVG
-
-    return getattr(renderer, "dpi", FigureCanvasSVG.fixed_dpi)
-
-
-def _font_key(prop, dpi) -> tuple:
-    """What decides a text's metrics besides the text: the font properties (as matplotlib's
-    own text metrics cache tells them apart), the resolution and the hinting settings."""
-    return (tuple(prop.get_family()), prop.get_style(), prop.get_variant(), prop.get_weight(),
-            prop.get_stretch(), prop.get_size_in_points(), prop.get_file(),
-            prop.get_math_fontfamily(), dpi, matplotlib.rcParams["text.hinting"],
-            matplotlib.rcParams["text.hinting_factor"],
-            matplotlib.rcParams["text.kerning_factor"])
-
-
-def _font_height_metrics(renderer, prop):
-    """(ascent, descent, line gap) of the font ``prop`` at the renderer's resolution, in
-    pixels: what matplotlib's text layout reads from the font's OS/2 (or hhea) table for every
-    text it measures or draws, here read once per font, size and resolution. The same
-    arithmetic as matplotlib's, so the same numbers."""
-    key = _font_key(prop, _dpi(renderer))
-    hit = _HEIGHTS.get(key)
-    if hit is None:
-        from matplotlib.font_manager import fontManager, get_font
-
-        font = get_font(fontManager._find_fonts_by_props(prop))
-        hit = (None, None, None)
-        for name, gap, ascent, descent in (
-                ("OS/2", "sTypoLineGap", "sTypoAscender", "sTypoDescender"),
-                ("hhea", "lineGap", "ascent", "descent")):
-            table = font.get_sfnt_table(name)
-            if table is None:
-                continue
-            scale = 1 / font.get_sfnt_table("head")["unitsPerEm"] * key[5] * key[8] / 72
-            hit = (table[ascent] * scale, -table[descent] * scale, table[gap] * scale)
-            break
-        _HEIGHTS[key] = hit
-    return hit
-
-
-def _shared_extents(measure):
-    """The renderer method ``measure`` (``get_text_width_height_descent``), answering from
-    :data:`_EXTENTS` for plain text. matplotlib caches a text's extent per renderer, and every
-    figure has renderers of its own, so each figure measured its tick labels, titles and
-    legend entries again (1,336 measurements in a report's PNGs, 388 of them different: the
-    font is laid out for each, about 0.3 ms). A renderer of the Agg or the SVG backend
-    measures a text by its font and resolution alone, so one answer serves every figure.
-    Mathematical and TeX text is measured by matplotlib, as before."""
-    def get_text_width_height_descent(self, s, prop, ismath):
-        if ismath:
-            return measure(self, s, prop, ismath)
-        key = (type(self), s, _font_key(prop, _dpi(self)))
-        hit = _EXTENTS.get(key)
-        if hit is None:
-            hit = _EXTENTS[key] = measure(self, s, prop, ismath)
-        return hit
-
-    get_text_width_height_descent.measure = measure
-    return get_text_width_height_descent
-
-
-@contextlib.contextmanager
-def _font_heights():
-    """While a figure is laid out and drawn, the Agg and SVG renderers answer two of
-    matplotlib's questions from caches shared by all figures: a font's height metrics
-    (:func:`_font_height_metrics`; matplotlib asks the renderer first, where it has that
-    method, and otherwise looks the font up and reads its tables again for every text it
-    measures: about a tenth of the drawing), and a text's extent (:func:`_shared_extents`).
-    Removed afterwards; a renderer with a height method of its own keeps it."""
-    from matplotlib.backends.backend_agg import RendererAgg
-    from matplotlib.backends.backend_svg import RendererSVG
-
-    added = [cls for cls in (RendererAgg, RendererSVG)
-             if not hasattr(cls, "_get_font_height_metrics")]
-    for cls in added:
-        cls._get_font_height_metrics = _font_height_metrics
-    wrapped = [cls for cls in (RendererAgg, RendererSVG)
-               if "get_text_width_height_descent" in vars(cls)
-               and not hasattr(cls.get_text_width_height_descent, "measure")]
-    for cls in wrapped:
-        cls.get_text_width_height_descent = _shared_extents(cls.get_text_width_height_descent)
-    try:
-        yield
-    finally:
-        for cls in added:
-            del cls._get_font_height_metrics
-        for cls in wrapped:
-            cls.get_text_width_height_descent = cls.get_text_width_height_descent.measure
-
-
-def _freeze_ticks(fig) -> None:
-    """Fix every axis's major ticks and their labels where they are now, so that the two
-    formats draw them without asking the locator and the formatter again (each draw did, for
-    every axis: about a tenth of the drawing; the files are the same). An axis whose labels
-    share an offset (``1e-3`` at its end) keeps its own formatter."""
-    from matplotlib.ticker import FixedFormatter, FixedLocator
-
-    for ax in fig.axes:
-        for axis in (ax.xaxis, ax.yaxis):
-            fmt = axis.get_major_formatter()
-            locs = axis.get_majorticklocs()
-            labels = fmt.format_ticks(locs)
-            if getattr(fmt, "get_offset", lambda: "")():
-                continue
-            axis.set_major_locator(FixedLocator(locs))
-            axis.set_major_formatter(FixedFormatter(labels))
 
 
 def subplots(nrows: int = 1, ncols: int = 1, **kw):
