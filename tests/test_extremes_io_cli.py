@@ -292,6 +292,18 @@ def test_figures_with_their_ticks_fixed_draw_the_same(tmp_path):
     assert not hasattr(RendererAgg, "_get_font_height_metrics")
     for cls in (RendererAgg, RendererSVG):  # matplotlib's own measurement is back
         assert not hasattr(cls.get_text_width_height_descent, "measure")
+    # and its own fonts: the ones read from memory stay in sewmech's cache, so a PDF (which
+    # embeds a font by its file) is written as before
+    from matplotlib.font_manager import findfont, get_font
+    from matplotlib.textpath import TextToPath
+
+    assert fastdraw._MEMORY_FONTS and fastdraw._FONT_FILES
+    assert not hasattr(RendererAgg._prepare_font, "prepare")
+    assert not hasattr(TextToPath._get_font, "prepare")
+    assert "DejaVuSans.ttf" in str(get_font(findfont("DejaVu Sans")).fname)
+    pdf = io.BytesIO()
+    fig.savefig(pdf, format="pdf")
+    assert b"DejaVuSans" in pdf.getvalue()
     assert isinstance(fig.axes[0].xaxis.get_major_locator(), FixedLocator)
     assert isinstance(fig.axes[0].yaxis.get_major_formatter(), FixedFormatter)
     assert not isinstance(fig.axes[2].yaxis.get_major_formatter(), FixedFormatter)
