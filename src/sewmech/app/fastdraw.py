@@ -12,6 +12,9 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import io
+import struct
+import zlib
 
 import matplotlib
 
@@ -217,3 +220,37 @@ def freeze_ticks(fig) -> None:
                 continue
             axis.set_major_locator(FixedLocator(locs))
             axis.set_major_formatter(FixedFormatter(labels))
+
+
+def png_bytes(fig, dpi: float) -> bytes:
+    """``fig`` drawn by matplotlib's Agg renderer at ``dpi`` (dots per inch), as a PNG file:
+    the pixels and the metadata (the resolution, matplotlib's ``Software`` text) of
+    ``fig.savefig(format="png")``, the rows left unfiltered and deflated at zlib level 1.
+
+    Pillow, which matplotlib writes PNGs with, tries all five PNG row filters on every row to
+    pick one, and has no option to choose; on a plot's flat colours that search cost more
+    than the deflating (38 ms of a 1584 x 1008 figure) and saved under 2 % of the file. Here
+    the same file takes 17 ms. Falls back to matplotlib's PNG when its raw image does not
+    have the figure's size."""
+    import numpy as np
+
+    raw = io.BytesIO()
+    fig.savefig(raw, format="raw", dpi=dpi)
+    w, h = fig.canvas.get_width_height(physical=True)
+    data = raw.getbuffer()
+    if len(data) != 4 * w * h:
+        png = io.BytesIO()
+        fig.savefig(png, format="png", dpi=dpi, pil_kwargs={"compress_level": 1})
+        return png.getvalue()
+    rows = np.empty((h, 1 + 4 * w), np.uint8)
+    rows[:, 0] = 0  # filter type None
+    rows[:, 1:] = np.frombuffer(data, np.uint8).reshape(h, 4 * w)
+    ppm = int(dpi / 0.0254 + 0.5)  # pixels per metre, as Pillow rounds them
+    software = f"Matplotlib version{matplotlib.__version__}, https://matplotlib.org/"
+    chunks = (b"IHDR" + struct.pack(">IIBBBBB", w, h, 8, 6, 0, 0, 0),  # 8-bit RGBA
+              b"tEXt" + b"Software\0" + software.encode("latin-1"),
+              b"pHYs" + struct.pack(">IIB", ppm, ppm, 1),
+              b"IDAT" + zlib.compress(rows, 1),
+              b"IEND")
+    return b"\x89PNG\r\n\x1a\n" + b"".join(
+        struct.pack(">I", len(c) - 4) + c + struct.pack(">I", zlib.crc32(c)) for c in chunks)

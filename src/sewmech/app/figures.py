@@ -23,7 +23,7 @@ from pathlib import Path
 import matplotlib
 import pandas as pd
 
-from .fastdraw import fast_text, freeze_ticks
+from .fastdraw import fast_text, freeze_ticks, png_bytes
 from .io import atomic_write
 
 #: the PNG resolution of every figure, dots per inch
@@ -43,16 +43,16 @@ def render(fig, root: Path, stem: str) -> bytes:
             engine.execute(fig)
             fig.set_layout_engine(None)
         freeze_ticks(fig)
-        png = io.BytesIO()
-        # zlib level 1: the same pixels, written in a fraction of the time (files 10-20 % larger)
-        fig.savefig(png, format="png", dpi=PNG_DPI, pil_kwargs={"compress_level": 1})
+        # matplotlib's pixels, written fast (a report's PNGs: 3.1 MB, against 3.0 MB from Pillow
+        # at zlib level 1)
+        png = png_bytes(fig, PNG_DPI)
         svg = io.BytesIO()
         with matplotlib.rc_context({"svg.fonttype": "none"}):  # text as text, not outlines
             fig.savefig(svg, format="svg")
-    for ext, payload in (("png", png.getvalue()), ("svg", svg.getvalue())):
+    for ext, payload in (("png", png), ("svg", svg.getvalue())):
         with atomic_write(Path(root) / f"{stem}.{ext}", "wb", encoding=None) as fh:
             fh.write(payload)
-    return png.getvalue()
+    return png
 
 
 def subplots(nrows: int = 1, ncols: int = 1, **kw):
