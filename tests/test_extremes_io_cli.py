@@ -130,6 +130,30 @@ def test_report_garbage_left_to_the_process_end_when_asked():
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr
 
 
+def test_sewmech_process_keeps_freed_memory_in_the_heap():
+    """The `sewmech` process's malloc settings (glibc): an 8 MiB array comes from the heap, not
+    from a mapping of its own (which is what made a report's thousands of mmap calls)."""
+    import ctypes
+    import subprocess
+    import sys
+
+    if not hasattr(ctypes.CDLL(None), "mallinfo2"):
+        pytest.skip("not glibc (2.33 or later)")
+    code = (
+        "import ctypes, sys, numpy as np\n"
+        "class Info(ctypes.Structure):\n"
+        "    _fields_ = [(n, ctypes.c_size_t) for n in ('arena', 'ordblks', 'smblks',"
+        " 'hblks', 'hblkhd', 'usmblks', 'fsmblks', 'uordblks', 'fordblks', 'keepcost')]\n"
+        "libc = ctypes.CDLL(None); libc.mallinfo2.restype = Info\n"
+        "if sys.argv[1] == '1':\n"
+        "    from sewmech.app.cli import _keep_freed_memory; _keep_freed_memory()\n"
+        "a = np.ones(1 << 20)\n"
+        "print(libc.mallinfo2().hblkhd / 2**20)\n")
+    mapped = [float(subprocess.run([sys.executable, "-c", code, flag], capture_output=True,
+                                   text=True, check=True).stdout) for flag in ("0", "1")]
+    assert mapped[0] >= 8 > mapped[1]  # MiB in mappings of their own: before, after
+
+
 def test_cli_check_reports_file_errors(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("[machine]\nname = 'x'\n[convention]\nreference_event='top'\n"
