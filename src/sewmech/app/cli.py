@@ -554,9 +554,9 @@ def _keep_freed_memory() -> None:
     the system and unmaps it when freed, and keeps at most 128 KiB free at the heap's top;
     the next array of that size is mapped and zeroed again page by page. A report allocates
     and frees renderer buffers and arrays of megabytes thousands of times (3,961 mmap and
-    2,627 munmap calls). Blocks up to 32 MiB now come from the
-    heap, and up to 1 GiB freed at its top is kept: 0.96x the report's CPU, 0.8x its system
-    time, the same peak memory. Elsewhere (another C library) nothing changes."""
+    2,627 munmap calls). Blocks up to 32 MiB now come from the heap, and up to 1 GiB freed at
+    its top is kept: 0.96x the report's CPU, 0.8x its system time, the same peak memory.
+    Elsewhere (another C library) nothing changes."""
     import ctypes
 
     try:

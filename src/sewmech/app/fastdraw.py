@@ -1,11 +1,13 @@
-"""matplotlib, faster, with the same files: what :func:`sewmech.app.figures.render` changes
+"""matplotlib, faster, with the same figures: what :func:`sewmech.app.figures.render` changes
 while it lays a figure out and draws it as PNG and SVG.
 
 A report draws 22 figures, and matplotlib spends much of that time answering the same
 questions again for every figure and every format (a font's height, a tick label's extent,
-where an axis's ticks go). :func:`fast_text` answers them from caches the figures share, and
-:func:`freeze_ticks` fixes the ticks once the layout is done. Both leave the pixels and the
-SVG text as matplotlib draws them (a test compares the files with matplotlib's own).
+where an axis's ticks go) and reading its font file through a Python file object.
+:func:`fast_text` answers the questions from caches the figures share and reads the fonts from
+memory, :func:`freeze_ticks` fixes the ticks once the layout is done, and :func:`png_bytes`
+writes matplotlib's pixels as a PNG without Pillow's search for row filters. The pixels and
+the SVG are matplotlib's own (a test compares them with matplotlib's files).
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import io
+import os
 import struct
 import zlib
 
@@ -90,12 +93,14 @@ def _shared_extents(measure):
 
 #: a font file's bytes, by path: see _fonts_in_memory
 _FONT_FILES: dict = {}
+#: the renderers' fonts read from memory, by matplotlib's _get_font arguments
+_MEMORY_FONTS: dict = {}
 
 
 class _FontsInMemory:
-    """Stands in for matplotlib's ``ft2font`` module while matplotlib opens a font for the Agg
-    renderer (:func:`_memory_font`): every ``FT2Font`` reads its file from memory. Anything
-    else is the module's own."""
+    """Stands in for matplotlib's ``ft2font`` module while matplotlib opens a font for the
+    report's renderers (:func:`_memory_font`): every ``FT2Font`` reads its file from memory.
+    Anything else is the module's own."""
 
     def __getattr__(self, name):
         from matplotlib import ft2font
@@ -104,9 +109,6 @@ class _FontsInMemory:
 
     @staticmethod
     def FT2Font(path, *args, **kwargs):  # the name matplotlib calls
-        import io
-        import os
-
         from matplotlib import ft2font
 
         path = os.fspath(path)
@@ -135,10 +137,6 @@ def _memory_font(get_font, *args, **kwargs):
         finally:
             fm.ft2font = real
     return hit
-
-
-#: the Agg renderer's fonts read from memory, by matplotlib's _get_font arguments
-_MEMORY_FONTS: dict = {}
 
 
 def _fonts_in_memory(prepare):
