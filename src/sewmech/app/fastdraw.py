@@ -111,7 +111,10 @@ class _FontsInMemory:
     def FT2Font(path, *args, **kwargs):  # the name matplotlib calls
         from matplotlib import ft2font
 
-        path = os.fspath(path)
+        try:
+            path = os.fspath(path)
+        except TypeError:  # not a file name (a later matplotlib's own object): as it was
+            return ft2font.FT2Font(path, *args, **kwargs)
         data = _FONT_FILES.get(path)
         if data is None:
             with open(path, "rb") as fh:
@@ -169,7 +172,9 @@ def fast_text():
     method, and otherwise looks the font up and reads its tables again for every text it
     measures: about a tenth of the drawing), and a text's extent (:func:`_shared_extents`);
     and both read their fonts from memory (:func:`_fonts_in_memory`). Removed
-    afterwards; a renderer with a height method of its own keeps it."""
+    afterwards; a renderer with a height method of its own keeps it. For one figure drawn at
+    a time in a process, as matplotlib itself requires (the report's processes, the command
+    line): the methods are swapped on the classes, not per figure."""
     from matplotlib.backends.backend_agg import RendererAgg
     from matplotlib.backends.backend_svg import RendererSVG
 
