@@ -131,8 +131,8 @@ def test_report_garbage_left_to_the_process_end_when_asked():
 
 
 def test_sewmech_process_keeps_freed_memory_in_the_heap():
-    """The `sewmech` process's malloc settings (glibc): an 8 MiB array comes from the heap, not
-    from a mapping of its own (which is what made a report's thousands of mmap calls)."""
+    """A `sewmech report` process's malloc settings (glibc): an 8 MiB array comes from the
+    heap, not from a mapping of its own (and what is freed at the heap's top is kept)."""
     import ctypes
     import subprocess
     import sys
