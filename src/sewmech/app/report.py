@@ -51,8 +51,8 @@ def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0
     changes only when the whole report has been built. ``workers``: processes that draw the
     figures meanwhile (default: one per CPU core; 0: draw here). ``collect_garbage=False``:
     what the report leaves for Python's garbage collector (its figures' reference cycles, a few
-    tens of MiB) is never collected but kept to the process's end, for a process that ends
-    right after the report (the command line): collecting it cost 0.06-0.09 s at the end.
+    MiB) is never collected but kept to the process's end, for a process that ends right
+    after the report (the command line): collecting it cost 0.06-0.09 s at the end.
     """
     T.roles(machine)  # a machine the report cannot read fails before the output is touched
     reference = require_reference(machine)  # and one whose angle convention is false
