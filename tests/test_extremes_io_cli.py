@@ -323,6 +323,9 @@ def test_figures_with_their_ticks_fixed_draw_the_same(tmp_path):
 
     assert fastdraw._MEMORY_FONTS and fastdraw._FONT_FILES
     assert not hasattr(RendererAgg._prepare_font, "prepare")
+    from matplotlib.axis import Axis
+
+    assert not hasattr(Axis._update_ticks, "update")  # the axes update their ticks again
     assert not hasattr(TextToPath._get_font, "prepare")
     assert "DejaVuSans.ttf" in str(get_font(findfont("DejaVu Sans")).fname)
     pdf = io.BytesIO()

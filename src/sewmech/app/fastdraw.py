@@ -5,7 +5,8 @@ A report draws 22 figures, and matplotlib spends much of that time answering the
 questions again for every figure and every format (a font's height, a tick label's extent,
 where an axis's ticks go) and reading its font file through a Python file object.
 :func:`fast_text` answers the questions from caches the figures share and reads the fonts from
-memory, :func:`freeze_ticks` fixes the ticks once the layout is done, and :func:`png_bytes`
+memory, :func:`freeze_ticks` fixes the ticks once the layout is done (and
+:func:`reused_tick_updates` then updates each axis's ticks once per format), and :func:`png_bytes`
 writes matplotlib's pixels as a PNG without Pillow's search for row filters. The pixels and
 the SVG are matplotlib's own (a test compares them with matplotlib's files).
 """
@@ -224,6 +225,41 @@ def freeze_ticks(fig) -> None:
             axis.set_major_locator(FixedLocator(locs))
             axis.set_major_formatter(FixedFormatter(labels))
 
+
+
+@contextlib.contextmanager
+def reused_tick_updates():
+    """While a figure whose ticks are fixed (:func:`freeze_ticks`) is drawn: an axis's tick
+    update (each tick's position and label, and which ticks are drawn) is done once and reused
+    while nothing it reads has changed (the view interval, the locators, the formatters, the
+    scale). matplotlib updated an axis's ticks each time it measured the axis, its title's
+    clearance or its label's place, and again when it drew it: 2,212 updates a report, 0.67 s
+    in one process, with the ticks fixed most of them giving what was there. Polar and other
+    special axes update as before."""
+    from matplotlib.axis import Axis, XAxis, YAxis
+
+    update = vars(Axis).get("_update_ticks")
+    if update is None or hasattr(update, "update"):
+        yield
+        return
+    done: dict = {}
+
+    def _update_ticks(self):
+        if type(self) not in (XAxis, YAxis):
+            return update(self)
+        key = (tuple(self.get_view_interval()), id(self.major.locator), id(self.major.formatter),
+               id(self.minor.locator), id(self.minor.formatter), id(self._scale))
+        hit = done.get(id(self))
+        if hit is None or hit[0] != key:
+            hit = done[id(self)] = (key, update(self))
+        return list(hit[1])
+
+    _update_ticks.update = update
+    Axis._update_ticks = _update_ticks
+    try:
+        yield
+    finally:
+        Axis._update_ticks = update
 
 def png_bytes(fig, dpi: float) -> bytes:
     """``fig`` drawn by matplotlib's Agg renderer at ``dpi`` (dots per inch), as a PNG file:
