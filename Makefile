@@ -44,8 +44,8 @@ test-latest:
 	$(LATEST)/bin/python -m pip install --quiet --upgrade --upgrade-strategy eager -e ".[test,bench,dev]"
 	$(LATEST)/bin/python -m pip list --format=freeze > $(LATEST)/versions.txt
 	@echo "sewmech: the versions tested are listed in $(LATEST)/versions.txt"
-	NUMBA_CACHE_DIR=$(LATEST)/numba-cache $(LATEST)/bin/python -m sewmech.engine.warm
-	NUMBA_CACHE_DIR=$(LATEST)/numba-cache $(LATEST)/bin/python -m pytest -q -p no:cacheprovider
+	NUMBA_CACHE_DIR=$(abspath $(LATEST))/numba-cache $(LATEST)/bin/python -m sewmech.engine.warm
+	NUMBA_CACHE_DIR=$(abspath $(LATEST))/numba-cache $(LATEST)/bin/python -m pytest -q -p no:cacheprovider
 
 # the runtime, test, bench and dev dependencies and the build tools (given on stdin), for every
 # Python >= 3.11, with the hashes of every file PyPI has of each version

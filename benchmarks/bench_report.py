@@ -58,7 +58,7 @@ def split(tmp: Path) -> dict:
 
     matplotlib.use("Agg")
     import sewmech
-    from sewmech.app import figures as F
+    from sewmech.app.drawing import figures as F
     from sewmech.app import report as R
     from sewmech.engine import dynamics as DY
     from sewmech.engine import kinematics as KM

@@ -586,7 +586,7 @@ def test_fourbar_against_exudyn(gravity):
 
 
 def test_one_sided_contacts_are_reported(tmp_path):
-    from sewmech.app.figures import Figures
+    from sewmech.app.drawing.figures import Figures
     from sewmech.report_dynamics import dynamics_section
 
     m = load_machine("jb1-3")

@@ -115,7 +115,7 @@ def test_report_garbage_left_to_the_process_end_when_asked():
 
     code = (
         "import gc\n"
-        "from sewmech.app.report import _few_collections\n"
+        "from sewmech.app.report.build import _few_collections\n"
         "before = gc.get_threshold(); n0 = gc.get_freeze_count()\n"
         "with _few_collections(True):\n"
         "    assert gc.get_threshold()[0] == 0 and gc.get_freeze_count() > 0\n"
@@ -146,7 +146,7 @@ def test_sewmech_process_keeps_freed_memory_in_the_heap():
         " 'hblks', 'hblkhd', 'usmblks', 'fsmblks', 'uordblks', 'fordblks', 'keepcost')]\n"
         "libc = ctypes.CDLL(None); libc.mallinfo2.restype = Info\n"
         "if sys.argv[1] == '1':\n"
-        "    from sewmech.app.cli import _keep_freed_memory; _keep_freed_memory()\n"
+        "    from sewmech.app.cli.analysis import _keep_freed_memory; _keep_freed_memory()\n"
         "a = np.ones(1 << 20)\n"
         "print(libc.mallinfo2().hblkhd / 2**20)\n")
     mapped = [float(subprocess.run([sys.executable, "-c", code, flag], capture_output=True,
@@ -288,7 +288,7 @@ def test_figures_with_their_ticks_fixed_draw_the_same(tmp_path):
     import matplotlib.pyplot as plt
     from matplotlib.backends.backend_agg import RendererAgg
 
-    from sewmech.app.figures import PNG_DPI, render
+    from sewmech.app.drawing.figures import PNG_DPI, render
 
     def figure():
         fig = plt.figure(figsize=(6, 4), layout="constrained")
@@ -311,7 +311,7 @@ def test_figures_with_their_ticks_fixed_draw_the_same(tmp_path):
 
     from matplotlib.backends.backend_svg import RendererSVG
 
-    from sewmech.app import fastdraw
+    from sewmech.app.drawing import fastdraw
 
     render(figure(), tmp_path, "warm")  # fills the caches the figures share
     assert fastdraw._EXTENTS and fastdraw._HEIGHTS
@@ -375,7 +375,7 @@ def test_reused_tick_updates_follow_the_axis():
     from matplotlib.figure import Figure
     from matplotlib.ticker import FixedLocator
 
-    from sewmech.app.fastdraw import reused_tick_updates
+    from sewmech.app.drawing.fastdraw import reused_tick_updates
 
     ax = Figure().add_subplot()
     ax.set_xlim(0, 10)

@@ -101,9 +101,9 @@ def test_no_import_cycles():
 def test_short_module_names_are_the_layers_modules():
     import importlib
 
-    for short, layer in sewmech.MODULES.items():
+    for short, where in sewmech.MODULES.items():
         assert importlib.import_module(f"sewmech.{short}") is importlib.import_module(
-            f"sewmech.{layer}.{short}")
+            f"sewmech.{where}")
     # the names the README uses, and the functions that share a module's name
     from sewmech.dynamics import inverse_dynamics  # noqa: F401
     from sewmech.timing import check_timing
@@ -112,6 +112,16 @@ def test_short_module_names_are_the_layers_modules():
     assert callable(sewmech.kinematics) and sewmech.kinematics.__module__ == (
         "sewmech.engine.kinematics")
     assert sewmech.errors.SewmechError is sewmech.SewmechError
+
+
+def test_the_application_layer_is_in_rooms():
+    """app/ holds folders of one kind each (the command line, the report, the page, figures,
+    files) and the sweep runner; a new command or report section goes into its room."""
+    rooms = {"cli", "report", "web", "drawing", "files"}
+    loose = sorted(p.name for p in (ROOT / "app").glob("*.py")
+                   if p.name not in ("__init__.py", "sweep_run.py"))
+    assert loose == [], f"modules loose in app/ (put them in a room: {sorted(rooms)})"
+    assert {p.name for p in (ROOT / "app").iterdir() if p.is_dir()} - {"__pycache__"} == rooms
 
 
 def test_the_checker_sees_an_upward_import(tmp_path):
@@ -151,7 +161,7 @@ def test_a_short_name_leaves_the_module_its_own_spec():
 
     import sewmech
 
-    for short, layer in sewmech.MODULES.items():
+    for short, where in sewmech.MODULES.items():
         module = importlib.import_module(f"sewmech.{short}")
-        assert module.__spec__.name == f"sewmech.{layer}.{short}", short
+        assert module.__spec__.name == f"sewmech.{where}", short
     assert importlib.resources.files("sewmech.app.web").joinpath("static").is_dir()

@@ -298,7 +298,7 @@ def test_metric_gradients_against_differences_of_located_events(metric):
 
 
 def test_the_command_line_offers_every_metric():
-    from sewmech.app.cli_accuracy import METRICS as CLI
+    from sewmech.app.cli.accuracy import METRICS as CLI
     from sewmech.sewing.gradients import METRICS
 
     assert set(CLI) == set(METRICS)

@@ -37,21 +37,26 @@ from .engine.spec import MachineSpec, load_machine_spec, parse_machine
 
 __version__ = "0.1.0"
 
-#: the short public name of every module -> the layer it lives in
+#: the short public name of every module -> where it lives under the package
 MODULES = {
-    **{m: "engine" for m in ("errors", "spec", "cams", "mass", "machine", "results",
-                             "kinematics", "dynamics", "extremes", "margins", "assembly",
-                             "counterweights", "sensitivity")},
-    **{m: "sewing" for m in ("timing", "checks", "feed", "thread", "transmission",
-                             "embroidery", "gradients", "thread_gradients")},
-    **{m: "design" for m in ("balancing", "vibration", "inserts", "tolerances",
-                             "tolerance_file", "methods", "problem", "evaluate", "optimize",
-                             "sweep_file", "sweep")},
-    **{m: "app" for m in ("cli", "cli_common", "cli_balancing", "cli_accuracy", "cli_design",
-                          "cli_serve", "web", "cli_sweep", "sweep_run", "report",
-                          "report_dynamics", "report_balancing", "report_accuracy", "report_design",
-                          "figures",
-                          "plot", "io", "outdir")},
+    **{m: f"engine.{m}" for m in ("errors", "spec", "cams", "mass", "machine", "results",
+                                  "kinematics", "dynamics", "extremes", "margins", "assembly",
+                                  "counterweights", "sensitivity")},
+    **{m: f"sewing.{m}" for m in ("timing", "checks", "feed", "thread", "transmission",
+                                  "embroidery", "gradients", "thread_gradients")},
+    **{m: f"design.{m}" for m in ("balancing", "vibration", "inserts", "tolerances",
+                                  "tolerance_file", "methods", "problem", "evaluate", "optimize",
+                                  "sweep_file", "sweep")},
+    # the application layer's rooms (app/cli/, app/report/, ...) under their earlier names
+    "cli": "app.cli", "cli_common": "app.cli.common", "cli_balancing": "app.cli.balancing",
+    "cli_accuracy": "app.cli.accuracy", "cli_design": "app.cli.design",
+    "cli_serve": "app.cli.serve", "cli_sweep": "app.cli.sweep",
+    "report": "app.report", "report_dynamics": "app.report.dynamics",
+    "report_balancing": "app.report.balancing", "report_accuracy": "app.report.accuracy",
+    "report_design": "app.report.design",
+    "web": "app.web", "sweep_run": "app.sweep_run",
+    "figures": "app.drawing.figures", "plot": "app.drawing.plot",
+    "io": "app.files.io", "outdir": "app.files.outdir",
 }
 
 
@@ -66,7 +71,7 @@ class _ShortNames(importlib.abc.MetaPathFinder, importlib.abc.Loader):
 
     def create_module(self, spec):
         name = spec.name.rpartition(".")[2]
-        module = importlib.import_module(f"{__name__}.{MODULES[name]}.{name}")
+        module = importlib.import_module(f"{__name__}.{MODULES[name]}")
         # the import system sets __spec__ of what this returns to the short name's spec;
         # keep the module's own (a package found by importlib.resources needs its real one)
         spec.loader_state = module.__spec__

@@ -10,7 +10,7 @@ The output directory::
     DIR/curves.zarr                 [curves]: one array per channel, (designs, angles)
     DIR/.sewmech.lock               held while a run writes (a second run stops at once)
 
-Safety, as for every ``--out`` (:mod:`sewmech.app.outdir`), but in place because finished
+Safety, as for every ``--out`` (:mod:`sewmech.app.files.outdir`), but in place because finished
 chunks must survive an interruption:
 
 - A chunk's Parquet file is written under a temporary name in ``chunks/`` and renamed into
@@ -49,8 +49,8 @@ from distributed.diagnostics.plugin import WorkerPlugin
 from ..design.sweep import Chunk, chunk_bounds, column_units, curve_phi_deg, evaluate_chunk
 from ..design.sweep_file import Sweep
 from ..engine.errors import OptionError, OutputError, SewmechError
-from .io import atomic_write
-from .outdir import LOCK, dir_lock, dir_mode
+from .files.io import atomic_write
+from .files.outdir import LOCK, dir_lock, dir_mode
 
 RECORD = "sweep.json"
 CHUNKS = "chunks"
@@ -308,7 +308,7 @@ def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
             try:
                 root.mkdir(mode=dir_mode(), parents=True)
             except OSError as exc:
-                from .outdir import _os_error
+                from .files.outdir import _os_error
 
                 raise _os_error(root, exc, "--out") from None
         stack.enter_context(dir_lock(root))

@@ -1,5 +1,6 @@
-"""What every ``sewmech`` command shares: the typer app, the error guard, and the options'
-checks (the commands are in :mod:`sewmech.app.cli` and :mod:`sewmech.app.cli_balancing`).
+"""What every ``sewmech`` command shares: the typer app, the error guard, the options' checks,
+and whether the command runs in a process of its own (the commands are in the other modules
+of :mod:`sewmech.app.cli`).
 
 Every command runs inside :func:`_guard`: an error sewmech raises on purpose is printed as one
 line ``error: <where>: <what is wrong>. <what to do>`` with exit code 2 (docs/errors.md), Ctrl-C
@@ -24,8 +25,8 @@ import typer
 from rich.console import Console
 from rich.markup import escape
 
-from ..engine.errors import OptionError, SewmechError
-from ..engine.machine import Machine, load_machine
+from ...engine.errors import OptionError, SewmechError
+from ...engine.machine import Machine, load_machine
 
 DEFAULT_MACHINE = "jb1-3"
 
@@ -216,7 +217,7 @@ def _phi(step_deg: float, phi_deg: list[float] | None) -> np.ndarray:
 
 
 def _rpm(rpm: float | None) -> float | None:
-    from ..engine.kinematics import check_speed
+    from ...engine.kinematics import check_speed
 
     return None if rpm is None else check_speed("--rpm", rpm)
 
@@ -258,3 +259,33 @@ def _bounded(option: str, value: float, lo: float, hi: float, unit: str, example
 SET_HELP = ("change a parameter of the machine file, e.g. needle_bar.length=44 (mm),"
             " needle_crank.phase=5deg or a counterweight's cw.mass=25g, cw.static_moment=64gcm;"
             " names as `check --parameters` lists them; repeatable")
+
+
+#: True in the ``sewmech`` process (set by :func:`run_as_process`): the process ends with the
+#: command, so a report leaves its garbage to the process's end
+#: (``write_report(collect_garbage=False)``) and keeps freed memory; a command run inside a
+#: Python session (typer's test runner, a notebook) leaves both as they are
+_PROCESS_ENDS = False
+
+
+def process_ends() -> bool:
+    """Whether the command runs in a ``sewmech`` process that ends with it."""
+    return _PROCESS_ENDS
+
+
+def run_as_process() -> None:
+    """Run the command line as the ``sewmech`` process (the entry point's body)."""
+    global _PROCESS_ENDS
+    _PROCESS_ENDS = True
+    try:
+        app()
+    finally:
+        # the process ends now: everything alive is frozen, so that the interpreter's
+        # shutdown does not walk it again in its garbage collections (after a report, half a
+        # second: every object numba, pandas and matplotlib made). Objects are still freed by
+        # their reference counts; only cyclic garbage is left to the operating system (every
+        # file sewmech writes is closed by its own `with`, and stdout and stderr are flushed
+        # by the interpreter)
+        import gc
+
+        gc.freeze()

@@ -1,4 +1,4 @@
-"""matplotlib, faster, with the same figures: what :func:`sewmech.app.figures.render` changes
+"""matplotlib, faster, with the same figures: what :func:`sewmech.app.drawing.figures.render` changes
 while it lays a figure out and draws it as PNG and SVG.
 
 A report draws 22 figures, and matplotlib spends much of that time answering the same

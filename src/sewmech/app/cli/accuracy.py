@@ -1,6 +1,6 @@
 """The accuracy commands of the ``sewmech`` command line: ``sensitivity`` (exact derivatives of
 an output by every parameter) and ``tolerance`` (worst case, RSS, Monte Carlo, contributions,
-allocation). Registered on the shared app of :mod:`sewmech.app.cli_common`
+allocation). Registered on the shared app of :mod:`sewmech.app.cli.common`
 when :mod:`sewmech.app.cli` imports this module."""
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ..engine.errors import OptionError
-from .cli_common import (DEFAULT_MACHINE, SET_HELP, _load, _settings, command, console,
+from ...engine.errors import OptionError
+from .common import (DEFAULT_MACHINE, SET_HELP, _load, _settings, command, console,
                          print_json)
 
 
@@ -27,8 +27,8 @@ METRICS = ("stitch_length", "feed_lift", "dog_height_at_needle_plate", "needle_t
 
 def _metric(m, name: str, settings: dict) -> tuple[float, np.ndarray, str, dict]:
     """A sewing metric's value, derivatives, unit and event angles (deg)."""
-    from ..sewing.gradients import METRICS as FUNCTIONS
-    from ..sewing.timing import roles
+    from ...sewing.gradients import METRICS as FUNCTIONS
+    from ...sewing.timing import roles
 
     s = roles(m)
     feed = name in ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
@@ -67,7 +67,7 @@ def sensitivity_cmd(
 ):
     """Exact derivatives of one output by every parameter of the machine, at one shaft angle
     (units: the output's per the parameter's, mm and rad)."""
-    from ..engine.sensitivity import sensitivities
+    from ...engine.sensitivity import sensitivities
 
     if not (math.isfinite(phi_deg) and abs(phi_deg) <= 1e6):
         raise OptionError("--phi-deg", f"must be a finite angle in deg, got {phi_deg}")
@@ -137,8 +137,8 @@ def tolerance_cmd(
     case, RSS, Monte Carlo, each dimension's share, and allocation to a band."""
     from rich.progress import Progress
 
-    from ..design.tolerance_file import load_tolerance_file
-    from ..design.tolerances import tolerance_analysis
+    from ...design.tolerance_file import load_tolerance_file
+    from ...design.tolerances import tolerance_analysis
 
     if not (math.isfinite(phi_deg) and abs(phi_deg) <= 1e6):
         raise OptionError("--phi-deg", f"must be a finite angle in deg, got {phi_deg}")
@@ -150,7 +150,7 @@ def tolerance_cmd(
                   m.spec.sewing.regulator else [])
     spec = load_tolerance_file(tolerances) if tolerances is not None else None
     if out is not None:
-        from .outdir import preflight
+        from ..files.outdir import preflight
 
         preflight(out, command="tolerance")
     with Progress(console=console, transient=True) as progress:
@@ -213,9 +213,9 @@ def _write_tolerance(m, out: Path, res, data: dict) -> None:
     import matplotlib.pyplot as plt
     import pandas as pd
 
-    from .figures import save_figure
-    from .io import atomic_write
-    from .outdir import output_dir
+    from ..drawing.figures import save_figure
+    from ..files.io import atomic_write
+    from ..files.outdir import output_dir
 
     u = res.unit
     with output_dir(out, command="tolerance") as root:

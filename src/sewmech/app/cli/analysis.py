@@ -1,6 +1,5 @@
-"""The ``sewmech`` command line (typer + rich): the analysis commands. The shared app, error
-guard and option checks are in :mod:`sewmech.app.cli_common`; the balancing commands in
-:mod:`sewmech.app.cli_balancing`, registered on the same app when this module is imported.
+"""The analysis commands of the ``sewmech`` command line: ``machines``, ``check``,
+``kinematics``, ``dynamics``, ``feed``, ``embroidery-take-up``, ``report`` and ``demo``.
 """
 
 from __future__ import annotations
@@ -15,21 +14,11 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ..engine.errors import AnalysisError, OptionError, SewmechError
-from ..engine.machine import Machine, file_value, load_machine, shipped_machines
-from . import cli_balancing  # noqa: F401  (registers balance, trial-balance, influence-balance)
-from . import cli_accuracy  # noqa: F401  (registers sensitivity, tolerance)
-from . import cli_design  # noqa: F401  (registers optimize)
-from . import cli_serve  # noqa: F401  (registers serve)
-from . import cli_sweep  # noqa: F401  (registers sweep, sweep-summary)
-from .cli_common import (DEFAULT_MACHINE, EXIT_ERROR, EXIT_INTERNAL, EXIT_SIGINT,
-                         MIN_STEP_DEG, SET_HELP, Format, Terminated, _bounded, _guard, _load,
-                         _parse_sets, _phi, _phi_grid, _print_error, _rpm, _settings, app,
-                         command, console, err_console, print_json)
+from ...engine.errors import AnalysisError, OptionError, SewmechError
+from ...engine.machine import Machine, file_value, load_machine, shipped_machines
+from .common import (DEFAULT_MACHINE, SET_HELP, Format, _bounded, _load, _phi, _phi_grid, _rpm,
+                     _settings, command, console, print_json, process_ends)
 
-__all__ = ["DEFAULT_MACHINE", "EXIT_ERROR", "EXIT_INTERNAL", "EXIT_SIGINT", "MIN_STEP_DEG",
-           "Format", "Terminated", "_bounded", "_guard", "_parse_sets", "_print_error", "app",
-           "err_console", "main"]
 
 @command("machines")
 def machines_cmd():
@@ -54,11 +43,11 @@ def check_cmd(
 ):
     """Validate a machine file, prove that it assembles over the whole turn (at every setting
     limit) and check its angle convention."""
-    from ..engine.assembly import prove_assembly
-    from ..engine.dynamics import force_system
-    from ..engine.errors import format_ranges
-    from ..engine.extremes import require_reference
-    from ..engine.kinematics import kinematics
+    from ...engine.assembly import prove_assembly
+    from ...engine.dynamics import force_system
+    from ...engine.errors import format_ranges
+    from ...engine.extremes import require_reference
+    from ...engine.kinematics import kinematics
 
     m = _load(file, sets)
     phi = _phi_grid(step_deg)
@@ -110,7 +99,7 @@ def check_cmd(
     if len(proofs) > 1:
         text += " at the default setting and at " + ", ".join(lb for lb, _ in proofs[1:])
     if proofs[0][1].loop_steps:
-        from ..engine.assembly import LOOP_STEP_DEG
+        from ...engine.assembly import LOOP_STEP_DEG
 
         text += (f"; loop units ({', '.join(proofs[0][1].loop_units)}) continued in"
                  f" {LOOP_STEP_DEG:g} deg steps without a branch jump")
@@ -206,9 +195,9 @@ def kinematics_cmd(
     sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
 ):
     """Positions, velocities and accelerations of every point, link and joint variable."""
-    from ..engine.kinematics import kinematics
-    from .io import kinematics_to_dict, write_kinematics_csv, write_kinematics_json
-    from .outdir import output_dir
+    from ...engine.kinematics import kinematics
+    from ..files.io import kinematics_to_dict, write_kinematics_csv, write_kinematics_json
+    from ..files.outdir import output_dir
 
     m = _load(machine, sets)
     settings = _settings(m, inputs)
@@ -251,10 +240,10 @@ def dynamics_cmd(
 ):
     """Inverse dynamics: driving torque, pair forces, shaking force and moment, energies,
     upper-shaft bearing reactions."""
-    from ..engine.dynamics import inverse_dynamics
-    from ..engine.spec import load_load_file
-    from .io import dynamics_to_dict, write_dynamics_csv
-    from .outdir import output_dir
+    from ...engine.dynamics import inverse_dynamics
+    from ...engine.spec import load_load_file
+    from ..files.io import dynamics_to_dict, write_dynamics_csv
+    from ..files.outdir import output_dir
 
     m = _load(machine, sets)
     settings = _settings(m, inputs)
@@ -301,9 +290,9 @@ def _dynamics_figures(m, out, settings, rpm, load_specs, gravity) -> int:
     matplotlib.use("Agg")
     from rich.progress import Progress
 
-    from .figures import Figures, figure_pool
-    from .io import atomic_write
-    from .report_dynamics import dynamics_section
+    from ..drawing.figures import Figures, figure_pool
+    from ..files.io import atomic_write
+    from ..report.dynamics import dynamics_section
 
     pool = figure_pool()
     try:
@@ -376,7 +365,7 @@ def feed_cmd(
     sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
 ):
     """Stitch length, lift and timing of the feed dog; scale-plate marks; feed-cam phase."""
-    from ..sewing import feed as FD
+    from ...sewing import feed as FD
 
     _bounded("--step-mm", step_mm, 0.01, 10.0, "mm", "0.5")
     m = _load(machine, sets)
@@ -428,7 +417,7 @@ def embroidery_cmd(
     sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
 ):
     """Thread drawn L(phi) = l_max - l by the embroidery take-up for one (alpha, beta)."""
-    from ..sewing import embroidery as EM
+    from ...sewing import embroidery as EM
 
     _bounded("--alpha-deg", alpha_deg, -360.0, 360.0, "deg", "10")
     _bounded("--beta-deg", beta_deg, -360.0, 360.0, "deg", "35")
@@ -456,8 +445,8 @@ def embroidery_cmd(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .io import atomic_write
-    from .outdir import output_dir
+    from ..files.io import atomic_write
+    from ..files.outdir import output_dir
 
     fphi, fL = EM.thread_drawn(m, alpha_deg, beta_deg, n_points=360)
     fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
@@ -492,9 +481,9 @@ def report_cmd(
     import pandas as pd
     from rich.progress import Progress
 
-    from ..sewing.timing import roles
-    from .outdir import preflight
-    from .report import write_report
+    from ...sewing.timing import roles
+    from ..files.outdir import preflight
+    from ..report import write_report
 
     _phi_grid(step_deg, min_step=0.1)  # validates the step
     m = _load(machine, sets)
@@ -516,14 +505,14 @@ def report_cmd(
     if variants:
         steps.append("comparison")
     steps += ["tables", "page"]
-    if _PROCESS_ENDS:
+    if process_ends():
         _keep_freed_memory()
     with Progress(console=console, transient=True) as progress:
         task = progress.add_task(f"report {m.name}", total=len(steps))
         index = write_report(m, out, step_deg=step_deg, variants=variants,
                              advance=lambda name: progress.update(task, advance=1,
                                                                   description=name),
-                             collect_garbage=not _PROCESS_ENDS)
+                             collect_garbage=not process_ends())
     table = Table(title=f"{m.name}: checks")
     for col in ("check", "value", "expected", "result"):
         table.add_column(col)
@@ -541,13 +530,6 @@ def demo_cmd(out: Path = typer.Option(Path("out/demo"), help="output directory (
              sets: list[str] = typer.Option(None, "--set", help=SET_HELP)):
     """Same as `sewmech report jb1-3 --out DIR` (the main job on the default machine)."""
     report_cmd.__wrapped__(DEFAULT_MACHINE, out, 1.0, None, sets)
-
-
-#: True in the ``sewmech`` process (set by :func:`main`): the process ends with the command, so a
-#: report leaves its garbage to the process's end (``write_report(collect_garbage=False)``) and
-#: keeps freed memory (:func:`_keep_freed_memory`); a command run inside a Python session
-#: (typer's test runner, a notebook) leaves both as they are
-_PROCESS_ENDS = False
 
 
 def _keep_freed_memory() -> None:
@@ -573,21 +555,3 @@ def _keep_freed_memory() -> None:
     mallopt(m_mmap_threshold, 32 << 20)
     mallopt(m_trim_threshold, 1 << 30)
     mallopt(m_top_pad, 16 << 20)
-
-
-def main():  # pragma: no cover - entry point
-    global _PROCESS_ENDS
-    _PROCESS_ENDS = True
-    try:
-        app()
-    finally:
-        # the process ends now: everything alive is frozen, so that the interpreter's
-        # shutdown does not walk it again in its garbage collections (after a report, half a
-        # second: every object numba, pandas and matplotlib made). Objects are still freed by
-        # their reference counts; only cyclic garbage is left to the operating system (every
-        # file sewmech writes is closed by its own `with`, and stdout and stderr are flushed
-        # by the interpreter)
-        import gc
-
-        gc.freeze()
-

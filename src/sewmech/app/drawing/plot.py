@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..engine.results import KinematicsResult
+from ...engine.results import KinematicsResult
 
 
 def _axes(ax, nrows=1):

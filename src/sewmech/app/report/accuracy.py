@@ -11,10 +11,10 @@ import html
 import numpy as np
 import pandas as pd
 
-from ..design.tolerance_file import ToleranceSpec, tolerances_of
-from ..engine.machine import Machine
-from ..sewing.feed import regulator_range_deg
-from ..sewing.gradients import METRICS
+from ...design.tolerance_file import ToleranceSpec, tolerances_of
+from ...engine.machine import Machine
+from ...sewing.feed import regulator_range_deg
+from ...sewing.gradients import METRICS
 
 #: the default tolerances of the report: IT9 on every length (docs/accuracy.md)
 REPORT_GRADE = 9
@@ -22,7 +22,7 @@ REPORT_GRADE = 9
 
 def accuracy_section(figs, machine: Machine) -> dict:
     """Add the accuracy figure to ``figs``; return {"table": DataFrame, "html": str}."""
-    from .figures import subplots
+    from ..drawing.figures import subplots
 
     spec = ToleranceSpec.model_validate({"defaults": {"it_grade": REPORT_GRADE}})
     tol = tolerances_of(machine, spec)
@@ -70,7 +70,7 @@ def accuracy_section(figs, machine: Machine) -> dict:
              " exact derivatives of each metric by every dimension (docs/accuracy.md;"
              " <code>sewmech tolerance</code> adds the Monte Carlo check and allocation)."
              "</p>")
-    from .figures import table_html
+    from ..drawing.figures import table_html
 
     return {"table": table, "html": intro + table_html(table.round(6))
             + f'<p>Data: <a href="{html.escape(machine.name)}-accuracy.csv">table (CSV)</a>.'

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..engine.results import KinematicsResult
+from ...engine.results import KinematicsResult
 from .outdir import file_mode
 
 
@@ -197,7 +197,7 @@ def read_csv_columns(path: str | Path, numbers: Sequence[str], texts: Sequence[s
     is missing, a number is not a finite number, or there are no data lines."""
     import csv
 
-    from ..engine.errors import AnalysisError
+    from ...engine.errors import AnalysisError
 
     path = Path(path).expanduser()
     where = str(path)

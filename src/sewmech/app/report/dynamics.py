@@ -11,11 +11,11 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from ..engine.dynamics import in_windows, inverse_dynamics, speed_fluctuation
-from ..engine.machine import Machine
-from ..sewing import feed as FD
-from ..sewing.transmission import needle_force, pressure_angles, regulator_torques
-from .io import pair_forces_frame
+from ...engine.dynamics import in_windows, inverse_dynamics, speed_fluctuation
+from ...engine.machine import Machine
+from ...sewing import feed as FD
+from ...sewing.transmission import needle_force, pressure_angles, regulator_torques
+from ..files.io import pair_forces_frame
 
 #: shaft torque for the needle-force view, N mm [estimate: a household machine's motor of about
 #: 70 W at 1000 r/min of the shaft after the belt gives about 0.67 N m; 0.5 N m is a margin]
@@ -28,13 +28,13 @@ PENETRATION_RESISTANCE_N = 8.0
 def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *,
                      inputs: dict[str, float] | None = None, rpm: float | None = None,
                      loads=None, gravity: bool = True) -> pd.DataFrame:
-    """Add the dynamics figures to ``figs`` (:class:`~sewmech.app.figures.Figures`); return the key figures.
+    """Add the dynamics figures to ``figs`` (:class:`~sewmech.app.drawing.figures.Figures`); return the key figures.
 
     inputs: setting inputs, rad (default: the stitch regulator at its longest forward stitch);
     rpm: shaft speed (default: the file's); loads: process loads (default: the file's);
     gravity: the links' weights.
     """
-    from .figures import subplots
+    from ..drawing.figures import subplots
 
     s = machine.spec.sewing
     settings = dict(inputs or {})

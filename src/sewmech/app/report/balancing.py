@@ -11,9 +11,9 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from ..design.balancing import (CRITERIA, FIGURES, BalanceResult, balance, balance_basis,
+from ...design.balancing import (CRITERIA, FIGURES, BalanceResult, balance, balance_basis,
                                 paper_workflow, shaft_counterweight, tradeoff)
-from ..engine.machine import Machine
+from ...engine.machine import Machine
 
 #: labels and units of the figures, for tables
 FIGURE_LABELS = {"delta_q_N": ("Delta-Q = | max|Qx| - max|Qy| |", "N"),
@@ -46,7 +46,7 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
                       counterweights: Sequence[str] | None = None, rpm: float | None = None,
                       weights: dict | None = None, front: bool = True,
                       moment_point: tuple[float, float] | None = None) -> dict:
-    """Add the balancing figures to ``figs`` (:class:`~sewmech.app.figures.Figures`).
+    """Add the balancing figures to ``figs`` (:class:`~sewmech.app.drawing.figures.Figures`).
 
     criterion: the one shown before/after (default: the paper's delta-q on the shaft's
     counterweight if there is one, else weighted); counterweights: those varied by every
@@ -56,7 +56,7 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
     ``paper`` (:func:`sewmech.design.balancing.paper_workflow`, or None), ``key`` (a table of
     key figures) and ``html`` (the section's text blocks: intro, comparison and the paper's
     workflow)."""
-    from .figures import subplots
+    from ..drawing.figures import subplots
 
     B = balance_basis(machine, counterweights, rpm=rpm, moment_point=moment_point)
     shaft_cw = shaft_counterweight(machine)
@@ -230,7 +230,7 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
 def section_html(machine: Machine, sec: dict) -> str:
     """The balancing section's heading and text: what was balanced, every criterion's answer
     side by side, and the paper's workflow."""
-    from .figures import table_html
+    from ..drawing.figures import table_html
 
     main = sec["main"]
     names = ", ".join(html.escape(n) for n in main.counterweights)
@@ -270,7 +270,7 @@ def paper_html(paper: dict | None) -> str:
                  ("plain steel counterweight of the built S", b["body_only_mass_g"], "g",
                   "at the same radius")]
     df = pd.DataFrame(rows, columns=["step", "value", "unit", "where"])
-    from .figures import table_html
+    from ..drawing.figures import table_html
 
     return ("<h3>The balancing paper's method</h3><p>Delta-Q = 0 chooses the extra"
             f" counterweight <b>{html.escape(paper['counterweight'])}</b> on"

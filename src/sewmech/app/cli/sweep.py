@@ -1,7 +1,7 @@
 """The sweep commands of the ``sewmech`` command line: ``sweep`` (evaluate a sweep file's
 designs in chunks, in this process or on Dask) and ``sweep-summary`` (the feasible region, the
 outputs' distributions and the best designs of a sweep's output). Registered on the shared app
-of :mod:`sewmech.app.cli_common` when :mod:`sewmech.app.cli` imports this module."""
+of :mod:`sewmech.app.cli.common` when :mod:`sewmech.app.cli` imports this module."""
 
 from __future__ import annotations
 
@@ -15,8 +15,8 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ..engine.errors import OptionError
-from .cli_common import command, console, err_console, print_json
+from ...engine.errors import OptionError
+from .common import command, console, err_console, print_json
 
 
 @command("sweep")
@@ -48,9 +48,9 @@ def sweep_cmd(
     )
     from rich.text import Text
 
-    from ..design.sweep import chunk_bounds
-    from ..design.sweep_file import load_sweep
-    from .sweep_run import done_chunks, read_record, run_sweep
+    from ...design.sweep import chunk_bounds
+    from ...design.sweep_file import load_sweep
+    from ..sweep_run import done_chunks, read_record, run_sweep
 
     if not 0 <= retries <= 10:
         raise OptionError("--retries", f"must be in 0 .. 10, got {retries}", "Give e.g."
@@ -118,7 +118,7 @@ def sweep_cmd(
 def _count_feasible(root: Path) -> tuple[int, int]:
     import pyarrow.parquet as pq
 
-    from .sweep_run import chunk_path, done_chunks
+    from ..sweep_run import chunk_path, done_chunks
 
     feasible = total = 0
     for k in sorted(done_chunks(root)):
@@ -134,7 +134,7 @@ def load_results(root: Path, option: str = "DIR") -> tuple[dict, dict[str, np.nd
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from .sweep_run import chunk_path, done_chunks, read_record
+    from ..sweep_run import chunk_path, done_chunks, read_record
 
     record = read_record(root, option)
     have = sorted(done_chunks(root))
@@ -168,7 +168,7 @@ def sweep_summary_cmd(
         raise OptionError("--best", f"must be in 1 .. 10000, got {best}", "Give e.g. --best 10")
     record, cols, n_written = load_results(root)
     if out is not None:
-        from .outdir import preflight
+        from ..files.outdir import preflight
 
         preflight(out, command="sweep-summary")
     params = [p.get("column", p["parameter"]) for p in record["parameters"]]
@@ -266,9 +266,9 @@ def _write_summary(out: Path, summary: dict, record: dict, cols: dict, params: l
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .figures import save_figure
-    from .io import atomic_write
-    from .outdir import output_dir
+    from ..drawing.figures import save_figure
+    from ..files.io import atomic_write
+    from ..files.outdir import output_dir
 
     feasible = cols["feasible"].astype(bool)
     units = record["columns"]

@@ -1,5 +1,5 @@
 """The design command of the ``sewmech`` command line: ``optimize`` (choose dimensions for a
-problem file). Registered on the shared app of :mod:`sewmech.app.cli_common` when
+problem file). Registered on the shared app of :mod:`sewmech.app.cli.common` when
 :mod:`sewmech.app.cli` imports this module."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from .cli_common import command, console, print_json
+from .common import command, console, print_json
 
 
 @command("optimize")
@@ -35,13 +35,13 @@ def optimize_cmd(
     meet the objective while every constraint holds."""
     from rich.progress import Progress
 
-    from ..design.optimize import optimize
-    from ..design.problem import Problem, load_problem
+    from ...design.optimize import optimize
+    from ...design.problem import Problem, load_problem
 
     spec, machine = load_problem(problem)
     p = Problem(spec, machine)
     if out is not None:
-        from .outdir import preflight
+        from ..files.outdir import preflight
 
         preflight(out, command="optimize")
     with Progress(console=console, transient=True) as progress:
@@ -76,9 +76,9 @@ def optimize_cmd(
 
 
 def _write(out: Path, problem, data: dict, problem_file: Path) -> None:
-    from .io import atomic_write
-    from .outdir import output_dir
-    from .report_design import problem_page
+    from ..files.io import atomic_write
+    from ..files.outdir import output_dir
+    from ..report.design import problem_page
 
     with output_dir(out, command="optimize") as root:
         problem_page(root, problem, data, problem_file)

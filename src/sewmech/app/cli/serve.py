@@ -1,5 +1,5 @@
 """``sewmech serve``: the interactive page (:mod:`sewmech.app.web`) on a local web server.
-Registered on the shared app of :mod:`sewmech.app.cli_common` when :mod:`sewmech.app.cli`
+Registered on the shared app of :mod:`sewmech.app.cli.common` when :mod:`sewmech.app.cli`
 imports this module."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import socket
 
 import typer
 
-from ..engine.errors import OptionError
-from .cli_common import DEFAULT_MACHINE, command, console
+from ...engine.errors import OptionError
+from .common import DEFAULT_MACHINE, command, console
 
 
 @command("serve")
@@ -27,9 +27,9 @@ def serve_cmd(
 
     import uvicorn
 
-    from ..engine.machine import shipped_machines
-    from ..engine.spec import parse_machine, read_toml_text
-    from .web.server import create_app
+    from ...engine.machine import shipped_machines
+    from ...engine.spec import parse_machine, read_toml_text
+    from ..web.server import create_app
 
     if not 0 <= port <= 65535:
         raise OptionError("--port", f"must be 0 .. 65535, got {port}", "Give e.g. --port 8000,"

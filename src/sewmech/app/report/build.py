@@ -17,7 +17,6 @@ from __future__ import annotations
 import collections
 import contextlib
 import gc
-import html
 import math
 import threading
 from collections.abc import Callable, Sequence
@@ -26,14 +25,18 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..engine.extremes import require_reference
-from ..engine.kinematics import kinematics
-from ..engine.machine import Machine, file_value
-from ..sewing import feed as FD
-from ..sewing import timing as T
-from ..sewing.checks import check_timing
-from .figures import Figures, figure_pool, subplots, table_html
-from .outdir import output_dir
+from ...engine.extremes import require_reference
+from ...engine.kinematics import kinematics
+from ...engine.machine import Machine, file_value
+from ...sewing import feed as FD
+from ...sewing import timing as T
+from ...sewing.checks import check_timing
+from ..drawing.figures import Figures, figure_pool, shade, subplots
+from ..files.outdir import output_dir
+from .comparison import comparison_section
+from .feed import feed_section
+from .page import dynamics_intro, page_html
+from .thread import thread_section
 
 MM_TO_M = 1e-3
 
@@ -231,9 +234,9 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
     inside = w_in.contains(phi_deg)
     tdata["needle_in_fabric"] = inside
     for ax in axs:
-        _shade(ax, phi_deg, inside, "C0", "needle in fabric")
+        shade(ax, phi_deg, inside, "C0", "needle in fabric")
         if has_feed:
-            _shade(ax, phi_deg, dog_up, "C5", "dog above plate")
+            shade(ax, phi_deg, dog_up, "C5", "dog above plate")
         ax.axvline(ns.top_phi_deg, color="0.3", lw=0.8, ls=":")
         if ll is not None:
             ax.axvline(ll.phi_deg, color="C2", lw=0.8, ls="--")
@@ -263,7 +266,7 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
         elif name == "dynamics":
             result.to_csv(root / f"{machine.name}-dynamics-key-figures.csv", index=False,
                           float_format="%.10g")
-            blocks.append(_dynamics_intro(machine, result))
+            blocks.append(dynamics_intro(machine, result))
         elif name == "balancing":
             result["comparison"].to_csv(root / f"{machine.name}-balancing-criteria.csv",
                                         index=False, float_format="%.10g")
@@ -319,7 +322,7 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
 
     for name, df in feed_tables.get("csv", {}).items():
         df.to_csv(root / f"{machine.name}-{name}.csv", index=False, float_format="%.10g")
-    page = _page(machine, f"{ref} ({reference})", chk, tim, par, blocks, text, src.name,
+    page = page_html(machine, f"{ref} ({reference})", chk, tim, par, blocks, text, src.name,
                  feed_tables.get("html", []))
     (root / "index.html").write_text(page, encoding="utf-8")
     step("page")
@@ -336,24 +339,24 @@ def _run_section(name: str):
     figs = Figures(root, machine.name)
     result = None
     if name == "feed":
-        result = _feed_section(figs, machine, lambda done: None)
+        result = feed_section(figs, machine, lambda done: None)
     elif name == "thread":
-        _thread_section(figs, machine)
+        thread_section(figs, machine)
     elif name == "dynamics":
-        from .report_dynamics import dynamics_section
+        from .dynamics import dynamics_section
 
         result = dynamics_section(figs, machine, variants)
     elif name == "balancing":
-        from .report_balancing import balancing_section, section_html
+        from .balancing import balancing_section, section_html
 
         sec = balancing_section(figs, machine)
         result = {"comparison": sec["comparison"], "html": section_html(machine, sec)}
     elif name == "accuracy":
-        from .report_accuracy import accuracy_section
+        from .accuracy import accuracy_section
 
         result = accuracy_section(figs, machine)
     else:
-        _comparison(figs, [machine] + list(variants))
+        comparison_section(figs, [machine] + list(variants))
     return figs.blocks, result
 
 
@@ -408,343 +411,3 @@ class _Sections:
                 yield name, here[name] if name in here else self.futures[name].result()
         finally:
             _SHARED.clear()
-
-
-def _feed_section(figs: Figures, machine: Machine, step) -> dict:
-    """Dog trajectories, stitch curve with scale marks, sensitivity grid (figures + tables)."""
-    lo, hi = FD.regulator_range_deg(machine)
-    curve = FD.stitch_curve(machine, 121)  # the figure's curve, and the marks' start
-    marks = FD.scale_marks(machine, 0.5, curve=curve)
-    by_len = {m.stitch_mm: m.regulator_deg for m in marks}
-    longest = min(max(by_len), -min(by_len))
-    half = 0.5 * round(longest)  # a mark near the middle (marks are every 0.5 mm)
-    wanted = sorted({-longest, -half, 0.0, half, longest} & set(by_len))
-    regs = np.array([by_len[w] for w in wanted])
-    c = FD.feed_cycles(machine, regs)
-    fig, (ax, bx) = subplots(1, 2, figsize=(11, 4.6), constrained_layout=True)
-    data = {"phi_deg": c.phi_deg}
-    for k, reg in enumerate(regs):
-        lab = f"{c.stitch_mm[k]:+.2f} mm (regulator {reg:+.2f} deg)"
-        ax.plot(c.x[k], c.y[k], lw=1.4, label=lab)
-        data[f"x_mm_reg_{reg:+.4f}deg"] = c.x[k]
-        data[f"y_above_plate_mm_reg_{reg:+.4f}deg"] = c.y[k]
-    for a in (ax, bx):
-        a.axhline(0.0, color="k", lw=1)
-        a.set_xlabel("dog tooth tip x [mm] (+x: towards the back)")
-        a.set_ylabel("height above the throat plate [mm]")
-        a.grid(True, alpha=0.3)
-    ax.legend(fontsize=7, loc="lower center")
-    ax.set_title("tooth-tip paths by stitch length")
-    f, r = int(np.argmax(c.stitch_mm)), int(np.argmin(c.stitch_mm))
-    xc = 0.5 * (c.x[f].max() + c.x[f].min())
-    bx.plot(c.x[f] - xc, c.y[f], lw=1.6, label=f"forward {c.stitch_mm[f]:+.2f} mm")
-    xr = 0.5 * (c.x[r].max() + c.x[r].min())
-    bx.plot(-(c.x[r] - xr), c.y[r], lw=1.6, ls="--",
-            label=f"reverse {c.stitch_mm[r]:+.2f} mm, mirrored")
-    bx.set_xlabel("x about the middle of the stroke [mm] (reverse mirrored)")
-    bx.legend(fontsize=7, loc="lower center")
-    bx.set_title("reverse feed against forward")
-    figs.add(fig, "feed-trajectories", "Feed dog trajectories",
-             "Paths of the dog's tooth tip over one revolution for stitch lengths from the"
-             " longest reverse to the longest forward; right: the reverse path mirrored onto"
-             " the forward one to compare their shapes. The fabric moves with the dog only"
-             " above the plate line.", pd.DataFrame(data))
-    step("feed trajectories")
-
-    fig, (ax, bx) = subplots(2, 1, figsize=(8, 6.4), sharex=True, constrained_layout=True)
-    ax.plot(curve.regulator_deg, curve.stitch_mm, lw=1.6)
-    ax.plot([m.regulator_deg for m in marks], [m.stitch_mm for m in marks], "o", ms=4,
-            color="C1", label="scale marks (every 0.5 mm)")
-    ax.axhline(0, color="k", lw=0.8)
-    ax.set_ylabel("stitch length [mm] (+ forward)")
-    ax.legend(fontsize=8)
-    ax.grid(True, alpha=0.3)
-    bx.plot(curve.regulator_deg, curve.lift_mm, color="C2", label="lift above plate")
-    bx.axhspan(*FD.FEED_DOG_RISE_MM, color="C2", alpha=0.1, label="DOMAIN.md 1.1 band")
-    bx.set_ylabel("dog lift [mm]")
-    bx.set_xlabel(f"regulator angle [deg] (travel {lo:g} .. {hi:g})")
-    bx.legend(fontsize=8)
-    bx.grid(True, alpha=0.3)
-    fig.suptitle(f"{machine.name}: stitch length and lift against the regulator setting")
-    mk = pd.DataFrame({"stitch_mm": [m.stitch_mm for m in marks],
-                       "regulator_deg": [m.regulator_deg for m in marks]})
-    figs.add(fig, "stitch-curve", "Stitch length and scale-plate marks",
-             "Stitch length (the dog's fore-aft travel while above the plate) and lift over the"
-             " regulator's travel; dots: the regulator angle of every 0.5 mm mark of the scale"
-             " plate, forward and reverse (table below).", curve.to_pandas(), table=mk)
-    step("stitch curve")
-
-    sens = FD.sensitivity(machine, 0.05)
-    n = len(sens.labels)
-    ncol = min(4, n)
-    nrow = math.ceil(n / ncol)
-    fig, axs = subplots(nrow, ncol, figsize=(3.3 * ncol, 2.8 * nrow), squeeze=False,
-                            constrained_layout=True)
-    sc = sens.cycles
-    sdata = {"phi_deg": sc.phi_deg}
-    for i, label in enumerate(sens.labels):
-        a = axs.flat[i]
-        for j, (tag, st) in enumerate((("-5%", ":"), ("0", "-"), ("+5%", "--"))):
-            a.plot(sc.x[i, j], sc.y[i, j], ls=st, lw=1.2, label=tag)
-            sdata[f"{label} {tag} x_mm"] = sc.x[i, j]
-            sdata[f"{label} {tag} y_mm"] = sc.y[i, j]
-        a.axhline(0, color="k", lw=0.8)
-        a.set_title(label, fontsize=8)
-        a.tick_params(labelsize=7)
-        a.grid(True, alpha=0.3)
-    axs.flat[0].legend(fontsize=7)
-    for a in list(axs.flat)[n:]:
-        a.axis("off")
-    fig.suptitle(f"{machine.name}: sensitivity of the dog path to each feed parameter"
-                 f" (regulator {sens.regulator_deg:g} deg; x, height above plate in mm)")
-    table = sens.table().drop(columns="names")
-    figs.add(fig, "feed-sensitivity", "Feed sensitivity study",
-             "Each structural parameter of the feed changed by -5 %, 0, +5 % (the others held);"
-             " the table gives the change of stitch length, lift and feed timing (the shaft"
-             " angle at which the dog is halfway through its feed stroke).",
-             pd.DataFrame(sdata), table=table)
-    step("sensitivity")
-    return {"cycle": FD.feed_cycles(machine, hi), "csv": {"scale-marks": mk,
-                                                           "feed-sensitivity-table": table}}
-
-
-def _thread_section(figs: Figures, machine: Machine):
-    """Thread balance: supply, demand and its parts, overfeed, with its own checks."""
-    from ..sewing import thread as TH
-
-    b = TH.thread_balance(machine)
-    checks = TH.check_thread(machine, b)
-    fig, (ax, bx) = subplots(2, 1, figsize=(9, 6.4), sharex=True, constrained_layout=True)
-    ax.plot(b.phi_deg, b.supply, lw=1.8, label="take-up supply S")
-    ax.plot(b.phi_deg, b.demand, lw=1.8, label="demand D (relative to the stitch set)")
-    k = int(np.argmin(b.supply))
-    ax.plot(b.phi_deg, b.bar - b.bar[k], lw=1, ls=":", label="  path to the eye (change)")
-    ax.plot(b.phi_deg, b.penetration - b.penetration[k], lw=1, ls=":",
-            label="  eye's leg through the fabric")
-    ax.plot(b.phi_deg, b.loop, lw=1, ls=":", label="  loop round the bobbin case")
-    ax.set_ylabel("thread [mm]")
-    ax.legend(fontsize=7, loc="upper left")
-    bx.plot(b.phi_deg, b.overfeed, color="C3", lw=1.8, label="overfeed O = S - D")
-    bx.axhline(0, color="k", lw=0.8)
-    bx.axhspan(0, TH.CHECK_SPRING_STROKE_MM, color="C2", alpha=0.1, label="check-spring stroke")
-    bx.set_ylabel("overfeed [mm]")
-    bx.set_xlabel("shaft angle phi [deg]")
-    bx.set_xticks(np.arange(0, 361, 30))
-    for a in (ax, bx):
-        loop = (b.phi_deg - b.seizure_deg) % 360 < (b.cast_off_deg - b.seizure_deg) % 360
-        _shade(a, b.phi_deg, loop, "C1", "loop on the shuttle")
-        for x, st in ((b.needle_entry_deg, "--"), (b.take_up_top_deg, ":")):
-            a.axvline(x, color="0.3", lw=0.8, ls=st)
-        a.grid(True, alpha=0.3)
-    bx.legend(fontsize=7, loc="upper left")
-    fig.suptitle(f"{machine.name}: needle-thread balance, stitch {b.stitch_mm:g} mm, fabric"
-                 f" {b.fabric_mm:g} mm\n(dashed: the needle enters the fabric; dotted: least"
-                 " supply, the stitch is set)")
-    table = pd.DataFrame([{"check": c.name, "value": c.value, "unit": c.unit,
-                           "expected": c.expected, "result": "pass" if c.passed else "FAIL",
-                           "source": c.source} for c in checks])
-    figs.add(fig, "thread-balance", "Needle-thread balance",
-             "What the take-up releases (supply) against what needle, fabric and shuttle hold"
-             " (demand) over one revolution, and their difference, the overfeed (DOMAIN.md 2.3);"
-             " shaded: the loop on the shuttle from seizure to cast-off. The balance checks"
-             " below are design diagnostics of the thread path, the take-up and the loop model"
-             " (see the sewmech.thread documentation), separate from the machine-class checks.",
-             b.to_pandas(), table=table)
-    if machine.spec.thread.adjust is not None:
-        _adjust_figure(figs, machine)
-    _consumption_figure(figs, machine)
-
-
-def _consumption_figure(figs: Figures, machine: Machine):
-    """Thread per stitch against stitch length and fabric thickness, with the industry formula."""
-    from ..sewing import thread as TH
-
-    d = machine.spec.thread.thread_diameter
-    length = np.linspace(1.0, 4.0, 31)
-    fig, ax = subplots(figsize=(7.5, 4.2), constrained_layout=True)
-    rows = []
-    for k, t in enumerate((0.5, 1.0, 2.0, 4.0, 6.0)):
-        c = TH.consumption_per_stitch(length, t, d)
-        ax.plot(length, c["total"], color=f"C{k}", lw=1.6, label=f"fabric {t:g} mm")
-        ax.plot(length, c["industry"], color=f"C{k}", lw=1, ls="--")
-        rows += [{"stitch_mm": l, "fabric_mm": t, "needle_mm": n, "bobbin_mm": b,
-                  "total_mm": tot, "industry_formula_mm": ind}
-                 for l, n, b, tot, ind in zip(length, c["needle"], c["bobbin"], c["total"],
-                                              c["industry"])]
-    ax.set_xlabel("stitch length [mm]")
-    ax.set_ylabel("needle + bobbin thread per stitch [mm]")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7)
-    ax.set_title(f"{machine.name}: thread per stitch\n(solid: l + t + pi d/2 per thread,"
-                 f" d = {d:g} mm; dashed: C = 2 + 2TS)", fontsize=10)
-    figs.add(fig, "thread-consumption", "Thread consumption per stitch",
-             "Needle and bobbin thread of one balanced lockstitch against stitch length and"
-             " fabric thickness (DOMAIN.md 2.1), beside the industry formula C = 2 + 2TS per"
-             " inch of seam; the two differ by the thread-diameter term.", pd.DataFrame(rows))
-
-
-def _adjust_figure(figs: Figures, machine: Machine):
-    """The adjustable take-up: margin over (thickness, setting) and the recommended setting."""
-    from ..sewing import thread as TH
-
-    adj = machine.spec.thread.adjust
-    r = TH.adjust_take_up(machine, adj.parameter, np.linspace(adj.min, adj.max, 57))
-    unit = machine.parameter_units[machine.parameter_index(adj.parameter)]
-    fig, (ax, bx) = subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
-    im = ax.pcolormesh(r.settings, r.thickness_mm, r.margin, cmap="RdYlGn", vmin=-5, vmax=5,
-                       shading="nearest")
-    ax.contour(r.settings, r.thickness_mm, r.margin, levels=[0.0], colors="k", linewidths=1)
-    ax.plot(r.best, r.thickness_mm, "o-", color="k", ms=3, label="recommended")
-    ax.set_xlabel(f"{adj.parameter} [{unit}]")
-    ax.set_ylabel("fabric thickness [mm]")
-    ax.set_title("margin to the balance checks [mm] (black line: 0)")
-    ax.legend(fontsize=7)
-    fig.colorbar(im, ax=ax)
-    bx.plot(r.thickness_mm, r.best, "o-")
-    bx.set_xlabel("fabric thickness [mm]")
-    bx.set_ylabel(f"recommended {adj.parameter} [{unit}]")
-    bx.grid(True, alpha=0.3)
-    bx.set_title("setting per thickness (gaps: no setting passes)")
-    data = pd.DataFrame(r.margin, columns=[f"{adj.parameter}={v:.4g}" for v in r.settings])
-    data.insert(0, "fabric_mm", r.thickness_mm)
-    figs.add(fig, "take-up-adjustment", "Adjustable take-up",
-             f"The take-up's adjustable dimension {adj.parameter} over its range against fabric"
-             " thickness: the margin to all the thread-balance checks, and the setting with the"
-             " largest margin for each thickness (table).", data, table=r.table())
-
-
-def _dynamics_intro(machine: Machine, key: pd.DataFrame) -> str:
-    loads = "; ".join(f"{ld.name} {ld.force_N:g} N over "
-                      + ", ".join(f"{a:g}-{b:g}" for a, b in ld.windows_deg) + " deg"
-                      for ld in machine.spec.loads) or "none"
-    return (f'<h2 id="dynamics">Dynamics</h2><p>Inverse dynamics of the whole machine at'
-            f" {machine.rpm:g} rpm, gravity on, at the longest forward stitch (the JB dynamics"
-            f" report's hardest case). Process loads: {html.escape(loads)}. Link masses:"
-            " see the machine file's [masses] tables.</p>" + table_html(key.round(5))
-            + f'<p>Data: <a href="{machine.name}-dynamics-key-figures.csv">key figures'
-            " (CSV)</a>.</p>")
-
-
-def _key_figures(m: Machine) -> dict:
-    """The numbers a designer compares between machine variants."""
-    s = T.roles(m)
-    out = {}
-    ns = T.needle_stroke(m)
-    out["needle stroke [mm]"] = ns.stroke
-    if s.shuttle_link:
-        out["shuttle swing [deg]"] = T.shuttle_swing(m).swing_deg
-    if s.shuttle_point:
-        out["loop lift [mm]"] = T.loop_lift(m).rise_mm
-    if s.take_up_eye:
-        out["take-up lag [deg]"] = T.take_up_lag_deg(m)
-    if s.feed_dog and s.regulator:
-        lo, hi = FD.regulator_range_deg(m)
-        c = FD.feed_cycles(m, [lo, hi])
-        out["longest forward stitch [mm]"] = float(c.stitch_mm[1])
-        out["longest reverse stitch [mm]"] = float(c.stitch_mm[0])
-        out["dog lift, longest forward [mm]"] = float(c.lift_mm[1])
-        out["dog rises through plate [deg]"] = float(c.rise_deg[1])
-        out["dog drops through plate [deg]"] = float(c.fall_deg[1])
-        out["mid feed stroke [deg]"] = float(c.mid_feed_deg[1])
-    return out
-
-
-def _comparison(figs: Figures, machines: Sequence[Machine]):
-    """Key figures, dog paths and stitch curves of machine variants side by side."""
-    table = pd.DataFrame({m.name: _key_figures(m) for m in machines})
-    table.insert(0, "figure", table.index)
-    fig, (ax, bx) = subplots(1, 2, figsize=(11, 4.4), constrained_layout=True)
-    data = {}
-    for m in machines:
-        s = m.spec.sewing
-        if not (s and s.feed_dog and s.regulator):
-            continue
-        lo, hi = FD.regulator_range_deg(m)
-        c = FD.feed_cycles(m, hi)
-        ax.plot(c.x - 0.5 * (c.x.max() + c.x.min()), c.y, lw=1.5, label=m.name)
-        curve = FD.stitch_curve(m, 61)
-        bx.plot(curve.regulator_deg, curve.stitch_mm, lw=1.5, label=m.name)
-        data[f"{m.name} phi_deg"] = c.phi_deg
-        data[f"{m.name} x_mm"] = c.x
-        data[f"{m.name} y_above_plate_mm"] = c.y
-    ax.axhline(0, color="k", lw=0.8)
-    ax.set_xlabel("dog x about mid-stroke [mm]")
-    ax.set_ylabel("height above plate [mm]")
-    ax.set_title("dog path at the longest forward stitch")
-    bx.set_xlabel("regulator angle [deg]")
-    bx.set_ylabel("stitch length [mm]")
-    bx.set_title("stitch-length curves")
-    for a in (ax, bx):
-        a.grid(True, alpha=0.3)
-        a.legend(fontsize=8)
-    names = " against ".join(m.name for m in machines)
-    figs.add(fig, "comparison", f"Variants side by side: {names}",
-             "Key figures of each variant (table), the dog's path at the longest forward stitch"
-             " and the stitch-length curves.", pd.DataFrame(data), table=table)
-
-
-def _shade(ax, x, mask, color, label):
-    ax.fill_between(x, 0, 1, where=mask, transform=ax.get_xaxis_transform(), color=color,
-                    alpha=0.10, lw=0, label=label)
-
-
-_CSS = """
-body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
-h1{margin-bottom:0.2em} .sub{color:#555;margin-top:0}
-table{border-collapse:collapse;margin:0.5em 0 1.5em 0;font-size:0.9em}
-th,td{padding:0.25em 0.7em;border-bottom:1px solid #ddd;text-align:left}
-td:nth-child(2){font-variant-numeric:tabular-nums}
-.checks td:nth-child(5){font-weight:bold}
-figure{margin:1.5em 0} figure img{max-width:100%} figcaption{color:#444;font-size:0.9em}
-pre{background:#f6f6f6;padding:1em;overflow-x:auto;font-size:0.8em}
-.pass{color:#1a7f37} .fail{color:#cf222e}
-"""
-
-
-def _changes_html(machine) -> str:
-    """The values changed with ``--set`` (the file below shows the file as it is)."""
-    if not machine.changes:
-        return ""
-    items = []
-    for name, value in machine.changes.items():
-        unit = ("mm" if name.rsplit(".", 1)[-1] in ("width", "stroke") else "deg") \
-            if name not in machine.parameter_names else \
-            machine.parameter_units[machine.parameter_index(name)]
-        shown = f"{math.degrees(value):.6g} deg" if unit in ("rad", "deg") else \
-            "{:.6g} {}".format(*file_value(value, unit)).rstrip(" 1")
-        items.append(f"<li><code>{html.escape(name)}</code> = {html.escape(shown)}</li>")
-    return ('<p class="fail">This report is of a variant: these values differ from the machine'
-            f' file (set with --set):</p><ul>{"".join(items)}</ul>')
-
-
-def _page(machine, ref, chk, tim, par, blocks, file_text, file_name, extra=()) -> str:
-    info = machine.spec.machine
-    n_fail = int((chk["result"] != "pass").sum()) if len(chk) else 0
-    verdict = (f'<p class="pass">All {len(chk)} checks pass.</p>' if n_fail == 0 else
-               f'<p class="fail">{n_fail} of {len(chk)} checks fail.</p>')
-    chk_html = table_html(chk, "checks").replace("<td>pass</td>", '<td class="pass">pass</td>')
-    chk_html = chk_html.replace("<td>FAIL</td>", '<td class="fail">FAIL</td>')
-    e = html.escape
-    return f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8">
-<title>sewmech report: {e(info.name)}</title><style>{_CSS}</style></head><body>
-<h1>{e(info.title or info.name)}</h1>
-<p class="sub">{e(info.description)}</p>
-<p>Angle convention: {e(ref)}. {e(machine.spec.convention.description)} Working speed
-{machine.rpm:g} rpm. Lengths in mm. Machine file: <a href="{e(file_name)}">{e(file_name)}</a>.</p>
-{_changes_html(machine)}<h2>Checks</h2>{verdict}{chk_html}
-<p>Data: <a href="{e(info.name)}-checks.csv">checks (CSV)</a>.</p>
-<h2>Timing</h2>{table_html(tim)}
-<p>Data: <a href="{e(info.name)}-timing-events.csv">timing events (CSV)</a>.</p>
-<h2>Figures</h2>
-{''.join(blocks)}
-{''.join(extra)}
-<h2>Machine data</h2>
-<p>Every value of the machine file as a named parameter (angles shown in degrees). Sources and
-estimates are recorded beside each value in the file below.
-<a href="{e(info.name)}-parameters.csv">parameters (CSV)</a>.</p>
-{table_html(par)}
-<details><summary>Machine file {e(file_name)}</summary><pre>{e(file_text)}</pre></details>
-<p class="sub">Written by sewmech.</p>
-</body></html>
-"""

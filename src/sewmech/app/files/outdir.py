@@ -34,7 +34,7 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-from ..engine.errors import OutputError
+from ...engine.errors import OutputError
 
 MANIFEST = ".sewmech-manifest.json"
 LOCK = ".sewmech.lock"

@@ -24,7 +24,7 @@ import matplotlib
 import pandas as pd
 
 from .fastdraw import fast_text, freeze_ticks, png_bytes, reused_tick_updates
-from .io import atomic_write
+from ..files.io import atomic_write
 
 #: the PNG resolution of every figure, dots per inch
 PNG_DPI = 120
@@ -102,7 +102,7 @@ def _worker_start():
 
     matplotlib.use("Agg")
 
-    from ..engine import _threads
+    from ...engine import _threads
 
     _threads.set_threads(1)  # the workers share the cores already: no kernel threads in them
 
@@ -189,3 +189,10 @@ def table_html(df: pd.DataFrame, classes: str = "") -> str:
     take-up setting that passes) reads "none", never "NaN"."""
     return df.to_html(index=False, classes=classes, border=0, float_format=lambda x: f"{x:.6g}",
                       escape=True, na_rep="none")
+
+
+def shade(ax, x, mask, color, label):
+    """Shade the spans of ``x`` where ``mask`` holds over the axes' whole height (a window of
+    the cycle: needle in the fabric, dog above the plate)."""
+    ax.fill_between(x, 0, 1, where=mask, transform=ax.get_xaxis_transform(), color=color,
+                    alpha=0.10, lw=0, label=label)

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..engine.errors import SewmechError
-from .figures import Figures, subplots, table_html
+from ...engine.errors import SewmechError
+from ..drawing.figures import Figures, subplots, table_html
 
 _FEED = ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
 
@@ -29,8 +29,8 @@ def _start_and_answer(before, after):
 
 def _is_channel(metric: str) -> bool:
     """A kinematic channel at an angle (p_POINT_x, theta_LINK, ...), not a named metric."""
-    from ..design.evaluate import THREAD_METRICS
-    from ..sewing.gradients import METRICS
+    from ...design.evaluate import THREAD_METRICS
+    from ...sewing.gradients import METRICS
 
     return not (metric in METRICS or metric in THREAD_METRICS or metric.startswith("range:"))
 
@@ -64,8 +64,8 @@ def problem_page(root: Path, problem, data: dict, problem_file: Path) -> None:
         _channel(figs, machine, channel, before, after)
     metrics = _metrics_table(problem, x_after)
     text = problem_file.read_text(encoding="utf-8")
-    page = _page(data, problem, metrics, figs.blocks, text, problem_file.name)
-    from .io import atomic_write
+    page = page_html(data, problem, metrics, figs.blocks, text, problem_file.name)
+    from ..files.io import atomic_write
 
     with atomic_write(root / "index.html") as fh:
         fh.write(page)
@@ -138,7 +138,7 @@ def _front(figs: Figures, data: dict) -> None:
 def _mechanism(figs: Figures, name: str, before, after, machine) -> None:
     """Every point's path over a turn for the start (grey) and the answer (colour), the links
     at phi = 0."""
-    from ..engine.kinematics import kinematics
+    from ...engine.kinematics import kinematics
 
     phi = np.radians(np.arange(0.0, 361.0, 2.0))
     fig, ax = subplots(figsize=(7.5, 7), constrained_layout=True)
@@ -180,7 +180,7 @@ def _mechanism(figs: Figures, name: str, before, after, machine) -> None:
 
 
 def _feed_paths(figs: Figures, machine, reg, before, after) -> None:
-    from ..sewing.feed import feed_cycles
+    from ...sewing.feed import feed_cycles
 
     s = machine.spec.sewing
     reg = machine.spec.inputs[s.regulator].default_deg if reg is None else reg
@@ -206,7 +206,7 @@ def _feed_paths(figs: Figures, machine, reg, before, after) -> None:
 
 
 def _overfeed(figs: Figures, machine, before, after) -> None:
-    from ..sewing.thread import thread_balance
+    from ...sewing.thread import thread_balance
 
     fig, ax = subplots(figsize=(7, 4.2), constrained_layout=True)
     cols = {}
@@ -229,7 +229,7 @@ def _overfeed(figs: Figures, machine, before, after) -> None:
 
 
 def _channel(figs: Figures, machine, channel: str, before, after) -> None:
-    from ..engine.kinematics import kinematics
+    from ...engine.kinematics import kinematics
 
     phi = np.radians(np.arange(0.0, 361.0, 1.0))
     fig, ax = subplots(figsize=(7, 4.2), constrained_layout=True)
@@ -248,9 +248,9 @@ def _channel(figs: Figures, machine, channel: str, before, after) -> None:
              f"{channel} for the start (dashed) and the answer.", pd.DataFrame(cols))
 
 
-def _page(data: dict, problem, metrics: pd.DataFrame, blocks, text: str, file_name: str
+def page_html(data: dict, problem, metrics: pd.DataFrame, blocks, text: str, file_name: str
           ) -> str:
-    from .report import _CSS
+    from .page import CSS
 
     e = html.escape
     spec = problem.spec
@@ -266,7 +266,7 @@ def _page(data: dict, problem, metrics: pd.DataFrame, blocks, text: str, file_na
                f" ({data['n_evaluations']} designs evaluated)</p>")
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
-<title>sewmech problem: {e(data['problem'])}</title><style>{_CSS}</style></head><body>
+<title>sewmech problem: {e(data['problem'])}</title><style>{CSS}</style></head><body>
 <h1>{e(data['problem'])}</h1>
 <p class="sub">{e(spec.problem.description or '')}</p>
 <p>Machine {e(data['machine'])}; method {e(data['method'])}; objective

@@ -1,7 +1,7 @@
 """The balancing commands of the ``sewmech`` command line: ``balance`` (choose counterweights
 on a machine), ``trial-balance`` (the crossing of measured vibration velocities) and
 ``influence-balance`` (correction masses from trial runs). Registered on the shared app of
-:mod:`sewmech.app.cli_common` when :mod:`sewmech.app.cli` imports this module."""
+:mod:`sewmech.app.cli.common` when :mod:`sewmech.app.cli` imports this module."""
 
 from __future__ import annotations
 
@@ -15,8 +15,8 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ..engine.errors import OptionError
-from .cli_common import (DEFAULT_MACHINE, SET_HELP, _bounded, _load, _phi_grid, _rpm, command,
+from ...engine.errors import OptionError
+from .common import (DEFAULT_MACHINE, SET_HELP, _bounded, _load, _phi_grid, _rpm, command,
                          console, print_json)
 
 
@@ -53,7 +53,7 @@ def _weights(items: list[str] | None) -> dict[str, float] | None:
 
 
 def _figure_rows(res) -> Table:
-    from .report_balancing import FIGURE_LABELS
+    from ..report.balancing import FIGURE_LABELS
 
     table = Table(title=f"balancing figures at {res.rpm:g} rpm (computed on the whole machine)")
     for col in ("figure", "unit", "before", "after", "change"):
@@ -109,7 +109,7 @@ def balance_cmd(
 ):
     """Choose counterweights: static moment and angle of each, with the machine's balancing
     figures before and after."""
-    from ..design.balancing import balance, paper_workflow, shaft_counterweight
+    from ...design.balancing import balance, paper_workflow, shaft_counterweight
 
     _bounded("--step-deg", step_deg, 0.1, 30.0, "deg", "1")
     _phi_grid(step_deg)  # it divides 360
@@ -124,7 +124,7 @@ def balance_cmd(
         shaft = shaft_counterweight(m)
         names = [shaft] if shaft else None
     if out is not None:
-        from .outdir import preflight
+        from ..files.outdir import preflight
 
         preflight(out, command="balance")
     point = _point(moment_point)
@@ -183,10 +183,10 @@ def _write_balance(m, out: Path, res, data: dict, names, rpm, point) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
-    from .figures import Figures
-    from .io import atomic_write
-    from .outdir import output_dir
-    from .report_balancing import balancing_section, results_frame
+    from ..drawing.figures import Figures
+    from ..files.io import atomic_write
+    from ..files.outdir import output_dir
+    from ..report.balancing import balancing_section, results_frame
 
     with output_dir(out, command="balance") as root:
         figs = Figures(root, m.name)
@@ -210,8 +210,8 @@ def trial_balance_cmd(
 ):
     """The static moment where the measured x and y vibration velocities are equal, with its
     95 % interval (the balancing paper's correction from measurements)."""
-    from ..design.vibration import crossing
-    from .io import read_csv_columns
+    from ...design.vibration import crossing
+    from ..files.io import read_csv_columns
 
     cols = read_csv_columns(file, ["s_add_gcm", "vx_mm_s", "vy_mm_s"])
     c = crossing(cols["s_add_gcm"], cols["vx_mm_s"], cols["vy_mm_s"], where=str(file))
@@ -237,9 +237,9 @@ def _write_trial(out: Path, file: Path, cols: dict, c) -> None:
     import matplotlib.pyplot as plt
     import pandas as pd
 
-    from .figures import save_figure
-    from .io import atomic_write
-    from .outdir import output_dir
+    from ..drawing.figures import save_figure
+    from ..files.io import atomic_write
+    from ..files.outdir import output_dir
 
     s = cols["s_add_gcm"]
     grid = np.linspace(s.min(), s.max(), 200)
@@ -277,9 +277,9 @@ def influence_balance_cmd(
 ):
     """Correction masses for a built machine from trial runs (influence coefficients, least
     squares over the places and speeds measured)."""
-    from ..design.vibration import influence_balance, phasor
-    from ..engine.errors import AnalysisError
-    from .io import read_csv_columns
+    from ...design.vibration import influence_balance, phasor
+    from ...engine.errors import AnalysisError
+    from ..files.io import read_csv_columns
 
     cols = read_csv_columns(file, ["amplitude_mm_s", "phase_deg", "trial_gcm",
                                    "trial_angle_deg"], ["run", "place"])
@@ -333,7 +333,7 @@ def level_change_cmd(
 ):
     """The change in vibration velocity level (dB) between two measurements, and each level
     against 5e-8 m/s."""
-    from ..design.vibration import V_REF_MM_S, level_change_db, level_db
+    from ...design.vibration import V_REF_MM_S, level_change_db, level_db
 
     for name, v in (("BEFORE", before), ("AFTER", after)):
         if not (math.isfinite(v) and v > 0):
