@@ -5,5 +5,6 @@
 - ``web/``: the interactive page (``sewmech serve``);
 - ``drawing/``: figures (PNG, SVG, CSV) and matplotlib's speed-ups;
 - ``files/``: output directories and the CSV and JSON files;
+- ``display``: how numbers are shown to people (round-off as 0, flags as yes/no);
 - ``sweep_run``: a design sweep's chunks in this process or on Dask, written as they finish.
 """
