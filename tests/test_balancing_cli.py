@@ -211,6 +211,20 @@ radius_mm = 12.0
     assert "--criterion peak" in flat and "least peak shaking force" in flat
     assert "steel cup" not in flat and "lead insert" not in flat and "built 3 x" not in flat
     assert "no recipe for the built counterweight" in flat and "nothing to build" in flat
+    # the report's section: the least peak force shown, delta-q said to propose nothing
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from sewmech.app.drawing.figures import Figures
+    from sewmech.app.report.balancing import balancing_section, section_html
+
+    m = load_machine(str(f))
+    sec = balancing_section(Figures(tmp_path, m.name), m, front=False)
+    assert sec["main"].criterion == "peak" and sec["main"].proposed
+    page = " ".join(section_html(m, sec).split())
+    assert "<b>delta-q</b> proposes nothing" in page
+    assert "No recipe for the built counterweight" in page and "steel cup" not in page
+    assert "delta-q" not in sec["comparison"].columns
 
 
 def test_the_built_counterweight_of_the_shipped_machines_clears_their_shafts():

@@ -449,6 +449,11 @@ def balance(machine: Machine, criterion: str = "delta-q",
     err = max(float(np.abs(predicted[k] - exact[k]).max()) * (1e-3 if k in ("M", "T") else 1.0)
               for k in exact)
     curves = {"phi": B.phi, "before": {k: v[0] for k, v in both.items()}, "after": exact}
+    if criterion == "delta-q" and status != "infeasible" and \
+            after["peak_force_N"] > before["peak_force_N"] * (1.0 + 1e-9):
+        message += (f"; note: equal peaks here raise the peak shaking force from"
+                    f" {float(before['peak_force_N']):.4g} to {float(after['peak_force_N']):.4g}"
+                    " N (--criterion peak minimises it)")
     if status != "infeasible":
         return BalanceResult(criterion, status, message, xy, B.describe(xy),
                              B.describe(B.start), before, after, B.design(xy), err, B.rpm, w,
