@@ -325,3 +325,14 @@ def test_an_infeasible_delta_q_proposes_nothing_and_says_what_is_achievable():
     paper = paper_workflow(slider_crank_cw_at(45.0), "cw", result=res)
     assert paper["s_add_gcm"] is None and paper["s_opt_gcm"] is None
     assert paper["build"] is None and "no root" in paper["build_refused"]
+
+
+def test_a_delta_q_root_that_raises_the_peak_force_says_so():
+    worse = balance(slider_crank_cw_at(120.0), "delta-q")  # equal peaks at 2.5 x the peak
+    assert worse.status == "optimal"
+    assert worse.after["peak_force_N"] > 2.0 * worse.before["peak_force_N"]
+    assert "raise the peak shaking force" in worse.message
+    assert "--criterion peak" in worse.message
+    better = balance(slider_crank_cw_at(180.0), "delta-q")
+    assert better.after["peak_force_N"] < better.before["peak_force_N"]
+    assert "raise" not in better.message
