@@ -479,7 +479,7 @@ def _infeasible_advice(B: BalanceBasis, closest: dict, alt: BalanceResult, befor
     text = (f". No counterweight is proposed: the least Delta-Q,"
             f" {float(closest['figures']['delta_q_N']):.4g} N with {cw['static_moment_gcm']:.4g}"
             f" g cm, would make the peak shaking force {peak1:.4g} N against {peak0:.4g} N"
-            f" now ({peak1 / peak0:.2g} x). The best this counterweight achieves is the least"
+            f" now{f' ({peak1 / peak0:.2g} x)' if peak0 > 0 else ''}. The best this counterweight achieves is the least"
             f" peak shaking force, {float(alt.after['peak_force_N']):.4g} N with"
             f" {a['static_moment_gcm']:.4g} g cm at {a['angle_deg']:.4g} deg: use --criterion"
             f" peak (or rms, weighted); or turn '{name}' (its angle_deg) to where Delta-Q has a"

@@ -85,12 +85,11 @@ def _cw_table(res) -> Table:
 def balance_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="shipped machine name or TOML file"),
     criterion: str = typer.Option(Criterion.delta_q.value, metavar=choices_metavar(Criterion),
-                                  help="what to minimise: delta-q"
-                                        " (the balancing paper's equal peaks of Qx and Qy, one"
-                                        " counterweight), peak or rms shaking force, moment"
-                                        " (peak shaking moment about the upper shaft), bearings"
-                                        " (larger peak reaction of the upper shaft's bearings),"
-                                        " torque (fluctuation) or weighted"),
+                                  help="what to minimise: delta-q (the balancing paper's equal"
+                                  " peaks of Qx and Qy, one counterweight), peak or rms shaking"
+                                  " force, moment (peak shaking moment about the upper shaft),"
+                                  " bearings (larger peak reaction of the upper shaft's"
+                                  " bearings), torque (fluctuation) or weighted"),
     counterweights: list[str] = typer.Option(None, "--counterweight", help="a counterweight"
                                              " of the file to choose; repeatable (default:"
                                              " all; delta-q: the one on the upper shaft)"),
