@@ -249,6 +249,27 @@ def _settings(m: Machine, inputs: list[str] | None) -> dict[str, float]:
     return settings
 
 
+def _choice(option: str, value: str, choices, example: str | None = None) -> str:
+    """``value`` if it is one of ``choices`` (strings, or an Enum whose values are the
+    choices), else an :class:`OptionError`: one ``error:`` line through :func:`_guard`, where
+    typer's own check of an Enum option prints a usage box instead. Declare such an option as
+    a string with ``metavar=choices_metavar(choices)`` and check it here."""
+    names = [getattr(c, "value", c) for c in choices]
+    if value in names:
+        return value
+    import difflib
+
+    close = difflib.get_close_matches(str(value), names, n=1, cutoff=0.6)
+    hint = (f"Did you mean {option} {close[0]}?" if close
+            else f"Give e.g. {option} {example or names[0]}")
+    raise OptionError(option, f"{value!r} is not one of {', '.join(names)}", hint)
+
+
+def choices_metavar(choices) -> str:
+    """The metavar of a string option that takes one of ``choices``: ``[a|b|c]``."""
+    return "[" + "|".join(getattr(c, "value", c) for c in choices) + "]"
+
+
 def _bounded(option: str, value: float, lo: float, hi: float, unit: str, example: str):
     if not lo <= value <= hi:  # (a NaN fails too)
         raise OptionError(option, f"must be in {lo:g} .. {hi:g} {unit}, got {value:g}",
