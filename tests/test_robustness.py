@@ -787,7 +787,9 @@ def test_6_a_six_bar_from_the_docs(tmp_path):
     assert "checked" in out.stdout and "proved" in out.stdout
     assert check_reference(sewmech.load_machine(path)).status == "ok"
     out = run(["kinematics", path, "--phi-deg", "30"], code=0)
-    assert "q block_x" in out.stdout and "(constant)" in out.stdout
+    assert "q block_x" in out.stdout and "(constant)" not in out.stdout  # values at 30 deg
+    out = run(["kinematics", path, "--step-deg", "10"], code=0)  # a turn: the summary
+    assert "q block_x" in out.stdout and "(constant)" in out.stdout  # (its frame points)
     assert "unwrapped" in out.stdout
     m = sewmech.load_machine(path)
     # the polar point is read as (length cos, length sin)
