@@ -55,6 +55,58 @@ def test_rss_agrees_with_monte_carlo_and_worst_case_bounds_every_sample():
     assert u.monte_carlo["std"] == pytest.approx(u.rss / math.sqrt(3.0), rel=0.02)
 
 
+@pytest.mark.parametrize("distribution, divisor", [("normal", 3.0),
+                                                   ("uniform", math.sqrt(3.0))])
+def test_standard_deviation_against_a_closed_form(distribution, divisor):
+    """The crank pin's x, A.x + B.u cos(phi) - B.v sin(phi), is linear in the three dimensions
+    that move it: its standard deviation is sqrt(sum (d_j t_j)^2) / 3 for normal dimensions at
+    sigma = t / 3 and / sqrt(3) for uniform ones over +-t (a uniform distribution of half-width
+    t has standard deviation t / sqrt(3)); the Monte Carlo's agrees to its sampling error
+    (about 1 / sqrt(2 n) = 0.35 %), and the worst case bounds every sample."""
+    m = fourbar()
+    t = {"A.x": 0.05, "B.u": 0.03, "B.v": 0.02}
+    spec = ToleranceSpec.model_validate({"defaults": {"it_grade": 5,
+                                                      "distribution": distribution},
+                                         "parameters": t})
+    phi = math.radians(40.0)
+    d = {"A.x": 1.0, "B.u": math.cos(phi), "B.v": -math.sin(phi)}
+    rss = math.sqrt(sum((d[k] * t[k]) ** 2 for k in t))
+    r = tolerance_analysis(m, "p_B_x", spec, phi_deg=40.0, samples=40_000, seed=5)
+    assert r.rss == pytest.approx(rss, rel=1e-12)
+    assert r.worst_case == pytest.approx(sum(abs(d[k]) * t[k] for k in t), rel=1e-12)
+    assert r.sigma == pytest.approx(rss / divisor, rel=1e-12)
+    assert r.to_json()["sigma"] == r.sigma
+    assert r.monte_carlo["std"] == pytest.approx(rss / divisor, rel=0.02)
+    assert max(-r.monte_carlo["min"], r.monte_carlo["max"]) <= r.worst_case * (1 + 1e-9)
+    # brute force: the same designs drawn here, the pin placed by its closed form
+    rng = np.random.default_rng(6)
+    n = 200_000
+    if distribution == "normal":
+        dev = {k: rng.standard_normal(n) * v / 3.0 for k, v in t.items()}
+    else:
+        dev = {k: rng.uniform(-v, v, n) for k, v in t.items()}
+    x = dev["A.x"] + (15.0 + dev["B.u"]) * math.cos(phi) - dev["B.v"] * math.sin(phi)
+    assert np.std(x) == pytest.approx(rss / divisor, rel=0.01)
+
+
+def test_tolerance_command_compares_the_monte_carlo_with_the_right_sigma(tmp_path):
+    """The console line compared uniform dimensions' Monte Carlo with "RSS / 3"; their standard
+    deviation is RSS / sqrt(3)."""
+    path = tmp_path / "u.toml"
+    path.write_text('[defaults]\nit_grade = 9\ndistribution = "uniform"\n')
+    args = ["tolerance", "jb1-3", "--output", "p_needle.point_y", "--phi-deg", "30",
+            "--samples", "4000", "--tolerances", str(path)]
+    out = runner.invoke(app, [*args, "--json"])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.stdout)
+    assert data["sigma"] == pytest.approx(data["rss"] / math.sqrt(3.0), rel=1e-12)
+    assert data["monte_carlo"]["std"] == pytest.approx(data["sigma"], rel=0.05)
+    out = runner.invoke(app, args, env={"COLUMNS": "200"})
+    assert out.exit_code == 0, out.output
+    assert f"(RSS / sqrt(3) = {data['sigma']:.4g} mm" in out.stdout
+    assert "RSS / 3 " not in out.stdout
+
+
 @pytest.mark.parametrize("distribution", ["normal", "uniform"])
 def test_allocation_is_the_least_cost_within_the_band(distribution):
     """The closed forms against SLSQP on min sum b_j / t_j subject to the band."""

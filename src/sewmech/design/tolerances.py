@@ -58,10 +58,23 @@ class ToleranceResult:
     allocation_rule: str | None = None
     band: float | None = None
 
+    @property
+    def sigma_divisor(self) -> tuple[float, str]:
+        """What divides the RSS to give the metric's standard deviation to first order, and its
+        name: 3 for normal dimensions (a tolerance is 3 sigma), sqrt(3) for uniform ones (the
+        standard deviation of a uniform distribution over +-t is t / sqrt(3))."""
+        return (3.0, "3") if self.distribution == "normal" else (math.sqrt(3.0), "sqrt(3)")
+
+    @property
+    def sigma(self) -> float:
+        """The metric's standard deviation to first order, RSS / :attr:`sigma_divisor`: what the
+        Monte Carlo's ``std`` should come close to where the metric is near linear."""
+        return self.rss / self.sigma_divisor[0]
+
     def to_json(self) -> dict:
         return {"metric": self.metric, "unit": self.unit, "value": self.value,
                 "distribution": self.distribution, "worst_case": self.worst_case,
-                "rss": self.rss, "monte_carlo": self.monte_carlo,
+                "rss": self.rss, "sigma": self.sigma, "monte_carlo": self.monte_carlo,
                 "contributions": self.contributions,
                 "tolerances": {n: float(t) for n, t in zip(self.names, self.tolerance)},
                 "derivatives": {n: float(d) for n, d in zip(self.names, self.derivative)},

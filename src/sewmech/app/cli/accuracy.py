@@ -169,8 +169,9 @@ def tolerance_cmd(
     console.print(f"{m.name}: {output} = {res.value:.6g} {u}; {len(res.names)} toleranced"
                   f" dimensions ({res.distribution})")
     console.print(f"  worst case +-{res.worst_case:.4g} {u}, RSS +-{res.rss:.4g} {u}")
-    console.print(f"  Monte Carlo ({mc['n']} designs): std {mc['std']:.4g} {u} (RSS / 3 ="
-                  f" {res.rss / 3:.4g}), p99 of |deviation| {mc['p99']:.4g} {u}, range"
+    console.print(f"  Monte Carlo ({mc['n']} designs): std {mc['std']:.4g} {u} (RSS /"
+                  f" {res.sigma_divisor[1]} = {res.sigma:.4g} {u} to first order, {res.distribution}"
+                  " dimensions), p99 of |deviation| {mc['p99']:.4g} {u}, range"
                   f" {mc['min']:.4g} .. {mc['max']:.4g}")
     how = mc.get("evaluation", {})
     if "located" in how:
@@ -223,7 +224,7 @@ def _write_tolerance(m, out: Path, res, data: dict) -> None:
         fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
         ax.hist(res.deviations, bins=80, density=True, color="C0", alpha=0.6,
                 label=f"Monte Carlo, {res.monte_carlo['n']} designs")
-        sigma = res.rss / 3.0 if res.distribution == "normal" else res.rss / math.sqrt(3.0)
+        sigma = res.sigma
         x = np.linspace(-res.worst_case, res.worst_case, 400)
         ax.plot(x, np.exp(-0.5 * (x / sigma) ** 2) / (sigma * math.sqrt(2 * math.pi)), "k-",
                 lw=1.2, label=f"normal, sigma from the RSS ({sigma:.3g} {u})")
