@@ -8,6 +8,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 from scipy.optimize import brentq
 from sewmech.cli import app
@@ -15,7 +16,7 @@ from typer.testing import CliRunner
 
 import sewmech
 from sewmech.design.optimize import optimize
-from sewmech.design.problem import Problem, load_problem
+from sewmech.design.problem import Problem, batch_values, load_problem
 from sewmech.engine.errors import MachineFileError, OptionError
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -154,6 +155,39 @@ def test_optimize_says_the_objective_is_normalised_and_shows_its_parts():
     assert float(cells[4]) == pytest.approx(start, abs=1e-5)  # (6 digits of ~1 mm)
     assert float(cells[5]) == pytest.approx(part["answer"], abs=1e-5)
     assert "feed_lift = 1.3 mm met" in out.stdout
+
+
+def test_a_channel_at_a_regulator_setting(tmp_path):
+    """A channel or a range with regulator_deg is read at that setting (it was read at the
+    default whatever the file said), by the exact metric and the batch alike; a metric that
+    does not depend on the regulator refuses the key."""
+    from sewmech.engine.extremes import extremes
+
+    text = (SWING.parent / "feed-lift.toml").read_text()
+    text += '\n[[constraints]]\nmetric = "range:p_feed_dog.tip_y"\nregulator_deg = 0.0\nmax = 9.0\n'
+    text += '\n[[constraints]]\nmetric = "p_feed_dog.tip_x"\nphi_deg = 100.0\n' \
+            'regulator_deg = -20.0\nmax = 90.0\n'
+    path = tmp_path / "p.toml"
+    path.write_text(text)
+    spec, m = load_problem(path)
+    p = Problem(spec, m)
+    rng_ref, x_ref = spec.constraints[-2], spec.constraints[-1]
+    ex = extremes(m, "p_feed_dog.tip_y", inputs={"regulator": 0.0})
+    at_zero = ex.maximum.value - ex.minimum.value
+    ex30 = extremes(m, "p_feed_dog.tip_y")  # the working setting
+    assert abs(at_zero - (ex30.maximum.value - ex30.minimum.value)) > 1e-3
+    assert p.metric(rng_ref, p.start)[0] == pytest.approx(at_zero, abs=1e-9)
+    k = sewmech.kinematics(m, np.radians([100.0]), inputs={"regulator": math.radians(-20.0)})
+    x20 = float(k.point("feed_dog.tip").p[0, 0])
+    assert p.metric(x_ref, p.start)[0] == pytest.approx(x20, abs=1e-9)
+    vals, _ = batch_values(p, p.start[None, :])
+    assert vals[("range:p_feed_dog.tip_y", 0.0, 0.0)][0] == pytest.approx(at_zero, abs=1e-7)
+    assert vals[("p_feed_dog.tip_x", -20.0, 100.0)][0] == pytest.approx(x20, abs=1e-9)
+    path.write_text(text.replace('metric = "feed_lift"\nregulator_deg = 0.0',
+                                 'metric = "loop_lift"\nregulator_deg = 0.0'))
+    with pytest.raises(MachineFileError, match=r"\[constraints\] 0.regulator_deg: loop_lift"
+                       " does not depend on the regulator"):
+        load_problem(path)
 
 
 def test_golden_refuses_constraints(tmp_path):

@@ -54,6 +54,10 @@ def worst_relative(d, ref, keep) -> float:
 @pytest.mark.parametrize("name", sorted(shipped_machines()))
 def test_sensitivities_equal_central_differences_on_every_shipped_machine(name):
     m = sewmech.load_machine(name)
+    if "regulator" in m.spec.inputs:
+        # the regulator at its zero mark, inside its range: the file's working setting is the
+        # range's end, where a central difference of the setting would step outside it
+        m = m.with_parameters({"input.regulator": 0.0})
     S = sensitivities(m, PHI)
     P0 = np.array(m.defaults)
     # the counterweights do not move anything (their parameters' derivatives are 0), and a

@@ -171,6 +171,16 @@ def metric_unit(machine: Machine, name: str) -> str:
 FEED_METRICS = ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
 
 
+def _in_range(where: str, table: str, k: int, ref: MetricRef, machine: Machine) -> None:
+    inp = machine.spec.inputs[machine.spec.sewing.regulator]
+    lo = inp.min_deg if inp.min_deg is not None else -180.0
+    hi = inp.max_deg if inp.max_deg is not None else 180.0
+    if not lo <= ref.regulator_deg <= hi:
+        raise MachineFileError(where, table, f"{k}.regulator_deg", f"{ref.regulator_deg:g}"
+                               f" deg is outside the regulator's range {lo:g} .. {hi:g} deg",
+                               "Give a setting within it")
+
+
 def _check_metric(where: str, table: str, k: int, ref: MetricRef, machine: Machine,
                   channels: list[str] | None) -> list[str]:
     """A problem file's metric against what sewmech can evaluate on its machine, where it
@@ -193,15 +203,15 @@ def _check_metric(where: str, table: str, k: int, ref: MetricRef, machine: Machi
                                    f" regulator ([sewing] regulator); '{machine.name}' has"
                                    " none", "Choose another metric")
         if name in FEED_METRICS and ref.regulator_deg is not None:
-            inp = machine.spec.inputs[s.regulator]
-            lo = inp.min_deg if inp.min_deg is not None else -180.0
-            hi = inp.max_deg if inp.max_deg is not None else 180.0
-            if not lo <= ref.regulator_deg <= hi:
-                raise MachineFileError(where, table, f"{k}.regulator_deg", f"{ref.regulator_deg:g}"
-                                       f" deg is outside the regulator's range {lo:g} .. {hi:g}"
-                                       " deg", "Give a setting within it")
+            _in_range(where, table, k, ref, machine)
+        if name not in FEED_METRICS and ref.regulator_deg is not None:
+            raise MachineFileError(where, table, f"{k}.regulator_deg", f"{name} does not"
+                                   " depend on the regulator", "Leave out regulator_deg")
         return channels
     if name in THREAD_METRICS:
+        if ref.regulator_deg is not None:
+            raise MachineFileError(where, table, f"{k}.regulator_deg", f"{name} does not"
+                                   " depend on the regulator", "Leave out regulator_deg")
         return channels
     channel = name.split(":", 1)[1] if name.startswith("range:") else name
     if channel in channels:
@@ -209,6 +219,12 @@ def _check_metric(where: str, table: str, k: int, ref: MetricRef, machine: Machi
             raise MachineFileError(where, table, key, f"{name}: a range is of a position"
                                    " channel (p_POINT_x, theta_LINK, q_VAR)",
                                    "Give range: and a position channel")
+        if ref.regulator_deg is not None:  # the channel at that setting
+            if s is None or s.regulator is None:
+                raise MachineFileError(where, table, f"{k}.regulator_deg", f"machine"
+                                       f" '{machine.name}' has no stitch regulator",
+                                       "Leave out regulator_deg")
+            _in_range(where, table, k, ref, machine)
         return channels
     known = [*METRICS, *THREAD_METRICS]
     ranges = [f"range:{c}" for c in channels if c.split("_")[0] in ("p", "theta", "q")]

@@ -423,8 +423,7 @@ def feed_cmd(
     _bounded("--step-mm", step_mm, 0.01, 10.0, "mm", "0.5")
     m = _load(machine, sets)
     lo, hi = FD.regulator_range_deg(m)
-    zero = m.spec.inputs[m.spec.sewing.regulator].default_deg
-    cyc = FD.feed_cycles(m, [lo, zero, hi]).to_pandas()
+    cyc = FD.feed_cycles(m, [lo, FD.ZERO_MARK_DEG, hi]).to_pandas()  # reverse, zero, forward
     marks = FD.scale_marks(m, step_mm)
     timing = FD.set_feed_timing(m, 0.0) if m.spec.sewing.feed_cam else None
     phase_now = next((u.phase_deg for u in m.spec.units if timing and
