@@ -190,3 +190,64 @@ def test_tolerance_command_prints_the_issue_keys(tmp_path):
     bad = runner.invoke(app, ["tolerance", "jb1-3", "--output", "stitch_length",
                               "--regulator-deg", "45"])
     assert bad.exit_code == 2 and "regulator" in bad.output
+
+
+def test_tolerance_as_the_readme_writes_it_analyses_the_working_setting():
+    """`sewmech tolerance jb1-3 --output stitch_length` analysed the regulator's zero mark (a
+    9e-7 mm stitch, tolerances allocated for it, no word); it analyses the machine's working
+    setting, the longest forward stitch."""
+    from sewmech.sewing.gradients import stitch_length_gradient
+
+    out = runner.invoke(app, ["tolerance", "jb1-3", "--output", "stitch_length", "--samples",
+                              "200", "--json"])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.stdout)
+    g = stitch_length_gradient(sewmech.load_machine("jb1-3"), 30.0)
+    assert data["value"] == pytest.approx(g.value, abs=1e-9) and 4.0 < data["value"] < 4.2
+
+
+@pytest.mark.parametrize("argv, option, give", [
+    (["tolerance", "jb1-3", "--output", "stitch_length", "--regulator-deg", "0"],
+     "--regulator-deg", "--regulator-deg 30"),
+    (["sensitivity", "jb1-3", "--output", "stitch_length", "--input", "regulator=0"],
+     "--input", "--input regulator=30"),
+    (["tolerance", "jb8-2", "--output", "stitch_length", "--regulator-deg", "0"],
+     "--regulator-deg", "--regulator-deg 28"),
+])
+def test_a_stitch_of_round_off_is_refused(argv, option, give):
+    """At the zero mark the stitch is round-off (9e-7 mm): its tolerances and derivatives
+    belong to no stitch. The command refuses it in one located line that names the metric, the
+    setting and the option to give, with the working setting as the suggestion."""
+    out = runner.invoke(app, argv)
+    assert out.exit_code == 2
+    text = " ".join(out.stderr.split())
+    assert text.startswith(f"error: {option}: stitch_length at regulator 0 deg is")
+    assert "round-off of no stitch" in text and f"e.g. {give} (the machine's working" in text
+    assert "Traceback" not in out.output
+
+
+def test_the_library_refuses_a_stitch_of_round_off(tmp_path):
+    """tolerance_analysis and metric_gradient refuse the zero mark's stitch and name their
+    argument; a machine whose own working setting is the zero mark is told the forward end
+    and that its default_deg should be its working setting. A short but real stitch passes."""
+    from sewmech.design.tolerances import metric_gradient
+    from sewmech.engine.errors import OptionError
+
+    m = sewmech.load_machine("jb1-3")
+    with pytest.raises(OptionError, match=r"^regulator_deg: stitch_length at regulator 0 deg"
+                       r".*e\.g\. regulator_deg=30 \(the machine's working setting\)"):
+        tolerance_analysis(m, "stitch_length", regulator_deg=0.0, samples=100)
+    with pytest.raises(OptionError, match="round-off of no stitch"):
+        metric_gradient(m, "stitch_length", regulator_deg=0.0)
+    value, _, _ = metric_gradient(m, "stitch_length", regulator_deg=0.05)  # 6 micrometres
+    assert 1e-3 < value < 1e-2
+    # the lift and the dog's height are no degenerate metrics at the zero mark
+    assert metric_gradient(m, "feed_lift", regulator_deg=0.0)[0] > 1.0
+    text = open(m.file).read().replace("default_deg = 30.0 ", "default_deg = 0.0 ", 1)
+    path = tmp_path / "zero.toml"
+    path.write_text(text)
+    out = runner.invoke(app, ["tolerance", str(path), "--output", "stitch_length"])
+    assert out.exit_code == 2
+    text = " ".join(out.stderr.split())
+    assert "stitch_length at regulator 0 deg" in text and "--regulator-deg 30 (the forward end" \
+        in text and "[inputs.regulator] default_deg should be its working setting" in text

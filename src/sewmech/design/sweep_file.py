@@ -283,7 +283,7 @@ def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
                                        "Add [dynamics] (rpm and step_deg have defaults)")
             if o.regulator_deg is not None:
                 raise MachineFileError(where, "outputs", f"{k}.regulator_deg", "the force"
-                                       " analysis runs at the machine's default settings",
+                                       " analysis runs at the machine's working setting",
                                        "Leave out regulator_deg")
         elif name.startswith("range:") or name in channels:
             channel = name.split(":", 1)[1] if name.startswith("range:") else name

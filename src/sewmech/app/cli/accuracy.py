@@ -29,6 +29,7 @@ METRICS = ("stitch_length", "feed_lift", "dog_height_at_needle_plate", "needle_t
 def _metric(m, name: str, settings: dict) -> tuple[float, np.ndarray, str, dict]:
     """A sewing metric's value, derivatives, unit and event angles (deg)."""
     from ...sewing.gradients import METRICS as FUNCTIONS
+    from ...sewing.gradients import require_a_stitch
     from ...sewing.timing import roles
 
     s = roles(m)
@@ -43,6 +44,8 @@ def _metric(m, name: str, settings: dict) -> tuple[float, np.ndarray, str, dict]
     reg = settings.get(s.regulator)
     deg = m.spec.inputs[s.regulator].default_deg if reg is None else math.degrees(reg)
     g = FUNCTIONS[name](m, deg)
+    require_a_stitch(m, name, g.value, deg, option="--input",
+                     give=f"--input {s.regulator}={{deg:g}}")
     return g.value, g.d_dparam, g.unit, {**g.events_deg, "regulator": deg}
 
 
@@ -201,7 +204,8 @@ def tolerance_cmd(
         progress.add_task(f"tolerance analysis of {output} ({samples} designs)", total=None)
         res = tolerance_analysis(m, output, spec, regulator_deg=regulator_deg, phi_deg=phi_deg,
                                  samples=samples, seed=seed, band=band,
-                                 where=str(tolerances or "tolerances"))
+                                 where=str(tolerances or "tolerances"), option="--regulator-deg",
+                                 give="--regulator-deg {deg:g}")
     data = {"machine": m.name, **res.to_json()}
     if out is not None:
         _write_tolerance(m, out, res, data)

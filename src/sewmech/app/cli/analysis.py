@@ -98,7 +98,7 @@ def check_cmd(
         text += ("; the cranks' ratios do not repeat within 100 turns, so only the first turn"
                  " is proved")
     if len(proofs) > 1:
-        text += " at the default setting and at " + ", ".join(lb for lb, _ in proofs[1:])
+        text += " at the working setting and at " + ", ".join(lb for lb, _ in proofs[1:])
     if proofs[0][1].loop_steps:
         from ...engine.assembly import LOOP_STEP_DEG
 
