@@ -93,12 +93,12 @@ def test_the_optimum_on_a_constraint(tmp_path, method):
     (('metric = "p_B_x"', 'metric = "p_B_xx"'),
      "[constraints] 0.metric: unknown metric 'p_B_xx'. Did you mean p_B_x"),
     (('"range:theta_rocker"', '"range:theta_rocke"'),
-     "[objective.parts] 0.metric: 'theta_rocke' is not a channel of 'fourbar-benchmark'. Did"
-     " you mean range:theta_rocker"),
+     ("[objective.parts] 0.metric: 'theta_rocke' is not a channel of 'fourbar-benchmark'. Did"
+      " you mean range:theta_rocker")),
     (('"range:theta_rocker"', '"range:omega_rocker"'), "a range is of a position channel"),
     (('"range:theta_rocker"', '"stich_length"'), "Did you mean stitch_length"),
-    (('"range:theta_rocker"', '"stitch_length"'), "[objective.parts] 0.metric: stitch_length"
-     " needs a machine with a stitch regulator"),
+    (('"range:theta_rocker"', '"stitch_length"'), ("[objective.parts] 0.metric: stitch_length"
+                                                   " needs a machine with a stitch regulator")),
 ])
 def test_bad_problem_files_are_located(tmp_path, edit, needle):
     with pytest.raises(MachineFileError) as exc:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -243,7 +244,7 @@ def test_the_library_refuses_a_stitch_of_round_off(tmp_path):
     assert 1e-3 < value < 1e-2
     # the lift and the dog's height are no degenerate metrics at the zero mark
     assert metric_gradient(m, "feed_lift", regulator_deg=0.0)[0] > 1.0
-    text = open(m.file).read().replace("default_deg = 30.0 ", "default_deg = 0.0 ", 1)
+    text = Path(m.file).read_text().replace("default_deg = 30.0 ", "default_deg = 0.0 ", 1)
     path = tmp_path / "zero.toml"
     path.write_text(text)
     out = runner.invoke(app, ["tolerance", str(path), "--output", "stitch_length"])

@@ -63,7 +63,8 @@ def sensitivity_cmd(
     phi_deg: float = typer.Option(0.0, "--phi-deg", help="shaft angle, deg (position"
                                   " channels)"),
     inputs: list[str] = typer.Option(None, "--input", help="a setting input NAME=DEG, e.g."
-                                     " regulator=30; repeatable (default: the file's)"),
+                                     " regulator=30; repeatable (default: the machine's"
+                                     " working setting)"),
     top: int = typer.Option(15, help="rows of the table: the parameters whose tolerance moves"
                             " the output most"),
     tolerances: Path = typer.Option(None, help="tolerance file (TOML, docs/accuracy.md) whose"
@@ -77,8 +78,7 @@ def sensitivity_cmd(
     """Exact derivatives of one output by every parameter of the machine, at one shaft angle
     (units: the output's per the parameter's, mm and rad), ranked by what each parameter's
     tolerance moves the output by (derivative x tolerance), so that lengths and angles compare."""
-    from ...design.tolerance_file import (RANKING_ANGLE_DEG, load_tolerance_file,
-                                          ranking_tolerances)
+    from ...design.tolerance_file import RANKING_ANGLE_DEG, load_tolerance_file, ranking_tolerances
     from ...engine.sensitivity import sensitivities
 
     if not (math.isfinite(phi_deg) and abs(phi_deg) <= 1e6):
@@ -170,7 +170,8 @@ def tolerance_cmd(
     band: float = typer.Option(None, help="allocate: the widest tolerances (least cost) that"
                                " keep the output within +-BAND (its unit)"),
     regulator_deg: float = typer.Option(None, "--regulator-deg", help="stitch regulator"
-                                        " setting, deg (default: the file's)"),
+                                        " setting, deg (default: the machine's working"
+                                        " setting)"),
     phi_deg: float = typer.Option(0.0, "--phi-deg", help="shaft angle of a position channel,"
                                   " deg"),
     top: int = typer.Option(12, help="rows of the contributions table"),
@@ -218,8 +219,8 @@ def tolerance_cmd(
                   f" dimensions ({res.distribution})")
     console.print(f"  worst case +-{res.worst_case:.4g} {u}, RSS +-{res.rss:.4g} {u}")
     console.print(f"  Monte Carlo ({mc['n']} designs): std {mc['std']:.4g} {u} (RSS /"
-                  f" {res.sigma_divisor[1]} = {res.sigma:.4g} {u} to first order, {res.distribution}"
-                  " dimensions), p99 of |deviation| {mc['p99']:.4g} {u}, range"
+                  f" {res.sigma_divisor[1]} = {res.sigma:.4g} {u} to first order,"
+                  f" {res.distribution} dimensions), p99 of |deviation| {mc['p99']:.4g} {u}, range"
                   f" {mc['min']:.4g} .. {mc['max']:.4g}")
     how = mc.get("evaluation", {})
     if "located" in how:
