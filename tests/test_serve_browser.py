@@ -48,7 +48,9 @@ def _redraws_after(pg, n: int):
 
 def test_the_regulator_and_a_dimension_move_the_stitch_and_the_drawing(page, tmp_path):
     pg = page
-    assert pg.text_content("#stitch") == "0.00 mm"  # the zero mark: no feed
+    # the page opens at the machine's working setting, the longest forward stitch
+    working = float(feed_cycles(sewmech.load_machine("jb1-3"), 30.0).stitch_mm)
+    assert pg.text_content("#stitch") == f"{working:.2f} mm" and working > 4.0
     assert pg.locator("#checks tbody tr").count() >= 10
     before = _drawing(pg)
     n = pg.evaluate("window.sewmech.redraws")

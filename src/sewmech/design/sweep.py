@@ -167,7 +167,7 @@ def evaluate_chunk(sweep: Sweep, start: int, stop: int) -> Chunk:
 
 def _dynamics(sweep: Sweep, P: np.ndarray, ok: np.ndarray) -> dict[str, np.ndarray]:
     """Peak |driving torque| (N mm) and peak |shaking force| (N) over a turn, at the
-    machine's default settings and the sweep's speed, the machine's loads and masses; NaN for
+    machine's working setting and the sweep's speed, the machine's loads and masses; NaN for
     designs that do not assemble or whose force equations are singular somewhere."""
     from ..engine.dynamics import SingularForceSystem
 

@@ -46,6 +46,12 @@ def _roles(machine: Machine) -> SewingSpec:
     return s
 
 
+#: the regulator's zero mark, deg: a regulator input is its setting from the zero mark (the slot
+#: square to the fork: no feed; docs/notation.md). Its file default is the machine's working
+#: setting instead, which the analyses default to
+ZERO_MARK_DEG = 0.0
+
+
 def regulator_range_deg(machine: Machine) -> tuple[float, float]:
     """(min, max) of the stitch regulator input from the machine file, degrees."""
     inp = machine.spec.inputs[_roles(machine).regulator]
@@ -341,8 +347,7 @@ def check_feed(machine: Machine, params=None) -> list:
     """The feed checks (DOMAIN.md 1.1 and 3.2) as :class:`sewmech.timing.Check` rows."""
     s = _roles(machine)
     lo, hi = regulator_range_deg(machine)
-    zero = machine.spec.inputs[s.regulator].default_deg
-    c = feed_cycles(machine, [lo, zero, hi], params=params)
+    c = feed_cycles(machine, [lo, ZERO_MARK_DEG, hi], params=params)
     w_in, w_below = needle_windows(machine, params)
     out = []
     a, b = FEED_DOG_RISE_MM

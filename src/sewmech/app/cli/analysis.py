@@ -16,6 +16,7 @@ from rich.table import Table
 
 from ...engine.errors import AnalysisError, OptionError, SewmechError
 from ...engine.machine import Machine, file_value, load_machine, shipped_machines
+from ..display import is_round_off, number
 from .common import (DEFAULT_MACHINE, SET_HELP, Format, _bounded, _load, _phi, _phi_grid, _rpm,
                      _settings, command, console, print_json, process_ends)
 
@@ -97,7 +98,7 @@ def check_cmd(
         text += ("; the cranks' ratios do not repeat within 100 turns, so only the first turn"
                  " is proved")
     if len(proofs) > 1:
-        text += " at the default setting and at " + ", ".join(lb for lb, _ in proofs[1:])
+        text += " at the working setting and at " + ", ".join(lb for lb, _ in proofs[1:])
     if proofs[0][1].loop_steps:
         from ...engine.assembly import LOOP_STEP_DEG
 
@@ -144,7 +145,39 @@ def _print_parameters(m: Machine) -> None:
                       highlight=False, soft_wrap=True)
 
 
+def _channels(res):
+    """Every channel of a kinematics result as (label, unit, x, rate, accel, scale, size): the
+    values in the unit shown (``scale`` converts from the internal one) and ``size``, the size
+    of the quantity in internal units, below whose round-off a value reads 0 (mm: the largest
+    distance of any point from the origin; rad: a turn)."""
+    w = float(np.max(np.abs(res.omega_shaft))) if res.phi.size else 0.0
+    pts = [res.point(pt).p for pt in res.point_names]
+    length = max([float(np.nanmax(np.abs(p))) for p in pts if p.size] + [1.0])
+    turn = 2.0 * math.pi
+    out = []
+    for pt in res.point_names:
+        m = res.point(pt)
+        for c, ax in (("x", 0), ("y", 1)):
+            out.append((f"{pt}.{c}", "mm", m.p[:, ax], m.v[:, ax], m.a[:, ax], 1.0, length))
+    for lk in res.link_names:
+        if lk == "frame":
+            continue
+        m = res.link(lk)
+        th = np.unwrap(m.theta)
+        th -= turn * np.round(th[0] / turn)  # start in (-180, 180] deg
+        out.append((f"theta {lk}", "deg", th, m.omega, m.epsilon, 180.0 / math.pi, turn))
+    for var in res.variable_names:
+        m = res.variable(var)
+        rad = m.unit == "rad"
+        out.append((f"q {var}", "deg" if rad else m.unit, m.q, m.q_dot, m.q_ddot,
+                    180.0 / math.pi if rad else 1.0, turn if rad else length))
+    return out, w
+
+
 def _summary(res) -> Table:
+    """A whole turn: each channel's least and greatest value and its largest rate and
+    acceleration; a channel is called constant only when it neither moves nor has a rate or an
+    acceleration (each at the round-off of its size, :mod:`sewmech.app.display`)."""
     rpm = res.omega_shaft[0] * 60 / (2 * math.pi) if res.phi.size else 0.0
     table = Table(title=f"{res.machine}: kinematics over {res.phi.size} positions ({rpm:g} rpm)",
                   caption="rate: unit/s, accel: unit/s^2; link angles are unwrapped"
@@ -152,31 +185,49 @@ def _summary(res) -> Table:
     for col in ("channel", "unit", "min", "max", "max |rate|", "max |accel|"):
         table.add_column(col, justify="right" if col not in ("channel", "unit") else "left",
                          overflow="fold")  # long names wrap instead of being cut
-
-    def row(label, unit, x, dx, ddx, scale=1.0):
-        if np.ptp(x) < 1e-12:
-            table.add_row(label, unit, f"{x[0] * scale:.4f}", "(constant)", "0", "0")
-            return
-        table.add_row(label, unit, f"{x.min() * scale:.4f}", f"{x.max() * scale:.4f}",
-                      f"{np.abs(dx).max() * scale:.4g}", f"{np.abs(ddx).max() * scale:.4g}")
-
     if not res.phi.size:
         return table
-    for pt in res.point_names:
-        m = res.point(pt)
-        for c, ax in (("x", 0), ("y", 1)):
-            row(f"{pt}.{c}", "mm", m.p[:, ax], m.v[:, ax], m.a[:, ax])
-    for lk in res.link_names:
-        if lk == "frame":
+    channels, w = _channels(res)
+    for label, unit, x, dx, ddx, scale, size in channels:
+        rate, acc = float(np.abs(dx).max()), float(np.abs(ddx).max())
+        if (is_round_off(float(np.ptp(x)), size) and is_round_off(rate, size * w)
+                and is_round_off(acc, size * w * w)):
+            table.add_row(label, unit, number(x[0] * scale, size * scale, 7), "(constant)",
+                          "0", "0")
             continue
-        m = res.link(lk)
-        th = np.unwrap(m.theta)
-        th -= 2.0 * math.pi * np.round(th[0] / (2.0 * math.pi))  # start in (-180, 180] deg
-        row(f"theta {lk}", "deg", th, m.omega, m.epsilon, 180.0 / math.pi)
-    for var in res.variable_names:
-        m = res.variable(var)
-        scale = 180.0 / math.pi if m.unit == "rad" else 1.0
-        row(f"q {var}", "deg" if m.unit == "rad" else m.unit, m.q, m.q_dot, m.q_ddot, scale)
+        table.add_row(label, unit, number(x.min() * scale, size * scale, 7),
+                      number(x.max() * scale, size * scale, 7),
+                      number(rate * scale, size * w * scale), number(acc * scale,
+                                                                     size * w * w * scale))
+    return table
+
+
+def _values(res) -> Table:
+    """At the shaft angles asked for (--phi-deg): each channel's value, rate and acceleration
+    at each angle, one row an angle."""
+    rpm = res.omega_shaft[0] * 60 / (2 * math.pi) if res.phi.size else 0.0
+    phi_deg = np.degrees(res.phi)
+    at = ", ".join(f"{p:g}" for p in phi_deg)
+    table = Table(title=f"{res.machine}: kinematics at phi = {at} deg ({rpm:g} rpm)",
+                  caption="value: unit, rate: unit/s, accel: unit/s^2; link angles in"
+                          " (-180, 180] deg")
+    for col in ("channel", "unit", "phi, deg", "value", "rate", "accel"):
+        table.add_column(col, justify="right" if col not in ("channel", "unit") else "left",
+                         overflow="fold")
+    if not res.phi.size:
+        return table
+    channels, w = _channels(res)
+    several = res.phi.size > 1
+    for label, unit, x, dx, ddx, scale, size in channels:
+        if unit == "deg" and label.startswith("theta "):
+            x = np.angle(np.exp(1j * x))  # each angle on its own, not unwrapped across them
+            x = np.where(x <= -math.pi, x + 2.0 * math.pi, x)
+        for k in range(res.phi.size):
+            table.add_row(label if k == 0 else "", unit if k == 0 else "", f"{phi_deg[k]:g}",
+                          number(x[k] * scale, size * scale, 7),
+                          number(dx[k] * scale, size * w * scale),
+                          number(ddx[k] * scale, size * w * w * scale),
+                          end_section=several and k == res.phi.size - 1)
     return table
 
 
@@ -185,7 +236,9 @@ def kinematics_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="shipped machine name or TOML file"),
     step_deg: float = typer.Option(5.0, help="shaft-angle step, deg"),
     phi_deg: list[float] = typer.Option(None, "--phi-deg", help="only at these shaft angles,"
-                                        " deg; repeatable (default: a turn in --step-deg steps)"),
+                                        " deg; repeatable: each channel's value, rate and"
+                                        " acceleration at each (default: a turn in --step-deg"
+                                        " steps, summarised)"),
     rpm: float = typer.Option(None, help="shaft speed, rev/min (default: the file's)"),
     out: Path = typer.Option(None, help="write the channels into this directory"),
     format: Format = typer.Option(Format.csv, "--format", help="file format with --out"),
@@ -214,7 +267,7 @@ def kinematics_cmd(
         json.dump(kinematics_to_dict(res), sys.stdout)
         sys.stdout.write("\n")
         return
-    console.print(_summary(res))
+    console.print(_summary(res) if not phi_deg else _values(res))
     if out is not None:
         console.print(f"written: {out / f'{m.name}-kinematics.{format.value}'}")
 
@@ -370,8 +423,7 @@ def feed_cmd(
     _bounded("--step-mm", step_mm, 0.01, 10.0, "mm", "0.5")
     m = _load(machine, sets)
     lo, hi = FD.regulator_range_deg(m)
-    zero = m.spec.inputs[m.spec.sewing.regulator].default_deg
-    cyc = FD.feed_cycles(m, [lo, zero, hi]).to_pandas()
+    cyc = FD.feed_cycles(m, [lo, FD.ZERO_MARK_DEG, hi]).to_pandas()  # reverse, zero, forward
     marks = FD.scale_marks(m, step_mm)
     timing = FD.set_feed_timing(m, 0.0) if m.spec.sewing.feed_cam else None
     phase_now = next((u.phase_deg for u in m.spec.units if timing and
