@@ -63,7 +63,8 @@ def feed_section(figs: Figures, machine: Machine, step) -> dict:
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
     bx.plot(curve.regulator_deg, curve.lift_mm, color="C2", label="lift above plate")
-    bx.axhspan(*FD.FEED_DOG_RISE_MM, color="C2", alpha=0.1, label="DOMAIN.md 1.1 band")
+    bx.axhspan(*FD.FEED_DOG_RISE_MM, color="C2", alpha=0.1,
+               label="published band [Sdelai-sam-1999]")
     bx.set_ylabel("dog lift [mm]")
     bx.set_xlabel(f"regulator angle [deg] (travel {lo:g} .. {hi:g})")
     bx.legend(fontsize=8)
@@ -74,7 +75,8 @@ def feed_section(figs: Figures, machine: Machine, step) -> dict:
     figs.add(fig, "stitch-curve", "Stitch length and scale-plate marks",
              "Stitch length (the dog's fore-aft travel while above the plate) and lift over the"
              " regulator's travel; dots: the regulator angle of every 0.5 mm mark of the scale"
-             " plate, forward and reverse (table below).", curve.to_pandas(), table=mk)
+             " plate, forward and reverse (table below); shaded: the lift of the Podolsk"
+             " household machine [Sdelai-sam-1999].", curve.to_pandas(), table=mk)
     step("stitch curve")
 
     sens = FD.sensitivity(machine, 0.05)
