@@ -78,3 +78,11 @@ def test_table_cells_by_column_unit_and_by_row_unit():
                         "value": [1.09469, -1.97373e-17, 229.3, -2.58701e-15, 0.000529327],
                         "unit": ["N m", "N m", "W", "W", "kg m^2"]})
     assert table_cells(key)["value"].tolist() == ["1.09469", "0", "229.3", "0", "0.000529327"]
+
+
+def test_signed_values_of_legends_have_no_negative_zero():
+    from sewmech.app.display import signed
+
+    assert signed(-1.22e-05) == "0" and signed(-1.22e-05, 4) == "0"
+    assert signed(3.5) == "+3.50" and signed(-25.7343) == "-25.73"
+    assert signed(-25.7343, 4) == "-25.7343"

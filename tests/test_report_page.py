@@ -94,11 +94,11 @@ def test_the_mechanism_is_drawn_with_every_name(reports, name):
     for i, pt in enumerate(r.point_names):
         assert pts.loc[pt, "x_mm"] == pytest.approx(r.p[0, i, 0], abs=1e-6)
         assert pts.loc[pt, "y_mm"] == pytest.approx(r.p[0, i, 1], abs=1e-6)
-    # the drawing's text has every label (SVG keeps text as text)
+    # the drawing's text (SVG keeps text as text) has every point's and pair's name: a pin
+    # named as its point shares the point's label
     svg = (d / f"{name}-mechanism.svg").read_text(encoding="utf-8")
-    labels = data[data["label_x_mm"].notna()]
-    for n in labels["name"]:
-        assert f">{html.escape(n)}<" in svg or n in svg, n
+    texts = {html.unescape(t) for t in re.findall(r">([^<>]*)</text>", svg)}
+    assert names <= texts, names - texts
 
 
 def test_the_pairs_of_the_force_table_are_in_the_drawing(reports):
@@ -112,7 +112,7 @@ def test_the_pairs_of_the_force_table_are_in_the_drawing(reports):
 
 @pytest.mark.parametrize("name", REPORTS)
 def test_tables_show_no_round_off_and_no_flags_as_python_writes_them(reports, name):
-    _, page, _ = reports[name]
+    d, page, _ = reports[name]
     tables = _tables(page)
     bad = re.findall(r">\s*(True|False|nan|NaN|-0(?:\.0+)?|[-0-9.]+e-(?:1\d|0[5-9]))\s*<",
                      tables)
@@ -123,6 +123,9 @@ def test_tables_show_no_round_off_and_no_flags_as_python_writes_them(reports, na
         assert checks["stitch at the regulator's zero mark"] == "0"
         sens = [r for r in _rows(page) if r and r[0] == "feed cam width (fork gap)"]
         assert sens and all(c in ("0", "yes") for c in sens[0][1:]), sens
+        # the zero mark's curve is named as a zero, in the data and in the legend
+        header = (d / f"{name}-feed-trajectories.csv").read_text().splitlines()[0]
+        assert "x_mm_reg_0deg" in header and "-0.0" not in header
 
 
 def test_a_section_left_out_says_why(reports):

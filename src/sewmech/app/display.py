@@ -123,3 +123,10 @@ def table_cells(df):
                 cells.append(str(v))
         out[c] = cells
     return pd.DataFrame(out, columns=df.columns)
+
+
+def signed(x: float, decimals: int = 2) -> str:
+    """``x`` with its sign and ``decimals`` decimals (a legend's ``+3.50 mm``); a value that
+    rounds to zero there reads ``0``, never ``-0.00``."""
+    v = round(float(x), decimals)
+    return "0" if v == 0.0 else f"{v:+.{decimals}f}"

@@ -10,6 +10,7 @@ import pandas as pd
 
 from ...engine.machine import Machine
 from ...sewing import feed as FD
+from ..display import signed
 from ..drawing.figures import Figures, subplots
 
 
@@ -27,10 +28,10 @@ def feed_section(figs: Figures, machine: Machine, step) -> dict:
     fig, (ax, bx) = subplots(1, 2, figsize=(11, 4.6), constrained_layout=True)
     data = {"phi_deg": c.phi_deg}
     for k, reg in enumerate(regs):
-        lab = f"{c.stitch_mm[k]:+.2f} mm (regulator {reg:+.2f} deg)"
+        lab = f"{signed(c.stitch_mm[k])} mm (regulator {signed(reg)} deg)"
         ax.plot(c.x[k], c.y[k], lw=1.4, label=lab)
-        data[f"x_mm_reg_{reg:+.4f}deg"] = c.x[k]
-        data[f"y_above_plate_mm_reg_{reg:+.4f}deg"] = c.y[k]
+        data[f"x_mm_reg_{signed(reg, 4)}deg"] = c.x[k]
+        data[f"y_above_plate_mm_reg_{signed(reg, 4)}deg"] = c.y[k]
     for a in (ax, bx):
         a.axhline(0.0, color="k", lw=1)
         a.set_xlabel("dog tooth tip x [mm] (+x: towards the back)")
