@@ -6,7 +6,8 @@ whole machine evaluated again.
   lambda = r / l (the slider's inertia force is m r w^2 (cos phi + lambda cos 2 phi + ...)
   along the guide; the counterweight's is S w^2 along the crank);
 - a four-bar with a heavy coupler fully force-balanced by counterweights on crank and rocker
-  (Berkof and Lowen's conditions), where the shaking force vanishes at every angle;
+  (Berkof and Lowen's conditions, [Berkof-Lowen-1969]), where the shaking force vanishes at
+  every angle;
 - the linear basis against the dynamics of the whole machine for arbitrary counterweights, and
   each peak criterion's answer against a brute-force search on the whole machine.
 """

@@ -75,7 +75,7 @@ def test_needle_stroke_is_twice_the_crank_radius(machine):
     y = res.point("needle.point").p[:, 1]
     assert np.ptp(res.point("needle.point").p[:, 0]) < 1e-12  # the bar moves vertically
     assert np.ptp(y) == pytest.approx(2.0 * r, abs=1e-9)
-    assert r == pytest.approx(17.5)  # 35 mm stroke (DOMAIN 1.1: Juki DDL-5550H)
+    assert r == pytest.approx(17.5)  # 35 mm stroke ([Juki-six-elements]: Juki DDL-5550H)
     assert np.degrees(phi[np.argmax(y)]) == pytest.approx(90.0)  # the file's convention
     # closed form of the centred slider-crank at phi: y_C = r sin(phi) - sqrt(l^2 - r^2 cos^2)
     l = 50.0

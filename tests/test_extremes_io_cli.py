@@ -180,7 +180,7 @@ def test_cli_report_writes_page_figures_and_tables(tmp_path):
     page = (out_dir / "index.html").read_text()
     checks = pd.read_csv(out_dir / "jb1-3-checks.csv")
     assert f"All {len(checks)} checks pass" in page and len(checks) == 11
-    figures = ("motion", "eye-path", "timing-diagram", "feed-trajectories", "stitch-curve",
+    figures = ("mechanism", "motion", "eye-path", "timing-diagram", "feed-trajectories", "stitch-curve",
                "feed-sensitivity", "thread-balance", "take-up-adjustment", "thread-consumption",
                "dyn-torque", "dyn-energy", "dyn-shaking", "dyn-bearings", "dyn-pairs",
                "dyn-pressure", "dyn-regulator", "dyn-needle", "bal-components", "bal-hodograph",

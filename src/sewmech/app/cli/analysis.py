@@ -534,6 +534,7 @@ def report_cmd(
     from rich.progress import Progress
 
     from ...sewing.timing import roles
+    from ..display import number_in
     from ..files.outdir import preflight
     from ..report import write_report
 
@@ -569,7 +570,7 @@ def report_cmd(
     for col in ("check", "value", "expected", "result"):
         table.add_column(col)
     for c in pd.read_csv(index.parent / f"{m.name}-checks.csv").itertuples():
-        table.add_row(c.check, f"{c.value:.4g} {c.unit}", c.expected,
+        table.add_row(c.check, f"{number_in(c.value, c.unit, digits=4)} {c.unit}", c.expected,
                       "[green]pass[/]" if c.result == "pass" else "[red]FAIL[/]")
     console.print(table)
     console.print(f"[bold]report:[/] {index.resolve()}")

@@ -14,6 +14,7 @@ import pandas as pd
 from ...design.balancing import (CRITERIA, FIGURES, BalanceResult, balance, balance_basis,
                                 paper_workflow, shaft_counterweight, tradeoff)
 from ...engine.machine import Machine
+from .page import arc_cam_note
 
 #: labels and units of the figures, for tables
 FIGURE_LABELS = {"delta_q_N": ("Delta-Q = | max|Qx| - max|Qy| |", "N"),
@@ -118,7 +119,8 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
     figs.add(fig, "bal-components", "Shaking force components, before and after",
              "The x and y components of the resultant inertia force of all moving links on"
              f" the frame over one turn, as the file has it and with {cws} (dotted: each"
-             " component's peak). The balancing paper's criterion makes the two peaks equal.",
+             " component's peak). The balancing paper's criterion makes the two peaks equal."
+             + arc_cam_note(machine),
              pd.DataFrame({"phi_deg": phi_deg, "Qx_before_N": before["F"][:, 0],
                            "Qy_before_N": before["F"][:, 1], "Qx_after_N": after["F"][:, 0],
                            "Qy_after_N": after["F"][:, 1]}))
@@ -142,7 +144,8 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
     ax.set_title(f"{name}: shaking force hodograph, each criterion's answer")
     figs.add(fig, "bal-hodograph", "Shaking force hodographs",
              "The tip of the shaking force vector over one turn before balancing and with each"
-             " criterion's counterweights (solid: the one shown in the other figures).",
+             " criterion's counterweights (solid: the one shown in the other figures)."
+             + arc_cam_note(machine),
              pd.DataFrame(data))
 
     # ---- bearings as polar plots -------------------------------------------------------------
@@ -164,7 +167,8 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
         figs.add(fig, "bal-bearings", "Upper-shaft bearing reactions, before and after",
                  "The force each bearing of the upper shaft takes, as a polar plot (angle: its"
                  " direction in the frame; radius: its size in N) over one turn, before and"
-                 f" with the {criterion} counterweights.", pd.DataFrame(bdata))
+                 f" with the {criterion} counterweights." + arc_cam_note(machine),
+                 pd.DataFrame(bdata))
 
     # ---- trade-off front ---------------------------------------------------------------------
     if front:
@@ -238,16 +242,20 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
 def section_html(machine: Machine, sec: dict) -> str:
     """The balancing section's heading and text: what was balanced, every criterion's answer
     side by side, and the paper's workflow."""
+    from ..display import is_round_off
     from ..drawing.figures import table_html
 
     main = sec["main"]
     names = ", ".join(html.escape(n) for n in main.counterweights)
     none = "".join(f" <b>{html.escape(c)}</b> proposes nothing: {html.escape(r.message)}."
                    for c, r in sec["results"].items() if not r.proposed)
+    err = sec["basis_error"]  # round-off of the forces (the basis is exact): said so
+    agree = ("as the balancing basis predicts, to round-off" if is_round_off(
+        err, main.before["peak_force_N"]) else f"largest difference from the balancing basis"
+        f" {err:.2g} N")
     return (f'<h2 id="balancing">Balancing</h2><p>Counterweights chosen at {main.rpm:g} rpm for'
             f" each criterion (docs/balancing.md), every answer computed again on the whole"
-            f" machine (largest difference from the balancing basis"
-            f" {sec['basis_error']:.2g} N). Shown below: <b>{html.escape(main.criterion)}</b>"
+            f" machine ({agree}). Shown below: <b>{html.escape(main.criterion)}</b>"
             f" ({html.escape(main.status)}: {html.escape(main.message)}) on {names}.{none}</p>"
             + table_html(sec["comparison"]) + paper_html(sec["paper"]))
 

@@ -140,15 +140,12 @@ def _mechanism(figs: Figures, name: str, before, after, machine) -> None:
     """Every point's path over a turn for the start (grey) and the answer (colour), the links
     at phi = 0."""
     from ...engine.kinematics import kinematics
+    from ..drawing.mechanism import link_points
 
     phi = np.radians(np.arange(0.0, 361.0, 2.0))
     fig, ax = subplots(figsize=(7.5, 7), constrained_layout=True)
     cols = {}
-    links: dict = {}
-    for pt, owners in machine.point_links.items():
-        for link in owners:
-            if link != "frame":
-                links.setdefault(link, []).append(pt)
+    links = link_points(machine)
     for params, style, label in ((before, dict(color="0.6", lw=0.8), "start"),
                                  (after, dict(lw=1.3), "answer")):
         r = kinematics(machine, phi, params=params, on_failure="mask")

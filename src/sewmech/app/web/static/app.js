@@ -250,7 +250,8 @@ function renderChecks() {
     const v = tr.insertCell(); v.className = "num"; v.textContent = `${fmt(c.value, 3)} ${c.unit}`;
     tr.insertCell().textContent = c.expected;
     const r = tr.insertCell(); r.className = c.passed ? "pass" : "fail"; r.textContent = c.passed ? "pass" : "FAIL";
-    tr.insertCell().textContent = c.source;
+    const src = tr.insertCell(); src.textContent = c.source;  // keys of docs/references.md
+    src.title = (c.references || []).map((r) => `[${r.key}] ${r.source} ${r.url}`.trim()).join("\n");
   }
   if (S.checks && S.checks.error) {
     const tr = body.insertRow(); const td = tr.insertCell(); td.colSpan = 5; td.className = "fail";
