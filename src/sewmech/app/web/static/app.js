@@ -287,7 +287,6 @@ function ctxOf(canvas, aspect) {
   c.setTransform(dpr, 0, 0, dpr, 0, 0);
   c.clearRect(0, 0, canvas._w, canvas._h);
   canvas.labels = [];
-  c.canvas_ = canvas;
   return [c, canvas._w, canvas._h];
 }
 
@@ -306,7 +305,7 @@ function textBox(c, s, x, y, align = "left", baseline = "alphabetic", rotated = 
 function text(c, s, x, y, o = {}) {
   const box = textBox(c, s, x, y, o.align, o.baseline, o.rotated);
   // an optional text (a tick's label) that would touch another one is left out
-  if (o.optional && c.canvas_.labels.some((b) => overlaps(box, b, 1))) return null;
+  if (o.optional && c.canvas.labels.some((b) => overlaps(box, b, 1))) return null;
   if (o.rotated) {
     c.save(); c.translate(x, y); c.rotate(-Math.PI / 2); c.fillText(s, 0, 0); c.restore();
   } else {
@@ -316,7 +315,7 @@ function text(c, s, x, y, o = {}) {
     }
     c.fillText(s, x, y);
   }
-  c.canvas_.labels.push({text: s, kind: o.kind || "", ...box});
+  c.canvas.labels.push({text: s, kind: o.kind || "", ...box});
   return box;
 }
 
@@ -341,7 +340,6 @@ function spacedTicks(c, ticks, length, lo, hi, size) {
   const need = Math.max(...inside.map(size)) + 8;
   const px = length * (inside[1] - inside[0]) / (hi - lo);
   const k = Math.max(1, Math.ceil(need / px));
-  // keep the ends of a whole-turn axis (0 and 360) when the step allows it
   return inside.filter((_, i) => i % k === 0);
 }
 
@@ -389,20 +387,39 @@ function chart(canvas, series, o = {}) {
   }
   const lineH = 14, T = 6 + (entries.length ? rows.length * lineH : 4), B = 36;
   const fmtY = (t) => fmt(t, 3);
-  const yt = niceTicks(y0, y1), yt2 = has2 ? niceTicks(r2[0], r2[1]) : [];
-  const wy = Math.max(0, ...yt.filter((t) => t >= y0 && t <= y1).map((t) => c.measureText(fmtY(t)).width));
-  const wy2 = Math.max(0, ...yt2.filter((t) => t >= r2[0] && t <= r2[1]).map((t) => c.measureText(fmtY(t)).width));
-  const L = 24 + wy, R = has2 ? 24 + wy2 : 10;
-  const pw = W - L - R, ph = H - T - B;
-  if (o.equal) {  // the same mm per pixel on both axes
-    const sx = (x1 - x0) / pw, sy = (y1 - y0) / ph, sc = Math.max(sx, sy);
-    const cx = (x0 + x1) / 2, cy = (y0 + y1) / 2;
-    x0 = cx - sc * pw / 2; x1 = cx + sc * pw / 2; y0 = cy - sc * ph / 2; y1 = cy + sc * ph / 2;
+  const widest = (ticks, lo, hi) => Math.max(0, ...ticks.filter((t) => t >= lo && t <= hi)
+    .map((t) => c.measureText(fmtY(t)).width));
+  const yt2 = has2 ? niceTicks(r2[0], r2[1]) : [], wy2 = has2 ? widest(yt2, r2[0], r2[1]) : 0;
+  // the left margin as wide as the y ticks' labels, which depend on the range, which (equal
+  // scales) depends on the margin: until it settles
+  const rx = [x0, x1], ry = [y0, y1];
+  let L, pw, yt, wy = 0;
+  const R = has2 ? 24 + wy2 : 10, ph = H - T - B;
+  for (let pass = 0; pass < 4; pass++) {
+    L = 24 + wy; pw = W - L - R;
+    [x0, x1] = rx; [y0, y1] = ry;
+    if (o.equal) {  // the same mm per pixel on both axes
+      const sx = (x1 - x0) / pw, sy = (y1 - y0) / ph, sc = Math.max(sx, sy);
+      const cx = (x0 + x1) / 2, cy = (y0 + y1) / 2;
+      x0 = cx - sc * pw / 2; x1 = cx + sc * pw / 2; y0 = cy - sc * ph / 2; y1 = cy + sc * ph / 2;
+    }
+    yt = niceTicks(y0, y1);
+    const w = widest(yt, y0, y1);
+    if (w <= wy) break;
+    wy = w;
   }
   const X = (x) => L + (x - x0) / (x1 - x0) * pw;
   const Ys = [(y) => T + (y1 - y) / (y1 - y0) * ph];
   if (has2) Ys.push((y) => T + (r2[1] - y) / (r2[1] - r2[0]) * ph);
   const Y = Ys[0];
+  // the axes' labels first, then the ticks' labels, each left out where it would touch one
+  c.font = LABEL_FONT; c.fillStyle = "#333";
+  if (o.xlabel) text(c, o.xlabel, L + pw / 2, H - 3, {align: "center", baseline: "bottom", kind: "axis"});
+  if (o.ylabel) text(c, fitText(c, o.ylabel, ph), 3, T + ph / 2, {align: "center", baseline: "top", rotated: true, kind: "axis"});
+  if (has2 && o.y2label) {
+    text(c, fitText(c, o.y2label, ph), W - 3, T + ph / 2, {align: "center", baseline: "bottom", rotated: true, kind: "axis"});
+  }
+  c.font = FONT;
   // grid and tick labels
   c.strokeStyle = "#e3e3e3"; c.fillStyle = "#555";
   const xticks = spacedTicks(c, o.xticks || niceTicks(x0, x1), pw, x0, x1, (t) => c.measureText(fmt(t, 2)).width);
@@ -422,12 +439,6 @@ function chart(canvas, series, o = {}) {
     }
   }
   c.strokeStyle = "#999"; c.strokeRect(L, T, pw, ph);
-  c.font = LABEL_FONT; c.fillStyle = "#333";
-  text(c, o.xlabel || "", L + pw / 2, H - 3, {align: "center", baseline: "bottom", kind: "axis"});
-  if (o.ylabel) text(c, fitText(c, o.ylabel, ph), 3, T + ph / 2, {align: "center", baseline: "top", rotated: true, kind: "axis"});
-  if (has2 && o.y2label) {
-    text(c, fitText(c, o.y2label, ph), W - 3, T + ph / 2, {align: "center", baseline: "bottom", rotated: true, kind: "axis"});
-  }
   c.font = FONT;
   for (const h of o.hlines || []) {
     const Yh = Ys[h.axis || 0];
