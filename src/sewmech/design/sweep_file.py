@@ -24,7 +24,7 @@ name = "stitch_30"                 # the column (default: the metric, and its se
 min = 3.6                          # limits: a design outside them is not feasible
 max = 4.2
 
-[dynamics]                         # for peak_torque (N mm) and peak_shaking_force (N)
+[dynamics]                         # for peak_torque (N m) and peak_shaking_force (N)
 rpm = 1000.0                       # default: the machine file's [speed]
 step_deg = 2.0
 
@@ -56,7 +56,8 @@ from ._models import Bounds, Header, MetricRef, Strict
 
 DOC = "docs/sweeps.md"
 #: the outputs the force analysis gives (one DynamicsPlan call per chunk of designs)
-DYNAMICS_METRICS = {"peak_torque": "N mm", "peak_shaking_force": "N"}
+#: (N m, as every table and figure of sewmech gives a torque; N mm inside)
+DYNAMICS_METRICS = {"peak_torque": "N m", "peak_shaking_force": "N"}
 #: the most designs a sweep file may ask for (a grid's product included)
 MAX_DESIGNS = 10**10
 

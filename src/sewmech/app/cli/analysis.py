@@ -25,8 +25,8 @@ from .common import (DEFAULT_MACHINE, SET_HELP, Format, _bounded, _load, _phi, _
 def machines_cmd():
     """List the machine files shipped with sewmech."""
     table = Table(title="shipped machines")
-    for col in ("name", "title", "units", "file"):
-        table.add_column(col)
+    for col in ("name", "title", "units", "file"):  # a path is never cut: in a narrow
+        table.add_column(col, overflow="fold")       # terminal it goes on to the next line
     for name, path in sorted(shipped_machines().items()):
         m = load_machine(path)
         table.add_row(name, m.spec.machine.title, str(len(m.unit_names)), str(path))
@@ -114,10 +114,12 @@ def check_cmd(
 
 def _margin_table(m: Machine, proofs) -> Table:
     """The smallest assembly margin of every closed-form unit over the turn and settings."""
-    table = Table(title=f"{m.name}: assembly margins (how far each unit is from failing to"
-                        " assemble; smallest over the turn)")
-    for col in ("unit", "condition", "margin [mm]", "at phi [deg]", "setting"):
-        table.add_column(col, justify="right" if col.startswith(("margin", "at")) else "left")
+    table = Table(title=f"{m.name}: assembly margins", caption="how far each unit is from"
+                  " failing to assemble: the smallest over the turn and the settings")
+    for col in ("unit", "condition", "margin [mm]", "at phi [deg]", "setting"):  # (escaped:
+        # rich would take [mm] for a style)
+        table.add_column(escape(col), justify="right" if col.startswith(("margin", "at"))
+                         else "left")
     worst: dict[str, tuple] = {}
     for label, proof in proofs:
         for g in proof.margins:
@@ -125,7 +127,7 @@ def _margin_table(m: Machine, proofs) -> Table:
                 worst[g.unit] = (g, label or "default")
     for g, label in worst.values():
         table.add_row(g.unit, escape(g.condition), f"{g.value_mm:.4g}", f"{g.phi_deg:.4g}",
-                      label)
+                      escape(label))
     return table
 
 
@@ -447,8 +449,8 @@ def feed_cmd(
         table.add_row(*(f"{getattr(row, c):.4g}" for c in cols))
     console.print(table)
     mt = Table(title=f"scale-plate marks every {step_mm:g} mm")
-    mt.add_column("stitch [mm]", justify="right")
-    mt.add_column("regulator [deg]", justify="right")
+    mt.add_column(escape("stitch [mm]"), justify="right")
+    mt.add_column(escape("regulator [deg]"), justify="right")
     for k in marks:
         mt.add_row(f"{k.stitch_mm:+.2f}", f"{k.regulator_deg:+.4f}")
     console.print(mt)
@@ -485,8 +487,8 @@ def embroidery_cmd(
         sys.stdout.write("\n")
         return
     table = Table(title=f"{m.name}: thread drawn, alpha {alpha_deg:g} deg, beta {beta_deg:g} deg")
-    table.add_column("phi [deg]", justify="right")
-    table.add_column("L [mm]", justify="right")
+    table.add_column(escape("phi [deg]"), justify="right")
+    table.add_column(escape("L [mm]"), justify="right")
     for a, b in zip(phi, L):
         table.add_row(f"{a:g}", f"{b:.2f}")
     console.print(table)
