@@ -519,6 +519,22 @@ def test_speed_fluctuation_obeys_the_equation_of_motion():
     assert 0.05 < big.delta / sf.delta < 0.2
 
 
+@pytest.mark.parametrize("rpm", [1.0, 10.0])
+def test_no_steady_cycle_at_a_crawl_is_said_not_a_root_finder_error(rpm):
+    """At a few rev/min the weights' work over the turn would swing the shaft faster than the
+    mean speed even from rest: no constant motor torque holds that mean (scipy's bracket error
+    escaped before)."""
+    from sewmech.dynamics import speed_fluctuation
+    from sewmech.engine.errors import AnalysisError
+
+    with pytest.raises(AnalysisError, match=f"no steady cycle at {rpm:g} rpm") as info:
+        speed_fluctuation(load_machine("jb1-3"), rpm=rpm)
+    assert "flywheel" in info.value.hint
+    # a flywheel large enough carries it: the mean speed is then the one asked for
+    sf = speed_fluctuation(load_machine("jb1-3"), rpm=rpm, flywheel=1e9)
+    assert sf.omega.mean() == pytest.approx(rpm * 2 * math.pi / 60, rel=1e-9)
+
+
 def test_speed_fluctuation_needs_inertia():
     from sewmech.dynamics import speed_fluctuation
 

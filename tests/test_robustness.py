@@ -499,6 +499,15 @@ def test_3_a_bom_is_fine_and_directories_and_missing_files_are_named(tmp_path):
     run(["kinematics", "jb13"], has=("jb13", "jb1-3"))
 
 
+def test_3_a_directory_named_like_a_shipped_machine_does_not_hide_it(tmp_path, monkeypatch):
+    # `sewmech report jb8-2 --out jb8-2` leaves a directory of the machine's name behind: the
+    # next command on the shipped name must still find the machine
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "jb8-2").mkdir()
+    assert sewmech.load_machine("jb8-2").name == "jb8-2"
+    run(["check", "jb8-2"], code=0)
+
+
 MISTAKES = [  # (case, argv, message part)
     ("input-twice", ["kinematics", "jb1-3", "--input", "regulator=10", "--input",
                      "regulator=-10"], "given twice"),

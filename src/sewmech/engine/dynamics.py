@@ -1069,7 +1069,20 @@ def speed_fluctuation(machine: Machine, *, rpm: float | None = None, flywheel: f
 
     from scipy.optimize import brentq
 
-    w0 = brentq(lambda w: omega_for(w).mean() - w_nom, 1e-3 * w_nom, 10 * w_nom, xtol=1e-12)
+    def excess(w0):  # the mean speed over the nominal one: rises with the speed at phi = 0
+        return omega_for(w0).mean() - w_nom
+
+    if excess(0.0) >= 0.0:  # from rest at phi = 0 the work of the loads alone is too fast
+        raise AnalysisError(machine.file, f"no steady cycle at {w_nom * 30 / math.pi:g} rpm:"
+                           " the work of the weights and process loads over the turn moves"
+                           " the machine's reduced inertia (least J"
+                           f" {J.min():.3g} kg mm^2) faster than that even from rest",
+                           "Give the links' [masses] (a crank's inertia too), add a flywheel"
+                           " or raise the speed")
+    hi = 10.0 * w_nom
+    while excess(hi) < 0.0:  # the mean grows like w0 sqrt(J0 / J): a bracket is near
+        hi *= 10.0
+    w0 = brentq(excess, 0.0, hi, xtol=1e-12)
     om = omega_for(w0)
     if not (J[0] * w0 ** 2 + 2e3 * W > 0).all():
         raise AnalysisError(machine.file, "the shaft stops within the cycle: the motor torque"

@@ -1375,10 +1375,11 @@ def load_machine(name_or_path: str | Path) -> Machine:
     """Load and compile a machine file by path, or a shipped machine by name (``"jb1-3"``).
 
     The argument is a path first: a file of that name in the working directory (even without
-    ``.toml``) is read instead of the shipped machine of the same name."""
+    ``.toml``) is read instead of the shipped machine of the same name; a directory of that
+    name (an output directory ``jb8-2/``, say) is not a machine file and does not hide it."""
     path = Path(name_or_path).expanduser()
     shipped = shipped_machines()
-    if str(name_or_path) in shipped and not path.exists():
+    if str(name_or_path) in shipped and not path.is_file():
         path = shipped[str(name_or_path)]
     elif not path.exists():
         known = ", ".join(sorted(shipped))
