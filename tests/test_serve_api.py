@@ -111,6 +111,14 @@ def test_checks_are_the_librarys_checks(url, jb, machine):
     for got, want in zip(body["checks"], direct):
         assert got["value"] == pytest.approx(want.value, abs=1e-6)
         assert got["passed"] is bool(want.passed)
+    # shown at the precision of its quantity, as the report shows it: the zero mark's stitch
+    # (round-off of a 4 mm stroke, about 1e-6 mm) reads 0, a real value with its digits
+    shown = {c["check"]: c["shown"] for c in body["checks"]}
+    zero = [c for c in direct if "zero mark" in c.name and c.unit == "mm" and abs(c.value) < 1e-3]
+    assert zero and all(shown[c.name] == "0" for c in zero)
+    assert all("e-" not in v for v in shown.values())
+    real = next(c for c in direct if c.unit == "mm" and abs(c.value) > 1.0)
+    assert float(shown[real.name]) == pytest.approx(real.value, abs=1e-4)
     events = {e["event"]: e["value"] for e in body["events"]}
     assert events["needle top dead centre"] == pytest.approx(
         sewmech.timing.needle_stroke(machine, P).top_phi_deg, abs=1e-6)

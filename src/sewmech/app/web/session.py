@@ -489,11 +489,14 @@ class Session:
 
 
 def check_dict(c) -> dict:
-    """A check as the page shows it; ``references``: the entries its source's keys cite
-    (key, source, url: docs/references.md)."""
+    """A check as the page shows it; ``shown``: its value as the report shows it (at the
+    precision of its quantity: the zero mark's stitch of round-off reads 0); ``references``:
+    the entries its source's keys cite (key, source, url: docs/references.md)."""
     from ...sewing.references import cited
+    from ..display import number_in
 
     return {"check": c.name, "value": _num(c.value), "unit": c.unit, "expected": c.expected,
+            "shown": number_in(_num(c.value), c.unit),
             "passed": bool(c.passed), "source": c.source,
             "references": [r.brief() for r in cited(c.source)]}
 

@@ -247,7 +247,7 @@ function renderChecks() {
   for (const c of rows) {
     const tr = body.insertRow();
     tr.insertCell().textContent = c.check;
-    const v = tr.insertCell(); v.className = "num"; v.textContent = `${fmt(c.value, 3)} ${c.unit}`;
+    const v = tr.insertCell(); v.className = "num"; v.textContent = `${c.shown ?? fmt(c.value, 3)} ${c.unit}`;
     tr.insertCell().textContent = c.expected;
     const r = tr.insertCell(); r.className = c.passed ? "pass" : "fail"; r.textContent = c.passed ? "pass" : "FAIL";
     const src = tr.insertCell(); src.textContent = c.source;  // keys of docs/references.md
