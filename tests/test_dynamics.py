@@ -478,8 +478,8 @@ def test_load_file_errors(tmp_path):
     import pandas as pd
 
     df = pd.read_csv(tmp_path / "o" / "jb1-3-dynamics.csv")
-    # the window's ends by the grid's own round-off (a CSV angle is degrees(radians(k 5)), one
-    # ulp off for some k; the load's own window test allows 1e-9 deg), far inside the 5 deg step
+    # the window's ends with room for the grid's round-off (degrees(radians(5 k)) is an ulp off
+    # for some k; the load's own window test allows 1e-9 deg), far inside the 5 deg step
     on = (df.phi_deg >= 350 - 1e-6) | (df.phi_deg <= 20 + 1e-6)
     # exactly 0 outside: the kernel multiplies the load's force by its window flag (0 or 1)
     assert (df.external_power_W[~on] == 0).all() and (df.external_power_W[on] != 0).any()
