@@ -649,9 +649,9 @@ def test_written_block_solvers(monkeypatch):
     """The force kernel's written block solvers (sewmech._blocks) are what the generator writes;
     each solves random blocks as numpy's LU does, reports a singular block, and the whole
     JB1-3 solve agrees with the kernel's generic loop."""
+    from sewmech.dynamics import DynamicsPlan
     from sewmech.engine import _blockgen, _blocks, _kernels
     from sewmech.engine._kernels import PIVOT_MIN
-    from sewmech.dynamics import DynamicsPlan
 
     assert open(_blocks.__file__).read() == _blockgen.source(), (
         "sewmech/engine/_blocks.py is stale: run python -m sewmech.engine._blockgen")
