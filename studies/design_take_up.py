@@ -3,7 +3,7 @@
 This is how the take-up of ``jb1-3.toml`` and ``jb8-2.toml`` was found (see the notes beside
 ``take_up.eye`` in those files). It searches the take-up's eight dimensions (crank pin T, rocker
 pivot Q, lever and rocker lengths, the eye on the lever) with differential evolution, scoring
-each batch of designs on the thread balance of ``sewmech.thread`` (DOMAIN.md 2.3) at 0.5 deg:
+each batch of designs on the thread balance of ``sewmech.thread`` (docs/references.md) at 0.5 deg:
 
 - overfeed >= 0.5 mm while the shuttle enlarges the loop;
 - 0.5-9 mm of overfeed when the needle enters the fabric (the check spring takes it);

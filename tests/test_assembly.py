@@ -83,7 +83,7 @@ def test_jb_machines_are_proved_at_every_regulator_limit():
     for name in ("jb1-3", "jb8-2"):
         m = sewmech.load_machine(name)
         spec = m.spec.inputs["regulator"]
-        for reg in (spec.min_deg, spec.default_deg, spec.max_deg):
+        for reg in (spec.min_deg, 0.0, spec.max_deg):  # both ends and the zero mark
             proof = prove_assembly(m, inputs={"regulator": math.radians(reg)}, step_deg=5.0)
             assert proof.ok, (name, reg, proof.failures)
             assert proof.loop_steps == 1440 and set(proof.loop_units) == {

@@ -6,7 +6,8 @@ whole machine evaluated again.
   lambda = r / l (the slider's inertia force is m r w^2 (cos phi + lambda cos 2 phi + ...)
   along the guide; the counterweight's is S w^2 along the crank);
 - a four-bar with a heavy coupler fully force-balanced by counterweights on crank and rocker
-  (Berkof and Lowen's conditions), where the shaking force vanishes at every angle;
+  (Berkof and Lowen's conditions, [Berkof-Lowen-1969]), where the shaking force vanishes at
+  every angle;
 - the linear basis against the dynamics of the whole machine for arbitrary counterweights, and
   each peak criterion's answer against a brute-force search on the whole machine.
 """
@@ -22,7 +23,7 @@ import pytest
 from conftest import BENCH, FOURBAR, SLIDER_CRANK
 from sewmech import machine_from_toml
 from sewmech.design.balancing import FIGURES, balance, balance_basis, figures
-from sewmech.engine.errors import OptionError
+from sewmech.engine.errors import AnalysisError, OptionError
 
 
 def slider_crank_with_cw(r=15.0, l=44.0, m_s=0.05, radius=12.0, limit=None):
@@ -227,11 +228,14 @@ def test_a_limit_bounds_the_answer_and_delta_q_says_when_it_cannot_reach_zero():
     assert res.status == "bounded"
     assert res.counterweights["cw"]["static_moment_gcm"] == pytest.approx(30.0, rel=1e-9)
     assert "max_static_moment_gcm" in res.message
-    # Delta-Q = 0 needs 50.3 g cm: with 30 allowed there is no root; the least Delta-Q is at 30
+    # Delta-Q = 0 needs 50.3 g cm: with 30 allowed there is no root; the least Delta-Q is at
+    # 30, kept for information (nothing is proposed)
     res = balance(slider_crank_with_cw(r=r, m_s=m_s, limit=30.0), "delta-q")
-    assert res.status == "infeasible"
-    assert res.counterweights["cw"]["static_moment_gcm"] == pytest.approx(30.0, rel=1e-6)
-    assert res.after["delta_q_N"] > 1.0
+    assert res.status == "infeasible" and not res.proposed
+    closest = res.closest
+    assert closest["counterweights"]["cw"]["static_moment_gcm"] == pytest.approx(30.0, rel=1e-6)
+    assert closest["figures"]["delta_q_N"] > 1.0
+    assert "max_static_moment_gcm" in res.message
 
 
 def test_bad_balancing_options_are_located():
@@ -251,8 +255,12 @@ def test_bad_balancing_options_are_located():
         balance(fb, "delta-q")
     plain = machine_from_toml(SLIDER_CRANK.format(r=15.0, l=44.0, e=0.0, alpha=90.0, gx=0.0,
                                                   gy=0.0, branch=1))
-    with pytest.raises(OptionError, match="has no counterweights"):
+    # the file lacks them, not an option: the error names the machine, not --counterweight
+    with pytest.raises(AnalysisError, match="has no counterweights") as exc:
         balance(plain, "rms")
+    assert "--counterweight" not in str(exc.value)
+    with pytest.raises(OptionError, match="'cw' is not a counterweight.*it has none"):
+        balance(plain, "rms", ["cw"])
 
 
 def test_the_trade_off_front_is_what_no_other_set_beats():
@@ -272,3 +280,63 @@ def test_the_trade_off_front_is_what_no_other_set_beats():
     m, _, _ = berkof_lowen()
     T = tradeoff(balance_basis(m, step_deg=6.0), n=256)
     assert T["front"].any() and T["xy"].shape == (256, 2, 2)
+
+
+def slider_crank_cw_at(angle_deg, extra=""):
+    """The slider-crank of :func:`slider_crank_with_cw` with its counterweight turned to
+    ``angle_deg`` (no limit), and ``extra`` lines for its table."""
+    text = SLIDER_CRANK.format(r=15.0, l=44.0, e=0.0, alpha=90.0, gx=0.0, gy=0.0, branch=1)
+    return machine_from_toml(text + f"""
+[masses.block]
+mass = 0.05
+com = [0.0, 0.0]
+inertia_zz = 0.0
+[counterweights.cw]
+link = "crank"
+static_moment_gcm = 0.0
+angle_deg = {angle_deg}
+radius_mm = 12.0
+{extra}""")
+
+
+def test_an_infeasible_delta_q_proposes_nothing_and_says_what_is_achievable():
+    """Along 45 deg Delta-Q has no root: the static moment of least Delta-Q would make the
+    peak shaking force several times worse, so it is kept for information only; the machine
+    stays as the file has it, and the least peak force with the same counterweight is what
+    the result offers instead."""
+    res = balance(slider_crank_cw_at(45.0), "delta-q")
+    assert res.status == "infeasible" and not res.proposed
+    peak0 = res.before["peak_force_N"]
+    assert res.closest["figures"]["peak_force_N"] > 3.0 * peak0  # what was presented before
+    # nothing changed: no counterweight, no overrides, the figures after are the file's
+    assert res.counterweights == res.counterweights_before
+    assert res.counterweights["cw"]["static_moment_gcm"] == 0.0 and res.overrides == {}
+    assert res.after == res.before
+    alt = res.alternative
+    assert alt.criterion == "peak" and alt.proposed
+    assert alt.after["peak_force_N"] < 0.9 * peak0
+    assert "No counterweight is proposed" in res.message and "--criterion peak" in res.message
+    data = res.to_json()
+    assert data["status"] == "infeasible"
+    assert data["counterweights"] is None and data["after"] is None
+    assert data["alternative"]["option"] == "--criterion peak"
+    assert data["alternative"]["after"]["peak_force_N"] == pytest.approx(
+        float(alt.after["peak_force_N"]), rel=1e-12)
+    assert "not proposed" in data["closest"]["note"]
+    # the paper's workflow: no S_add, no S_opt and no recipe for an infeasible answer
+    from sewmech.design.balancing import paper_workflow
+
+    paper = paper_workflow(slider_crank_cw_at(45.0), "cw", result=res)
+    assert paper["s_add_gcm"] is None and paper["s_opt_gcm"] is None
+    assert paper["build"] is None and "no root" in paper["build_refused"]
+
+
+def test_a_delta_q_root_that_raises_the_peak_force_says_so():
+    worse = balance(slider_crank_cw_at(120.0), "delta-q")  # equal peaks at 2.5 x the peak
+    assert worse.status == "optimal"
+    assert worse.after["peak_force_N"] > 2.0 * worse.before["peak_force_N"]
+    assert "raise the peak shaking force" in worse.message
+    assert "--criterion peak" in worse.message
+    better = balance(slider_crank_cw_at(180.0), "delta-q")
+    assert better.after["peak_force_N"] < better.before["peak_force_N"]
+    assert "raise" not in better.message

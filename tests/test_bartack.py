@@ -75,7 +75,7 @@ def test_needle_stroke_is_twice_the_crank_radius(machine):
     y = res.point("needle.point").p[:, 1]
     assert np.ptp(res.point("needle.point").p[:, 0]) < 1e-12  # the bar moves vertically
     assert np.ptp(y) == pytest.approx(2.0 * r, abs=1e-9)
-    assert r == pytest.approx(17.5)  # 35 mm stroke (DOMAIN 1.1: Juki DDL-5550H)
+    assert r == pytest.approx(17.5)  # 35 mm stroke ([Juki-six-elements]: Juki DDL-5550H)
     assert np.degrees(phi[np.argmax(y)]) == pytest.approx(90.0)  # the file's convention
     # closed form of the centred slider-crank at phi: y_C = r sin(phi) - sqrt(l^2 - r^2 cos^2)
     l = 50.0
@@ -94,3 +94,32 @@ def test_delta_q_balancing_of_the_extra_counterweight(machine):
     assert 10.0 < s_add < 400.0
     assert res.counterweights["extra"]["angle_deg"] == pytest.approx(180.0)
     assert res.after["peak_force_N"] < res.before["peak_force_N"]
+
+
+def test_the_files_header_states_what_the_command_prints(machine):
+    """The header comment's numbers are the command's (S_opt was 178.5 g cm in the header,
+    the sum of the two counterweights, where the command prints the crank's net 142.9)."""
+    import re
+    from pathlib import Path
+
+    from sewmech.design.balancing import paper_workflow
+
+    head = " ".join(line.lstrip("# ") for line in Path(machine.file).read_text(
+        encoding="utf-8").splitlines() if line.startswith("#"))
+    p = paper_workflow(machine, "extra")
+    res = p["result"]
+    said = {key: float(re.search(pattern, head).group(1)) for key, pattern in (
+        ("s_add", r"finds S_add = ([\d.]+) g cm"),
+        ("s_opt", r"prints S_opt = \|S_1 \+ S_add\| = ([\d.]+) g cm"),
+        ("s1", r"S_1 = ([\d.]+) g cm being"),
+        ("peak0", r"peak shaking force falls from ([\d.]+) N"),
+        ("peak1", r"peak shaking force falls from [\d.]+ N to ([\d.]+) N"))}
+    got = {"s_add": p["s_add_gcm"], "s_opt": p["s_opt_gcm"], "s1": p["s1_gcm"],
+           "peak0": res.before["peak_force_N"], "peak1": res.after["peak_force_N"]}
+    for key, value in said.items():  # each stated to one decimal
+        assert abs(got[key] - value) <= 0.05 + 1e-9 * value, (key, got[key], value)
+    # and the sum the paper's S_opt = S_fact + S_add would give, named as such
+    assert f"43.5 + {said['s_add']:.1f} = {43.5 + said['s_add']:.1f} g cm" in head
+    out = CliRunner().invoke(app, ["balance", NAME])
+    assert out.exit_code == 0
+    assert f"S_opt = |S_1 + S_add| {said['s_opt']:.4g} g cm" in " ".join(out.stdout.split())

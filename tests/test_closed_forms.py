@@ -76,8 +76,8 @@ def test_needle_bar_rise_after_bottom_dead_centre():
 
     With the pin at its lowest point at BDC and the rod hanging down to the bar, a crank turn of
     delta lifts the pin r(1 - cos delta) and tilts the rod, which lifts the bar a further
-    l[1 - sqrt(1 - (r/l)^2 sin^2 delta)]. (DOMAIN.md 3.1 prints this term with a minus sign,
-    which is the piston-above-crank inversion; for the needle bar the sign is plus.)
+    l[1 - sqrt(1 - (r/l)^2 sin^2 delta)]. (The textbook form has a minus sign there:
+    the piston-above-crank inversion; for the needle bar the sign is plus.)
     """
     r, l = 15.35, 44.0
     m = slider_crank(r=r, l=l, alpha=90.0, branch=-1)

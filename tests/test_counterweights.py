@@ -157,7 +157,13 @@ z_mm = 260.0
     ('link = "crank"\nstatic_moment_gcm = 5.0\nangle_deg = 3.0', "give either mass_g and at_mm"),
     ('link = "crankk"\nmass_g = 5.0\nat_mm = [1.0, 2.0]', "Did you mean crank"),
     ('link = "frame"\nmass_g = 5.0\nat_mm = [1.0, 2.0]', "not a moving link"),
-    ('link = "crank"\nmass_g = -5.0\nat_mm = [1.0, 2.0]', "greater than or equal to 0"),
+    # out of its domain: what it means and what to give, not the validation library's words
+    ('link = "crank"\nmass_g = -5.0\nat_mm = [1.0, 2.0]',
+     "mass_g: is -5 g: a counterweight's mass cannot be negative. Give 0"),
+    ('link = "crank"\nstatic_moment_gcm = 5.0\nangle_deg = 3.0\nradius_mm = 10.0\n'
+     'max_static_moment_gcm = 0.0', "the largest static moment the space allows must be > 0"),
+    ('link = "crank"\nstatic_moment_gcm = 5.0\nangle_deg = 3.0\nradius_mm = 10.0\n'
+     'bore_mm = -8.0', "bore_mm: is -8 mm: the diameter of the shaft"),
 ])
 def test_bad_counterweight_tables_are_located(table, needle):
     with pytest.raises(MachineFileError) as exc:

@@ -180,7 +180,7 @@ def test_cli_report_writes_page_figures_and_tables(tmp_path):
     page = (out_dir / "index.html").read_text()
     checks = pd.read_csv(out_dir / "jb1-3-checks.csv")
     assert f"All {len(checks)} checks pass" in page and len(checks) == 11
-    figures = ("motion", "eye-path", "timing-diagram", "feed-trajectories", "stitch-curve",
+    figures = ("mechanism", "motion", "eye-path", "timing-diagram", "feed-trajectories", "stitch-curve",
                "feed-sensitivity", "thread-balance", "take-up-adjustment", "thread-consumption",
                "dyn-torque", "dyn-energy", "dyn-shaking", "dyn-bearings", "dyn-pairs",
                "dyn-pressure", "dyn-regulator", "dyn-needle", "bal-components", "bal-hodograph",
@@ -386,3 +386,69 @@ def test_reused_tick_updates_follow_the_axis():
         assert [t.get_loc() for t in ax.xaxis._update_ticks()] == [0, 2, 4]
         ax.xaxis.set_major_locator(FixedLocator([1, 3]))
         assert [t.get_loc() for t in ax.xaxis._update_ticks()] == [1, 3]
+
+
+def _rows(text: str, label: str) -> list[list[str]]:
+    """The cells of a channel's rows in a printed table (its own row and those that follow
+    with an empty first cell)."""
+    rows, on = [], False
+    for line in text.splitlines():
+        cells = [c.strip() for c in line.split("│")[1:-1]]
+        if not cells:
+            continue
+        if cells[0] == label:
+            on = True
+        elif cells[0]:
+            on = False
+        if on:
+            rows.append(cells)
+    return rows
+
+
+def test_kinematics_at_one_angle_shows_the_values_there():
+    """--phi-deg 225 printed 0 and "(constant)" for every rate and acceleration (a range of one
+    value has no spread): one angle, or a few, are a table of the values at each angle."""
+    m = sewmech.load_machine("jb1-3")
+    out = runner.invoke(app, ["kinematics", "jb1-3", "--phi-deg", "225"],
+                        env={"COLUMNS": "140"})
+    assert out.exit_code == 0, out.stderr
+    assert "(constant)" not in out.stdout
+    r = sewmech.kinematics(m, np.radians([225.0]))
+    (row,) = _rows(out.stdout, "needle.point.y")
+    assert row[1:3] == ["mm", "225"]
+    p, v, a = (float(c) for c in row[3:6])
+    pm = r.point("needle.point")
+    assert p == pytest.approx(pm.p[0, 1], rel=1e-6)
+    assert v == pytest.approx(pm.v[0, 1], rel=1e-3) and abs(v) > 100.0  # mm/s at 1000 rpm
+    assert a == pytest.approx(pm.a[0, 1], rel=1e-3) and abs(a) > 1e3
+    # a frame point: its place, no rate
+    assert _rows(out.stdout, "O2.x")[0][3:6] == ["-16.25", "0", "0"]
+    # a few angles: a row each
+    out = runner.invoke(app, ["kinematics", "jb1-3", "--phi-deg", "0", "--phi-deg", "90",
+                              "--phi-deg", "225"], env={"COLUMNS": "140"})
+    assert out.exit_code == 0, out.stderr
+    rows = _rows(out.stdout, "needle.point.y")
+    r = sewmech.kinematics(m, np.radians([0.0, 90.0, 225.0]))
+    assert [c[2] for c in rows] == ["0", "90", "225"]
+    np.testing.assert_allclose([float(c[4]) for c in rows], r.point("needle.point").v[:, 1],
+                               rtol=1e-3, atol=1e-6 * 1000.0)
+
+
+def test_kinematics_summary_calls_constant_only_what_does_not_move():
+    """The whole turn's summary: a channel is constant only when its position, its rate and its
+    acceleration are all round-off; a crank pin's x at 90 and 270 deg has the same value (0)
+    at both but moves, and is not called constant."""
+    from rich.console import Console
+
+    from sewmech.app.cli.analysis import _summary
+
+    m = fourbar()
+    r = sewmech.kinematics(m, np.radians([90.0, 270.0]))
+    assert np.ptp(r.point("B").p[:, 0]) < 1e-12 and np.abs(r.point("B").v[:, 0]).min() > 1.0
+    con = Console(width=200, record=True)
+    con.print(_summary(r))
+    text = con.export_text()
+    (row,) = _rows(text, "B.x")
+    assert "(constant)" not in row and float(row[4]) > 1.0
+    (row,) = _rows(text, "A.x")  # the frame pivot
+    assert row[3:6] == ["(constant)", "0", "0"]

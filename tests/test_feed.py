@@ -246,10 +246,33 @@ def test_stitch_lift_and_window_against_a_dense_grid(jb, reg):
 
 
 def test_zero_mark_gives_no_feed(jb):
-    """The regulator's zero mark of the file (slot square to the fork) feeds nothing."""
+    """The regulator's zero mark of the file (slot square to the fork) feeds nothing; the feed
+    checks read it there (the regulator's 0 deg), not at the file's working setting."""
+    from sewmech.timing import check_timing
+
     assert abs(_reference(jb, 0.0)["stitch"]) <= 0.01
     assert abs(F.stitch_length(jb, 0.0)) <= 0.01
     assert abs(F.zero_mark(jb)) < 0.01  # deg
+    checks = {c.name: c for c in check_timing(jb)}
+    assert abs(checks["stitch at the regulator's zero mark"].value) <= 1e-5
+    assert checks["feed dog above the plate at the top of lift (zero mark)"].value == \
+        pytest.approx(float(F.feed_cycles(jb, 0.0).lift_mm), abs=1e-12)
+
+
+@pytest.mark.parametrize("name", ["jb1-3", "jb8-2"])
+def test_the_working_setting_is_the_longest_forward_stitch(name):
+    """A machine file's default_deg is its working setting: the JB machines' is the forward end
+    of the regulator's travel, so the library (and every command and the page) analyse a
+    stitch, not the zero mark's round-off."""
+    m = sewmech.load_machine(name)
+    spec = m.spec.inputs["regulator"]
+    assert spec.default_deg == spec.max_deg > 0.0
+    phi = np.radians(np.arange(0.0, 360.0, 5.0))
+    at_default = sewmech.kinematics(m, phi).point(DOG).p
+    at_max = sewmech.kinematics(m, phi, inputs={"regulator": math.radians(spec.max_deg)}
+                                ).point(DOG).p
+    np.testing.assert_array_equal(at_default, at_max)
+    assert 3.6 <= float(F.feed_cycles(m, spec.default_deg).stitch_mm) <= 4.2
 
 
 def test_stitch_curve_monotonic_and_four_mm_both_ways(jb):

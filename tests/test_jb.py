@@ -60,7 +60,7 @@ def test_shuttle_swing_fact(jb):
 
 def test_loop_lift_fact_against_slider_crank_formula(jb):
     """Rise after BDC from the in-line slider-crank formula h = r(1-cos d) + l[1-sqrt(1-(r/l)^2
-    sin^2 d)] (DOMAIN.md 3.1 with the sign for a bar hanging below its crank)."""
+    sin^2 d)] (the sign for a bar hanging below its crank)."""
     ll = T.loop_lift(jb)
     r, l = _spec_value(jb, "B.u"), _spec_value(jb, "needle_bar.length")
     dl = math.radians(ll.after_bdc_deg)

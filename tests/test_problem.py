@@ -8,6 +8,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 from scipy.optimize import brentq
 from sewmech.cli import app
@@ -15,7 +16,7 @@ from typer.testing import CliRunner
 
 import sewmech
 from sewmech.design.optimize import optimize
-from sewmech.design.problem import Problem, load_problem
+from sewmech.design.problem import Problem, batch_values, load_problem
 from sewmech.engine.errors import MachineFileError, OptionError
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -87,11 +88,106 @@ def test_the_optimum_on_a_constraint(tmp_path, method):
     (("upper = 18.0", "upper = 5.0"), "lower < upper"),
     (('sense = "max"', 'sense = "most"'), "sense"),
     (("max = 14.0", "mx = 14.0"), "mx"),
+    # an unknown metric is located (file, table, key) where it enters, with the known ones it
+    # resembles (it was found only when evaluated: no file, table or key)
+    (('metric = "p_B_x"', 'metric = "p_B_xx"'),
+     "[constraints] 0.metric: unknown metric 'p_B_xx'. Did you mean p_B_x"),
+    (('"range:theta_rocker"', '"range:theta_rocke"'),
+     ("[objective.parts] 0.metric: 'theta_rocke' is not a channel of 'fourbar-benchmark'. Did"
+      " you mean range:theta_rocker")),
+    (('"range:theta_rocker"', '"range:omega_rocker"'), "a range is of a position channel"),
+    (('"range:theta_rocker"', '"stich_length"'), "Did you mean stitch_length"),
+    (('"range:theta_rocker"', '"stitch_length"'), ("[objective.parts] 0.metric: stitch_length"
+                                                   " needs a machine with a stitch regulator")),
 ])
 def test_bad_problem_files_are_located(tmp_path, edit, needle):
     with pytest.raises(MachineFileError) as exc:
         load_problem(write(tmp_path, CONSTRAINED.replace(*edit, 1)))
     assert "p.toml" in str(exc.value) and needle in str(exc.value)
+
+
+def test_unknown_metric_on_the_command_line(tmp_path):
+    """`sewmech optimize` with a misspelt metric: one located error line, exit 2, before any
+    work; and a feed metric's setting outside the regulator's range is located too."""
+    text = SWING.read_text().replace('"range:theta_rocker"', '"range:theta_rockr"')
+    path = tmp_path / "p.toml"
+    path.write_text(text)
+    out = CliRunner().invoke(app, ["optimize", str(path)])
+    assert out.exit_code == 2
+    assert f"{path}: [objective.parts] 0.metric: 'theta_rockr' is not a channel" in \
+        " ".join(out.stderr.split())
+    jb = (SWING.parent / "jb13-toward-jb82.toml").read_text()
+    path.write_text(jb.replace("regulator_deg = 25.0", "regulator_deg = 45.0", 1))
+    with pytest.raises(MachineFileError, match=r"\[objective.parts\] 0.regulator_deg: 45 deg is"
+                       r" outside the regulator's range -30 .. 30 deg"):
+        load_problem(path)
+
+
+def test_optimize_says_the_objective_is_normalised_and_shows_its_parts():
+    """The feed-lift problem minimises the dog's height at needle entry: the command printed
+    "objective -1 -> -2.05" and nothing in mm. It says the objective is normalised and how, and
+    shows each part in its own unit at the start and at the answer; the objective is the parts
+    divided by their scales (here the part's size at the start)."""
+    lift = SWING.parent / "feed-lift.toml"
+    out = CliRunner().invoke(app, ["optimize", str(lift), "--method", "slsqp", "--json"])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.stdout)
+    (part,) = data["objective_parts"]
+    assert part["metric"] == "dog_height_at_needle_plate" and part["unit"] == "mm"
+    assert part["regulator_deg"] == 30.0 and part["sense"] == "min"
+    spec, m = load_problem(lift)
+    p = Problem(spec, m)
+    start = p.metric(spec.objective.parts[0], p.start)[0]
+    assert part["start"] == pytest.approx(start, abs=1e-9) and start < -0.5  # mm, below
+    assert part["scale"] == pytest.approx(abs(start), rel=1e-12)
+    assert data["objective_start"] == pytest.approx(-1.0, rel=1e-12)
+    assert data["objective"] == pytest.approx(part["answer"] / part["scale"], rel=1e-9)
+    assert part["answer"] < start - 0.5  # lower by more than half a millimetre
+    out = CliRunner().invoke(app, ["optimize", str(lift), "--method", "slsqp"],
+                             env={"COLUMNS": "160"})
+    assert out.exit_code == 0, out.output
+    text = " ".join(out.stdout.split())
+    assert "(normalised, dimensionless: the sum of the parts' w ((f - t) / s)^2" in text
+    row = next(line for line in out.stdout.splitlines() if "dog_height_at_needle_plate" in line
+               and "regulator 30 deg" in line)
+    cells = [c.strip() for c in row.split("│")[1:-1]]
+    assert cells[2] == "min" and cells[6] == "mm"
+    assert float(cells[4]) == pytest.approx(start, abs=1e-5)  # (6 digits of ~1 mm)
+    assert float(cells[5]) == pytest.approx(part["answer"], abs=1e-5)
+    assert "feed_lift = 1.3 mm met" in out.stdout
+
+
+def test_a_channel_at_a_regulator_setting(tmp_path):
+    """A channel or a range with regulator_deg is read at that setting (it was read at the
+    default whatever the file said), by the exact metric and the batch alike; a metric that
+    does not depend on the regulator refuses the key."""
+    from sewmech.engine.extremes import extremes
+
+    text = (SWING.parent / "feed-lift.toml").read_text()
+    text += '\n[[constraints]]\nmetric = "range:p_feed_dog.tip_y"\nregulator_deg = 0.0\nmax = 9.0\n'
+    text += '\n[[constraints]]\nmetric = "p_feed_dog.tip_x"\nphi_deg = 100.0\n' \
+            'regulator_deg = -20.0\nmax = 90.0\n'
+    path = tmp_path / "p.toml"
+    path.write_text(text)
+    spec, m = load_problem(path)
+    p = Problem(spec, m)
+    rng_ref, x_ref = spec.constraints[-2], spec.constraints[-1]
+    ex = extremes(m, "p_feed_dog.tip_y", inputs={"regulator": 0.0})
+    at_zero = ex.maximum.value - ex.minimum.value
+    ex30 = extremes(m, "p_feed_dog.tip_y")  # the working setting
+    assert abs(at_zero - (ex30.maximum.value - ex30.minimum.value)) > 1e-3
+    assert p.metric(rng_ref, p.start)[0] == pytest.approx(at_zero, abs=1e-9)
+    k = sewmech.kinematics(m, np.radians([100.0]), inputs={"regulator": math.radians(-20.0)})
+    x20 = float(k.point("feed_dog.tip").p[0, 0])
+    assert p.metric(x_ref, p.start)[0] == pytest.approx(x20, abs=1e-9)
+    vals, _ = batch_values(p, p.start[None, :])
+    assert vals[("range:p_feed_dog.tip_y", 0.0, 0.0)][0] == pytest.approx(at_zero, abs=1e-7)
+    assert vals[("p_feed_dog.tip_x", -20.0, 100.0)][0] == pytest.approx(x20, abs=1e-9)
+    path.write_text(text.replace('metric = "feed_lift"\nregulator_deg = 0.0',
+                                 'metric = "loop_lift"\nregulator_deg = 0.0'))
+    with pytest.raises(MachineFileError, match=r"\[constraints\] 0.regulator_deg: loop_lift"
+                       " does not depend on the regulator"):
+        load_problem(path)
 
 
 def test_golden_refuses_constraints(tmp_path):

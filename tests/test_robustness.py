@@ -93,7 +93,7 @@ FILE_NUMBERS = [  # (case, text to replace in jb1-3.toml, replacement, location 
     ("speed-nan", "rpm = 1000.0 ", "rpm = nan ", "[speed] rpm"),
     ("speed-inf", "rpm = 1000.0 ", "rpm = inf ", "[speed] rpm"),
     ("speed-zero", "rpm = 1000.0 ", "rpm = 0.0 ", "[speed] rpm"),
-    ("input-default-nan", "default_deg = 0.0 ", "default_deg = nan ",
+    ("input-default-nan", "default_deg = 30.0 ", "default_deg = nan ",
      "[inputs.regulator] default_deg"),
     ("input-min-inf", "min_deg = -30.0 ", "min_deg = -inf ", "[inputs.regulator] min_deg"),
     ("crank-phase-nan", "phase_deg = 0.0              # needle crank",
@@ -660,7 +660,7 @@ def test_5_settings_outside_their_declared_range(case, argv, part):
 
 
 FILE_RANGES = [
-    ("default-outside", "default_deg = 0.0 ", "default_deg = 40.0 ", "default_deg 40"),
+    ("default-outside", "default_deg = 30.0 ", "default_deg = 40.0 ", "default_deg 40"),
     ("min-above-max", "min_deg = -30.0 ", "min_deg = 31.0 ", "larger than max_deg"),
     ("window-beyond", "windows_deg = [[135.0, 155.0]]", "windows_deg = [[400.0, 900.0]]",
      "[400, 900] is not a shaft-angle window"),
@@ -793,7 +793,9 @@ def test_6_a_six_bar_from_the_docs(tmp_path):
     assert "checked" in out.stdout and "proved" in out.stdout
     assert check_reference(sewmech.load_machine(path)).status == "ok"
     out = run(["kinematics", path, "--phi-deg", "30"], code=0)
-    assert "q block_x" in out.stdout and "(constant)" in out.stdout
+    assert "q block_x" in out.stdout and "(constant)" not in out.stdout  # values at 30 deg
+    out = run(["kinematics", path, "--step-deg", "10"], code=0)  # a turn: the summary
+    assert "q block_x" in out.stdout and "(constant)" in out.stdout  # (its frame points)
     assert "unwrapped" in out.stdout
     m = sewmech.load_machine(path)
     # the polar point is read as (length cos, length sin)

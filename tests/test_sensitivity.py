@@ -54,6 +54,10 @@ def worst_relative(d, ref, keep) -> float:
 @pytest.mark.parametrize("name", sorted(shipped_machines()))
 def test_sensitivities_equal_central_differences_on_every_shipped_machine(name):
     m = sewmech.load_machine(name)
+    if "regulator" in m.spec.inputs:
+        # the regulator at its zero mark, inside its range: the file's working setting is the
+        # range's end, where a central difference of the setting would step outside it
+        m = m.with_parameters({"input.regulator": 0.0})
     S = sensitivities(m, PHI)
     P0 = np.array(m.defaults)
     # the counterweights do not move anything (their parameters' derivatives are 0), and a
@@ -168,6 +172,70 @@ def test_sensitivity_command_prints_the_issue_keys(tmp_path):
     assert bad.exit_code == 2 and "not a channel" in bad.output
     bad = CliRunner().invoke(app, ["sensitivity", "jb1-3", "--output", "p_nothing_y"])
     assert bad.exit_code == 2 and "nothing" in bad.output
+
+
+def test_sensitivity_ranks_by_what_each_tolerance_moves_the_output():
+    """Derivatives of different units (mm per mm, mm per rad, mm per 1) were ranked by their
+    raw size, so a speed ratio and an angle in radians led the needle's height; and a
+    round-off derivative read 6.12323e-17. They are ranked by derivative x tolerance (IT9 on
+    lengths, +-0.05 deg on angles, stated in the table), what is no made dimension is listed
+    apart, and a derivative at round-off counts as not moving the output."""
+    from typer.testing import CliRunner
+
+    from sewmech.cli import app
+    from sewmech.design.tolerance_file import it_tolerance_mm
+
+    args = ["sensitivity", "jb1-3", "--output", "p_needle.point_y", "--phi-deg", "30"]
+    out = CliRunner().invoke(app, [*args, "--top", "15"], env={"COLUMNS": "200"})
+    assert out.exit_code == 0, out.output
+    text = out.stdout
+    assert "IT9 on lengths, +-0.05 deg on angles" in text
+    assert "e-17" not in text and "e-16" not in text
+    rows = [[c.strip() for c in line.split("│")[1:-1]] for line in text.splitlines()]
+    rows = [r for r in rows if len(r) == 5 and r[0] and r[0] != "parameter"]
+    m = sewmech.load_machine("jb1-3")
+    S = sensitivities(m, np.radians([30.0]))
+    _, d, _ = S.channel("p_needle.point_y")
+    effects = []
+    for name, tol, effect, deriv, unit in rows:
+        j = m.parameter_names.index(name)
+        t = (0.5 * it_tolerance_mm(m.defaults[j], 9) if unit == "mm per mm" else
+             math.radians(0.05))
+        assert tol == (f"+-{t:.3g} mm" if unit == "mm per mm" else "+-0.05 deg")
+        assert float(deriv) == pytest.approx(d[0, j], rel=1e-5)
+        assert float(effect) == pytest.approx(d[0, j] * t, rel=1e-3)
+        effects.append(abs(float(effect)))
+    assert effects == sorted(effects, reverse=True)
+    assert rows[0][0] == "needle.point.u"  # 1 mm per mm at +-0.0435 mm (IT9 of 119 mm)
+    names = [r[0] for r in rows]
+    # the crank's phase (10.9 mm per rad) below the needle-bar link (1.05 mm per mm): 0.05 deg
+    # of phase moves the point 0.0095 mm, the link's IT9 0.033 mm
+    assert names.index("needle_bar.length") < names.index("needle_crank.phase")
+    assert "needle_crank.ratio" not in names and "not toleranced" in text
+    assert "needle.point.v" not in names  # its derivative is round-off (6e-17 mm per mm)
+    assert "113 do not move" in text
+    data = json.loads(CliRunner().invoke(app, [*args, "--json"]).stdout)
+    assert data["effects"]["needle_bar.length"] == pytest.approx(
+        data["d_dparam"]["needle_bar.length"] * data["tolerances"]["needle_bar.length"])
+    assert "needle_crank.ratio" not in data["effects"]
+
+
+def test_sensitivity_ranks_by_the_tolerances_of_a_file(tmp_path):
+    """With a tolerance file, its tolerances rank: angles at +-1 deg put the crank's phase and
+    the guide's angle (10.86 mm per rad: 0.19 mm) above every length."""
+    from typer.testing import CliRunner
+
+    from sewmech.cli import app
+
+    path = tmp_path / "t.toml"
+    path.write_text("[defaults]\nit_grade = 9\nangle_deg = 1.0\n")
+    out = CliRunner().invoke(app, ["sensitivity", "jb1-3", "--output", "p_needle.point_y",
+                                   "--phi-deg", "30", "--tolerances", str(path), "--json"])
+    assert out.exit_code == 0, out.output
+    effects = json.loads(out.stdout)["effects"]
+    top = sorted(effects, key=lambda k: -abs(effects[k]))[:2]
+    assert set(top) == {"needle_crank.phase", "needle_bar.guide_angle"}
+    assert effects["needle_crank.phase"] == pytest.approx(10.861 * math.radians(1.0), rel=1e-4)
 
 
 def located_differences_agree(m, f, g, n_params: int, regulator_deg: float = 25.0) -> None:

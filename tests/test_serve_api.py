@@ -46,8 +46,10 @@ def _turn(url, token, values):
     return call(f"{url}/api/sessions/{token}/turn", {"set": values})
 
 
-def _params(m, regulator_deg=0.0, **dims):
-    return m.parameters(dims, inputs={"regulator": math.radians(regulator_deg)})
+def _params(m, regulator_deg=None, **dims):
+    """A design as the page sets it: the regulator at the file's setting unless given (deg)."""
+    return m.parameters(dims, inputs=None if regulator_deg is None else
+                        {"regulator": math.radians(regulator_deg)})
 
 
 def test_machines_and_the_parameter_table(url, jb):
@@ -87,9 +89,14 @@ def test_a_turn_is_the_librarys_turn(url, jb, machine):
     assert np.allclose(t["thread"]["overfeed_mm"], b.overfeed, atol=2e-6)
     needle = r.point("needle.point")
     assert np.allclose(t["motion"]["needle_point"]["vy_mm_s"], needle.v[:, 1], atol=1e-5)
-    # the regulator moves the stitch: the number the page shows follows the setting
-    status, t0 = _turn(url, token, {})
+    # the regulator moves the stitch: the number the page shows follows the setting; the page
+    # opens at the machine's working setting (the longest forward stitch), not on a zero stitch
+    status, t0 = _turn(url, token, {"input.regulator": 0.0})
     assert abs(t0["feed"]["stitch_mm"]) < 0.01 and t["feed"]["stitch_mm"] > 2.0
+    status, tw = _turn(url, token, {})
+    assert tw["feed"]["stitch_mm"] == pytest.approx(float(feed_cycles(m, 30.0).stitch_mm),
+                                                    abs=1e-6)
+    assert tw["feed"]["stitch_mm"] > 4.0
 
 
 def test_checks_are_the_librarys_checks(url, jb, machine):

@@ -143,11 +143,12 @@ def test_every_output_equals_an_independent_evaluation_of_single_designs(small, 
                 assert r[col] is None or math.isnan(r[col]), (col, r)
             else:
                 assert r[col] == pytest.approx(exact, abs=1e-6), (col, r)
-        ex = extremes(m, "p_feed_dog.tip_y")
-        assert r["range:p_feed_dog.tip_y"] == pytest.approx(
+        ex = extremes(m, "p_feed_dog.tip_y", inputs={"regulator": 0.0})
+        assert r["range:p_feed_dog.tip_y@0deg"] == pytest.approx(
             ex.maximum.value - ex.minimum.value, abs=1e-8)
         d = inverse_dynamics(m, np.radians(np.arange(0.0, 360.0, 5.0)))
-        assert r["peak_torque"] == pytest.approx(np.abs(d.input_torque).max(), rel=1e-12)
+        # N m, as every table of sewmech gives a torque (the dynamics answers N mm)
+        assert r["peak_torque"] == pytest.approx(np.abs(d.input_torque).max() * 1e-3, rel=1e-12)
         assert r["peak_shaking_force"] == pytest.approx(
             np.linalg.norm(d.shaking_force, axis=-1).max(), rel=1e-12)
         lim = r["stitch_length@30deg"]
@@ -402,3 +403,78 @@ def test_the_shipped_sweep_file_loads():
     X = sample(s, 0, 64)
     assert np.isfinite(evaluate_chunk(s, 0, 8).columns["assembles"]).all()
     assert X.shape == (64, len(s.names))
+
+
+# ---- the summary as a newcomer reads it -----------------------------------------------------
+
+def _row(out: str, first: str) -> list[str]:
+    line = next(x for x in out.splitlines() if x.startswith(f"│ {first} "))
+    return [c.strip() for c in line.split("│")[1:-1]]
+
+
+def test_the_summary_prints_the_feasible_region_and_torques_in_N_m(reference):
+    out, t = reference
+    res = runner.invoke(app, ["sweep-summary", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "feasible region" in res.output
+    rows = t.to_pylist()
+    feasible = [r for r in rows if r["feasible"]]
+    for p, name in (("lift_cam.arc0.cx", "lift_cam.arc0.cx"),
+                    ("regulator.phase", "regulator.phase_deg")):
+        cells = _row(res.output, name)
+        lo, hi = (min(r[name] for r in feasible), max(r[name] for r in feasible))
+        bounds = next(q for q in load_sweep(SMALL).spec.parameters if q.parameter == p)
+        assert cells[1] == ("deg" if name.endswith("_deg") else "mm")
+        assert [float(c) for c in cells[2:]] == pytest.approx(
+            [bounds.lower, bounds.upper, lo, hi], rel=1e-5)
+    cells = _row(res.output, "peak_torque")  # N m, as every other table gives a torque
+    assert cells[1] == "N m"
+    m = sewmech.load_machine("jb1-3")
+    from sewmech.dynamics import inverse_dynamics
+
+    d = inverse_dynamics(m, np.radians(np.arange(0.0, 360.0, 5.0)))
+    peak = np.abs(d.input_torque).max() * 1e-3  # the file's design is inside the sweep's range
+    assert float(cells[3]) <= peak <= float(cells[4]) and 0.1 < peak < 2.0
+
+
+def test_a_round_off_spread_is_one_colour_and_a_note_not_a_colour_bar(reference):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from sewmech.app.cli.sweep import histograms, load_results, scatter_matrix
+
+    out, _ = reference
+    record, cols, _ = load_results(out)
+    params = [p["column"] for p in record["parameters"]]
+    summary = {"feasible": int(cols["feasible"].sum()), "designs_written": len(cols["design"])}
+    shown = np.arange(len(cols["design"]))
+    stitch = cols["stitch_length@30deg"][cols["feasible"]]
+    assert np.ptp(stitch) < 1e-9 * stitch.max()  # the lift cam cannot change the stitch
+    fig = scatter_matrix(record, summary, cols, params, "stitch_length@30deg", shown)
+    try:
+        assert len(fig.axes) == len(params) ** 2  # no colour bar
+        title = " ".join(fig._suptitle.get_text().split())
+        assert f"stitch_length@30deg = {np.median(stitch):.6g} mm in every feasible design" in title
+        colours = {tuple(c) for ax in fig.axes for coll in ax.collections
+                   for c in np.round(coll.get_facecolors(), 6) if len(coll.get_offsets())}
+        assert len(colours) == 2  # feasible green, the others grey
+    finally:
+        plt.close(fig)
+    # an output that does vary over the feasible designs keeps its colour bar
+    fig = scatter_matrix(record, summary, cols, params, "feed_lift@0deg", shown)
+    try:
+        assert len(fig.axes) == len(params) ** 2 + 1
+    finally:
+        plt.close(fig)
+    # a histogram of one value: one bar at it, an axis at the scale of the value
+    flat = {**cols, "stitch_length@30deg": 3.7765 + 1.6e-11 * np.arange(len(cols["design"]))}
+    fig = histograms(record, flat, ["stitch_length@30deg"])
+    try:
+        ax = fig.axes[0]
+        lo, hi = ax.get_xlim()
+        assert lo < 3.7765 < hi and hi - lo > 0.01
+        assert "round-off" in ax.get_title()
+    finally:
+        plt.close(fig)

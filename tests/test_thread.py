@@ -154,7 +154,7 @@ def test_consumption_matches_the_industry_formula():
 
 def test_balance_parts(jb):
     """Demand parts against the kinematics, computed here; the loop's largest size against the
-    DOMAIN.md 2.3 estimate (half the bobbin case's perimeter plus twice its depth below the
+    estimate from [US-10017890] (half the bobbin case's perimeter plus twice its depth below the
     plate)."""
     from sewmech.thread import thread_balance
 
@@ -185,7 +185,7 @@ def test_balance_parts(jb):
 
 
 def test_thread_checks_from_the_balance(jb):
-    """The checks read the balance where DOMAIN.md 2.3 says: the least overfeed between seizure
+    """The checks read the balance where the formulation says: the least overfeed between seizure
     and the loop's largest size, the overfeed as the eye enters the fabric, and after cast-off."""
     from sewmech.thread import check_thread, thread_balance
 

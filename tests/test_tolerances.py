@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -53,6 +54,58 @@ def test_rss_agrees_with_monte_carlo_and_worst_case_bounds_every_sample():
     assert max(abs(u.monte_carlo["min"]), abs(u.monte_carlo["max"])) <= u.worst_case * 1.001
     # and uniform dimensions have std t / sqrt(3): the metric's is RSS / sqrt(3)
     assert u.monte_carlo["std"] == pytest.approx(u.rss / math.sqrt(3.0), rel=0.02)
+
+
+@pytest.mark.parametrize("distribution, divisor", [("normal", 3.0),
+                                                   ("uniform", math.sqrt(3.0))])
+def test_standard_deviation_against_a_closed_form(distribution, divisor):
+    """The crank pin's x, A.x + B.u cos(phi) - B.v sin(phi), is linear in the three dimensions
+    that move it: its standard deviation is sqrt(sum (d_j t_j)^2) / 3 for normal dimensions at
+    sigma = t / 3 and / sqrt(3) for uniform ones over +-t (a uniform distribution of half-width
+    t has standard deviation t / sqrt(3)); the Monte Carlo's agrees to its sampling error
+    (about 1 / sqrt(2 n) = 0.35 %), and the worst case bounds every sample."""
+    m = fourbar()
+    t = {"A.x": 0.05, "B.u": 0.03, "B.v": 0.02}
+    spec = ToleranceSpec.model_validate({"defaults": {"it_grade": 5,
+                                                      "distribution": distribution},
+                                         "parameters": t})
+    phi = math.radians(40.0)
+    d = {"A.x": 1.0, "B.u": math.cos(phi), "B.v": -math.sin(phi)}
+    rss = math.sqrt(sum((d[k] * t[k]) ** 2 for k in t))
+    r = tolerance_analysis(m, "p_B_x", spec, phi_deg=40.0, samples=40_000, seed=5)
+    assert r.rss == pytest.approx(rss, rel=1e-12)
+    assert r.worst_case == pytest.approx(sum(abs(d[k]) * t[k] for k in t), rel=1e-12)
+    assert r.sigma == pytest.approx(rss / divisor, rel=1e-12)
+    assert r.to_json()["sigma"] == r.sigma
+    assert r.monte_carlo["std"] == pytest.approx(rss / divisor, rel=0.02)
+    assert max(-r.monte_carlo["min"], r.monte_carlo["max"]) <= r.worst_case * (1 + 1e-9)
+    # brute force: the same designs drawn here, the pin placed by its closed form
+    rng = np.random.default_rng(6)
+    n = 200_000
+    if distribution == "normal":
+        dev = {k: rng.standard_normal(n) * v / 3.0 for k, v in t.items()}
+    else:
+        dev = {k: rng.uniform(-v, v, n) for k, v in t.items()}
+    x = dev["A.x"] + (15.0 + dev["B.u"]) * math.cos(phi) - dev["B.v"] * math.sin(phi)
+    assert np.std(x) == pytest.approx(rss / divisor, rel=0.01)
+
+
+def test_tolerance_command_compares_the_monte_carlo_with_the_right_sigma(tmp_path):
+    """The console line compared uniform dimensions' Monte Carlo with "RSS / 3"; their standard
+    deviation is RSS / sqrt(3)."""
+    path = tmp_path / "u.toml"
+    path.write_text('[defaults]\nit_grade = 9\ndistribution = "uniform"\n')
+    args = ["tolerance", "jb1-3", "--output", "p_needle.point_y", "--phi-deg", "30",
+            "--samples", "4000", "--tolerances", str(path)]
+    out = runner.invoke(app, [*args, "--json"])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.stdout)
+    assert data["sigma"] == pytest.approx(data["rss"] / math.sqrt(3.0), rel=1e-12)
+    assert data["monte_carlo"]["std"] == pytest.approx(data["sigma"], rel=0.05)
+    out = runner.invoke(app, args, env={"COLUMNS": "200"})
+    assert out.exit_code == 0, out.output
+    assert f"(RSS / sqrt(3) = {data['sigma']:.4g} mm" in out.stdout
+    assert "RSS / 3 " not in out.stdout
 
 
 @pytest.mark.parametrize("distribution", ["normal", "uniform"])
@@ -138,3 +191,64 @@ def test_tolerance_command_prints_the_issue_keys(tmp_path):
     bad = runner.invoke(app, ["tolerance", "jb1-3", "--output", "stitch_length",
                               "--regulator-deg", "45"])
     assert bad.exit_code == 2 and "regulator" in bad.output
+
+
+def test_tolerance_as_the_readme_writes_it_analyses_the_working_setting():
+    """`sewmech tolerance jb1-3 --output stitch_length` analysed the regulator's zero mark (a
+    9e-7 mm stitch, tolerances allocated for it, no word); it analyses the machine's working
+    setting, the longest forward stitch."""
+    from sewmech.sewing.gradients import stitch_length_gradient
+
+    out = runner.invoke(app, ["tolerance", "jb1-3", "--output", "stitch_length", "--samples",
+                              "200", "--json"])
+    assert out.exit_code == 0, out.output
+    data = json.loads(out.stdout)
+    g = stitch_length_gradient(sewmech.load_machine("jb1-3"), 30.0)
+    assert data["value"] == pytest.approx(g.value, abs=1e-9) and 4.0 < data["value"] < 4.2
+
+
+@pytest.mark.parametrize("argv, option, give", [
+    (["tolerance", "jb1-3", "--output", "stitch_length", "--regulator-deg", "0"],
+     "--regulator-deg", "--regulator-deg 30"),
+    (["sensitivity", "jb1-3", "--output", "stitch_length", "--input", "regulator=0"],
+     "--input", "--input regulator=30"),
+    (["tolerance", "jb8-2", "--output", "stitch_length", "--regulator-deg", "0"],
+     "--regulator-deg", "--regulator-deg 28"),
+])
+def test_a_stitch_of_round_off_is_refused(argv, option, give):
+    """At the zero mark the stitch is round-off (9e-7 mm): its tolerances and derivatives
+    belong to no stitch. The command refuses it in one located line that names the metric, the
+    setting and the option to give, with the working setting as the suggestion."""
+    out = runner.invoke(app, argv)
+    assert out.exit_code == 2
+    text = " ".join(out.stderr.split())
+    assert text.startswith(f"error: {option}: stitch_length at regulator 0 deg is")
+    assert "round-off of no stitch" in text and f"e.g. {give} (the machine's working" in text
+    assert "Traceback" not in out.output
+
+
+def test_the_library_refuses_a_stitch_of_round_off(tmp_path):
+    """tolerance_analysis and metric_gradient refuse the zero mark's stitch and name their
+    argument; a machine whose own working setting is the zero mark is told the forward end
+    and that its default_deg should be its working setting. A short but real stitch passes."""
+    from sewmech.design.tolerances import metric_gradient
+    from sewmech.engine.errors import OptionError
+
+    m = sewmech.load_machine("jb1-3")
+    with pytest.raises(OptionError, match=r"^regulator_deg: stitch_length at regulator 0 deg"
+                       r".*e\.g\. regulator_deg=30 \(the machine's working setting\)"):
+        tolerance_analysis(m, "stitch_length", regulator_deg=0.0, samples=100)
+    with pytest.raises(OptionError, match="round-off of no stitch"):
+        metric_gradient(m, "stitch_length", regulator_deg=0.0)
+    value, _, _ = metric_gradient(m, "stitch_length", regulator_deg=0.05)  # 6 micrometres
+    assert 1e-3 < value < 1e-2
+    # the lift and the dog's height are no degenerate metrics at the zero mark
+    assert metric_gradient(m, "feed_lift", regulator_deg=0.0)[0] > 1.0
+    text = Path(m.file).read_text().replace("default_deg = 30.0 ", "default_deg = 0.0 ", 1)
+    path = tmp_path / "zero.toml"
+    path.write_text(text)
+    out = runner.invoke(app, ["tolerance", str(path), "--output", "stitch_length"])
+    assert out.exit_code == 2
+    text = " ".join(out.stderr.split())
+    assert "stitch_length at regulator 0 deg" in text and "--regulator-deg 30 (the forward end" \
+        in text and "[inputs.regulator] default_deg should be its working setting" in text

@@ -4,7 +4,9 @@
   the true crossing in about 95 % of noisy repeats (a coverage check of Fieller's interval);
 - malformed measurement files get located errors;
 - influence coefficients recover a known unbalance from a linear model of the machine;
-- the lead insert's static moment against its volume, density and radius written out.
+- the lead insert's static moment against its volume, density and radius written out, and the
+  part around it against its own geometry: it clears the shaft by the stated wall, holds the
+  lead, and weighs what the built static moment needs; a part that no cup can be is refused.
 """
 
 from __future__ import annotations
@@ -101,33 +103,114 @@ def test_influence_coefficients_recover_a_known_unbalance(rng):
 
 
 def test_lead_insert_static_moment_from_its_volume():
-    ins = insert(100.0, 15.0, depth_mm=10.0)
-    vol = math.pi * ins.diameter_mm ** 2 / 4.0 * 10.0  # mm^3
+    ins = insert(100.0, 30.0, depth_mm=30.0)
+    vol = math.pi * ins.diameter_mm ** 2 / 4.0 * 30.0  # mm^3
     # (11.34 - 7.85) g/cm^3 = 3.49e-3 g/mm^3; g mm / 10 = g cm
-    assert (11.34e-3 - 7.85e-3) * vol * 15.0 / 10.0 == pytest.approx(100.0, rel=1e-12)
+    assert (11.34e-3 - 7.85e-3) * vol * 30.0 / 10.0 == pytest.approx(100.0, rel=1e-12)
     assert ins.mass_g == pytest.approx(11.34e-3 * vol)
-    same = insert(100.0, 15.0, diameter_mm=ins.diameter_mm)
-    assert same.depth_mm == pytest.approx(10.0)
+    same = insert(100.0, 30.0, diameter_mm=ins.diameter_mm)
+    assert same.depth_mm == pytest.approx(30.0)
     d = trim_hole(50.0, 15.0, 10.0)
     assert 11.34e-3 * math.pi * d * d / 4.0 * 10.0 * 15.0 / 10.0 == pytest.approx(50.0)
-    b = build_extra(64.1, 15.0, depth_mm=10.0, factor=3.0)
+    b = build_extra(64.1, 20.0, bore_mm=8.0, depth_mm=10.0, factor=3.0)
     assert b["s_built_gcm"] == pytest.approx(192.3)
     ins = b["insert"]
     # the lead drilled out completely removes the whole margin, 2 x 64.1 g cm
-    lead_s = 11.34e-3 * math.pi * ins["diameter_mm"] ** 2 / 4.0 * 10.0 * 15.0 / 10.0
+    lead_s = 11.34e-3 * math.pi * ins["diameter_mm"] ** 2 / 4.0 * 10.0 * 20.0 / 10.0
     assert lead_s == pytest.approx(2.0 * 64.1, rel=1e-12)
     # block + insert make the built static moment
     assert b["body_s_gcm"] + ins["s_gcm"] == pytest.approx(192.3)
-    assert b["body_mass_g"] * 15.0 / 10.0 == pytest.approx(b["body_s_gcm"])
+    assert b["body_mass_g"] * 20.0 / 10.0 == pytest.approx(b["body_s_gcm"])
     # trimming to S_add: the hole into the lead is the insert itself (it holds the margin
     # exactly); a hole into steel must be wider, by the root of the densities
     assert b["trim_diameter_mm"] == pytest.approx(ins["diameter_mm"])
     assert b["trim_diameter_body_mm"] ** 2 * 7850.0 == pytest.approx(
         b["trim_diameter_mm"] ** 2 * 11340.0)
-    assert b["hole_edge_mm"] == pytest.approx(15.0 - ins["diameter_mm"] / 2.0)
-    b = build_extra(64.1, 15.0, factor=2.5)  # by default as deep as the radius
-    assert b["insert"]["depth_mm"] == pytest.approx(15.0)
+    assert b["hole_edge_mm"] == pytest.approx(20.0 - ins["diameter_mm"] / 2.0)
     with pytest.raises(OptionError, match="margin"):
-        build_extra(64.1, 15.0, depth_mm=10.0, factor=5.0)
+        build_extra(64.1, 15.0, bore_mm=8.0, depth_mm=10.0, factor=5.0)
     with pytest.raises(OptionError, match="not denser"):
         insert(10.0, 15.0, depth_mm=5.0, filler="aluminium")
+    # a hole wider than twice its radius would cross the axis
+    with pytest.raises(OptionError, match="cross the axis"):
+        insert(100.0, 15.0, depth_mm=2.0)
+
+
+def _check_cup(b, s_add, radius, bore, wall):
+    """Everything a recipe claims, from its own dimensions: the hole clears the bore by the
+    wall, the cup holds the hole with that wall round it and under it and clears the shaft,
+    and the steel and lead at the radius make the built static moment."""
+    ins, blk = b["insert"], b["block"]
+    d, h, D, T = ins["diameter_mm"], ins["depth_mm"], blk["diameter_mm"], blk["length_mm"]
+    tol = 1e-9 * radius
+    assert b["hole_edge_mm"] == pytest.approx(radius - d / 2.0, abs=tol)
+    assert radius - d / 2.0 >= bore / 2.0 + wall - tol  # clear of the shaft's bore
+    assert b["clearance_mm"] >= wall - tol
+    assert radius - D / 2.0 >= bore / 2.0 - tol  # the cup itself clears the shaft
+    assert (D - d) / 2.0 >= wall - tol and T - h >= wall - tol  # the walls round the lead
+    steel_g = 7.85e-3 * math.pi / 4.0 * (D * D * T - d * d * h)
+    lead_g = 11.34e-3 * math.pi / 4.0 * d * d * h
+    assert steel_g == pytest.approx(blk["steel_g"], rel=1e-9)
+    assert lead_g == pytest.approx(ins["mass_g"], rel=1e-9)
+    # g x mm / 10 = g cm: the part as built, and with its lead drilled out, S_add
+    assert (steel_g + lead_g) * radius / 10.0 == pytest.approx(b["s_built_gcm"], rel=1e-9)
+    assert steel_g * radius / 10.0 == pytest.approx(s_add, rel=1e-9)
+    assert 2.5 <= b["factor"] <= 3.0
+
+
+@pytest.mark.parametrize("s_add, radius, bore", [
+    (135.0, 18.0, 12.0),   # bartack-1820's S_add on its 12 mm main shaft (the issue's 2.7 mm)
+    (83.15, 18.0, 8.5),    # jb1-3's on its 8.5 mm upper shaft
+    (64.1, 15.0, 12.0),    # the paper's S_add on a tight radius
+    (20.0, 15.0, 10.0),    # a small counterweight (far out, it would be too light to hold its lead)
+])
+def test_the_built_counterweight_clears_the_shaft_and_holds_its_lead(s_add, radius, bore):
+    b = build_extra(s_add, radius, bore_mm=bore)
+    _check_cup(b, s_add, radius, bore, 2.0)
+    assert b["wall_mm"] == 2.0 and b["bore_mm"] == bore
+
+
+def test_the_built_counterweight_over_random_inputs(rng):
+    """Either a recipe that passes every check of its own geometry, or a located refusal
+    that says what to change; never a hole in the shaft."""
+    from sewmech.design.inserts import NotBuildable
+
+    built = refused = 0
+    for _ in range(300):
+        s_add = float(rng.uniform(5.0, 400.0))
+        bore = float(rng.uniform(5.0, 20.0))
+        radius = bore / 2.0 + float(rng.uniform(2.5, 30.0))
+        wall = float(rng.uniform(0.5, 3.0))
+        limit = float(rng.uniform(2.0, 4.0) * s_add) if rng.random() < 0.5 else None
+        try:
+            b = build_extra(s_add, radius, bore_mm=bore, wall_mm=wall, max_s_gcm=limit,
+                            where="[counterweights.x]")
+        except NotBuildable as exc:
+            refused += 1
+            assert exc.where == "[counterweights.x]" and exc.hint
+            continue
+        built += 1
+        _check_cup(b, s_add, radius, bore, wall)
+        if limit is not None:
+            assert b["s_built_gcm"] <= limit * (1.0 + 1e-12)
+    assert built > 50 and refused > 10  # both sides were tried
+
+
+def test_a_counterweight_that_cannot_be_built_is_refused_with_what_to_change():
+    from sewmech.design.inserts import NotBuildable
+
+    # the old recipe's own example: 64.1 g cm at 15 mm with a 10 mm deep hole wants a hole
+    # 31 mm across, which crosses the shaft; the radii that hold it are named
+    with pytest.raises(NotBuildable, match="no lead-insert counterweight.*can be built") as exc:
+        build_extra(64.1, 15.0, bore_mm=10.0, depth_mm=10.0, factor=3.0, where="cw")
+    assert "radius_mm between" in exc.value.hint
+    # no room outside the shaft for a hole and its walls
+    with pytest.raises(NotBuildable, match="no room"):
+        build_extra(64.1, 7.0, bore_mm=12.0)
+    # the space's limit below even the paper's least margin
+    with pytest.raises(NotBuildable, match="space allows") as exc:
+        build_extra(135.0, 18.0, bore_mm=12.0, max_s_gcm=300.0)
+    assert "max_static_moment_gcm" in exc.value.hint
+    # the margin comes down from 3 x to what fits under the limit, and says so
+    b = build_extra(135.0, 18.0, bore_mm=12.0, max_s_gcm=400.0)
+    assert b["factor"] == pytest.approx(2.9) and "400 g cm" in b["factor_note"]

@@ -43,7 +43,7 @@ MODULES = {
                                   "kinematics", "dynamics", "extremes", "margins", "assembly",
                                   "counterweights", "sensitivity")},
     **{m: f"sewing.{m}" for m in ("timing", "checks", "feed", "thread", "transmission",
-                                  "embroidery", "gradients", "thread_gradients")},
+                                  "embroidery", "gradients", "thread_gradients", "references")},
     **{m: f"design.{m}" for m in ("balancing", "vibration", "inserts", "tolerances",
                                   "tolerance_file", "methods", "problem", "evaluate", "optimize",
                                   "sweep_file", "sweep")},

@@ -38,7 +38,7 @@ from numpy.typing import ArrayLike
 
 from ..engine.counterweights import GCM_PER_KGMM, Counterweight, counterweight_values, describe
 from ..engine.dynamics import DynamicsPlan
-from ..engine.errors import OptionError
+from ..engine.errors import AnalysisError, OptionError
 from ..engine.machine import Machine
 from ._minimax import _linear, _minimise, _natural, _s_terms, _within_limits
 
@@ -263,9 +263,13 @@ def balance_basis(machine: Machine, counterweights: Sequence[str] | None = None,
 def _chosen(machine: Machine, names: Sequence[str] | None) -> tuple[Counterweight, ...]:
     have = {c.name: c for c in machine.counterweights}
     if not have:
-        raise OptionError("--counterweight", f"machine '{machine.name}' has no counterweights",
-                          "Add a [counterweights.NAME] table (docs/balancing.md) on the link to"
-                          " balance, with the static moment it has now (0 for a new one)")
+        add = ("Add a [counterweights.NAME] table (docs/balancing.md) on the link to balance,"
+               " with the static moment it has now (0 for a new one)")
+        if names:
+            raise OptionError("--counterweight", f"'{names[0]}' is not a counterweight of"
+                              f" '{machine.name}': it has none", add)
+        raise AnalysisError(machine.file or f"machine '{machine.name}'", f"machine"
+                            f" '{machine.name}' has no counterweights to balance with", add)
     if not names:
         return tuple(machine.counterweights)
     out = []
@@ -322,8 +326,8 @@ class BalanceResult:
 
     criterion : the criterion minimised; status : ``"optimal"``, ``"bounded"`` (a counterweight
     at its ``max_static_moment_gcm``), ``"infeasible"`` (Delta-Q cannot reach 0 within the
-    limits: the least Delta-Q is given) or ``"not converged"`` (the best design found is
-    given); message : how it was solved, or why not;
+    limits: nothing is proposed, see below) or ``"not converged"`` (the best design found is
+    given); message : how it was solved, or why not, and for ``"infeasible"`` what to try;
     xy : the static moments chosen (n, 2), kg mm; counterweights, counterweights_before : each
     as people read it (:meth:`BalanceBasis.describe`); before, after : the balancing figures
     (:data:`FIGURES`) of the machine as the file has it and with the chosen counterweights,
@@ -332,6 +336,12 @@ class BalanceResult:
     basis' prediction of the result and the whole machine's, N or N m; curves: the
     quantities over the turn (:attr:`BalanceBasis.base` keys; N, N mm) ``"before"`` and
     ``"after"``, computed on the whole machine, with ``"phi"`` (rad).
+
+    An ``"infeasible"`` result proposes no counterweight: ``xy``, ``counterweights``,
+    ``after`` and ``curves["after"]`` are the machine as the file has it (nothing changed,
+    ``overrides`` empty); ``closest`` holds the static moment of least Delta-Q (g cm, deg, with
+    its figures), for information only, and ``alternative`` the answer of another criterion
+    (the least peak shaking force with the same counterweight), the best that is achievable.
     """
 
     criterion: str
@@ -347,14 +357,36 @@ class BalanceResult:
     rpm: float
     weights: dict = field(default_factory=dict)
     curves: dict = field(default_factory=dict, repr=False)
+    closest: dict | None = None
+    alternative: BalanceResult | None = field(default=None, repr=False)
+
+    @property
+    def proposed(self) -> bool:
+        """Whether the result proposes counterweights (every status but ``"infeasible"``)."""
+        return self.status != "infeasible"
 
     def to_json(self) -> dict:
-        """The result as the ``sewmech balance --json`` keys."""
-        return {"criterion": self.criterion, "status": self.status, "message": self.message,
-                "rpm": self.rpm, "counterweights": self.counterweights,
-                "counterweights_before": self.counterweights_before,
-                "before": _plain(self.before), "after": _plain(self.after),
-                "weights": self.weights, "basis_error": self.basis_error}
+        """The result as the ``sewmech balance --json`` keys: for an infeasible one,
+        ``counterweights`` and ``after`` are null, and ``closest`` and ``alternative`` say what
+        is reachable instead."""
+        out = {"criterion": self.criterion, "status": self.status, "message": self.message,
+               "rpm": self.rpm,
+               "counterweights": self.counterweights if self.proposed else None,
+               "counterweights_before": self.counterweights_before,
+               "before": _plain(self.before),
+               "after": _plain(self.after) if self.proposed else None,
+               "weights": self.weights, "basis_error": self.basis_error}
+        if not self.proposed:
+            out["closest"] = None if self.closest is None else {
+                "counterweights": self.closest["counterweights"],
+                "figures": _plain(self.closest["figures"]),
+                "note": "the least Delta-Q reachable; not proposed (see message)"}
+            alt = self.alternative
+            out["alternative"] = None if alt is None else {
+                "criterion": alt.criterion, "option": f"--criterion {alt.criterion}",
+                "status": alt.status, "message": alt.message,
+                "counterweights": alt.counterweights, "after": _plain(alt.after)}
+        return out
 
 
 def _plain(d: dict) -> dict:
@@ -417,8 +449,44 @@ def balance(machine: Machine, criterion: str = "delta-q",
     err = max(float(np.abs(predicted[k] - exact[k]).max()) * (1e-3 if k in ("M", "T") else 1.0)
               for k in exact)
     curves = {"phi": B.phi, "before": {k: v[0] for k, v in both.items()}, "after": exact}
-    return BalanceResult(criterion, status, message, xy, B.describe(xy), B.describe(B.start),
-                         before, after, B.design(xy), err, B.rpm, w, curves)
+    if criterion == "delta-q" and status != "infeasible" and \
+            after["peak_force_N"] > before["peak_force_N"] * (1.0 + 1e-9):
+        message += (f"; note: equal peaks here raise the peak shaking force from"
+                    f" {float(before['peak_force_N']):.4g} to {float(after['peak_force_N']):.4g}"
+                    " N (--criterion peak minimises it)")
+    if status != "infeasible":
+        return BalanceResult(criterion, status, message, xy, B.describe(xy),
+                             B.describe(B.start), before, after, B.design(xy), err, B.rpm, w,
+                             curves)
+    # nothing to propose: the machine stays as the file has it; the least Delta-Q is kept for
+    # information, and the least peak shaking force is what this counterweight can achieve
+    closest = {"xy": xy, "counterweights": B.describe(xy), "figures": after}
+    alt = balance(machine, "peak", basis=B)
+    message += _infeasible_advice(B, closest, alt, before)
+    return BalanceResult(criterion, status, message, B.start.copy(), B.describe(B.start),
+                         B.describe(B.start), before, dict(before), {}, err, B.rpm, w,
+                         {"phi": B.phi, "before": curves["before"], "after": curves["before"]},
+                         closest, alt)
+
+
+def _infeasible_advice(B: BalanceBasis, closest: dict, alt: BalanceResult, before: dict
+                       ) -> str:
+    """What an infeasible Delta-Q says besides: what its closest point would do, the best
+    another criterion achieves with the same counterweight, and what to change."""
+    (name, cw), = closest["counterweights"].items()
+    peak0, peak1 = float(before["peak_force_N"]), float(closest["figures"]["peak_force_N"])
+    (_, a), = alt.counterweights.items()
+    text = (f". No counterweight is proposed: the least Delta-Q,"
+            f" {float(closest['figures']['delta_q_N']):.4g} N with {cw['static_moment_gcm']:.4g}"
+            f" g cm, would make the peak shaking force {peak1:.4g} N against {peak0:.4g} N"
+            f" now{f' ({peak1 / peak0:.2g} x)' if peak0 > 0 else ''}. The best this counterweight achieves is the least"
+            f" peak shaking force, {float(alt.after['peak_force_N']):.4g} N with"
+            f" {a['static_moment_gcm']:.4g} g cm at {a['angle_deg']:.4g} deg: use --criterion"
+            f" peak (or rms, weighted); or turn '{name}' (its angle_deg) to where Delta-Q has a"
+            " root")
+    if math.isfinite(B.s_max[0]):
+        text += ", or allow it more static moment (max_static_moment_gcm)"
+    return text
 
 
 def _weights(weights: Mapping[str, float] | None, B: BalanceBasis) -> dict:
@@ -571,8 +639,7 @@ def _solve_delta_q(B: BalanceBasis) -> tuple[np.ndarray, str, str]:
     s = minimize_scalar(lambda S: abs(f(S)), bounds=(lo, up), method="bounded",
                         options={"xatol": 1e-12 * hi}).x
     limit = "max_static_moment_gcm" if math.isfinite(B.s_max[0]) else "the scanned range"
-    return (s * e)[None, :], "infeasible", \
-        f"Delta-Q does not reach 0 {where} within {limit}: the least Delta-Q is given"
+    return (s * e)[None, :], "infeasible", f"Delta-Q does not reach 0 {where} within {limit}"
 
 
 # ---- the designer's views: the paper's workflow and the trade-off front -----------------------
@@ -591,34 +658,98 @@ def link_static_moment(machine: Machine, link: str) -> tuple[float, float]:
 
 
 def paper_workflow(machine: Machine, counterweight: str, *, rpm: float | None = None,
-                   step_deg: float = 1.0, factor: float = 3.0,
-                   insert_depth_mm: float | None = None, basis: BalanceBasis | None = None
+                   step_deg: float = 1.0, factor: float | None = None,
+                   insert_depth_mm: float | None = None, wall_mm: float | None = None,
+                   basis: BalanceBasis | None = None, result: BalanceResult | None = None
                    ) -> dict:
     """The balancing paper's method on ``counterweight`` (an extra counterweight on the upper
     shaft, static moment 0 in the file): S_add from Delta-Q = 0 along its angle, S_1 the
-    static moment the shaft's crank has (:func:`link_static_moment`), S_opt = |S_1 + S_add|
-    (as vectors), and the extra counterweight built ``factor`` times stronger with a lead insert
-    at its radius (``insert_depth_mm`` deep, default: 0.6 x the radius wide), with the trimming
-    holes that bring it back to S_add (:func:`sewmech.design.inserts.build_extra`). Returns a dict (g cm, deg, mm, g) with the
-    :class:`BalanceResult` under ``"result"``."""
-    from .inserts import build_extra
+    static moment the shaft's crank has (:func:`link_static_moment`, all its solids), S_opt =
+    |S_1 + S_add| (as vectors: the net static moment of the crank with the extra
+    counterweight), and the extra counterweight built ``factor`` times stronger (default: the
+    strongest of 3 .. 2.5 that can be built within its ``max_static_moment_gcm``) as a steel
+    cup with a lead insert at its radius, clear of the shaft (:func:`counterweight_bore`) by
+    ``wall_mm`` (default :data:`~sewmech.design.inserts.WALL_MM`), with the trimming holes
+    that bring it back to S_add (:func:`sewmech.design.inserts.build_extra`;
+    ``insert_depth_mm`` fixes the hole's depth). ``result``: the :func:`balance` answer of
+    ``"delta-q"`` on this counterweight, if already computed.
 
-    res = balance(machine, "delta-q", [counterweight], rpm=rpm, step_deg=step_deg, basis=basis)
+    Returns a dict (g cm, deg, mm, g) with the :class:`BalanceResult` under ``"result"``;
+    ``"build"`` the recipe, or None with ``"build_refused"`` saying why (located, with what to
+    change): Delta-Q has no root (``s_add_gcm`` and ``s_opt_gcm`` are then None too), nothing
+    is to be added, the shaft's diameter is not known, or no cup within the limits holds the
+    margin."""
+    from .inserts import WALL_MM, NotBuildable, build_extra
+
+    res = result if result is not None else balance(
+        machine, "delta-q", [counterweight], rpm=rpm, step_deg=step_deg, basis=basis)
     cw = res.counterweights[counterweight]
     link = cw["link"]
     s1, a1 = link_static_moment(machine, link)
+    out = {"counterweight": counterweight, "link": link, "s1_gcm": s1, "s1_angle_deg": a1,
+           "status": res.status, "result": res, "build": None}
+    where = f"{machine.file}: [counterweights.{counterweight}]"
+    if not res.proposed:
+        out.update(s_add_gcm=None, s_add_angle_deg=None, s_opt_gcm=None, s_opt_angle_deg=None)
+        out["build_refused"] = (f"{where}: Delta-Q has no root along its angle, so there is no"
+                                " S_add and nothing to build")
+        return out
     before = res.counterweights_before[counterweight]
     add = cw["static_moment_gcm"] - before["static_moment_gcm"]
     v1 = s1 * np.exp(1j * math.radians(a1))
     v_opt = v1 + cw["static_moment_gcm"] * np.exp(1j * math.radians(cw["angle_deg"]))
-    out = {"counterweight": counterweight, "link": link, "s1_gcm": s1, "s1_angle_deg": a1,
-           "s_add_gcm": add, "s_add_angle_deg": cw["angle_deg"],
-           "s_opt_gcm": float(abs(v_opt)), "s_opt_angle_deg": float(np.degrees(np.angle(v_opt))),
-           "status": res.status, "result": res}
-    if add > 0:
-        out["build"] = build_extra(add, cw["radius_mm"], depth_mm=insert_depth_mm,
-                                   factor=factor)
+    out.update(s_add_gcm=add, s_add_angle_deg=cw["angle_deg"], s_opt_gcm=float(abs(v_opt)),
+               s_opt_angle_deg=float(np.degrees(np.angle(v_opt))))
+    if not add > 1e-9 * (abs(s1) + cw["static_moment_gcm"]):
+        out["build_refused"] = (f"{where}: Delta-Q needs no more static moment than the file"
+                                f" gives ({before['static_moment_gcm']:.4g} g cm): nothing to"
+                                " build")
+        return out
+    bore, source = counterweight_bore(machine, counterweight)
+    if bore is None:
+        out["build_refused"] = (f"{where}: the diameter of the shaft it is clamped on is not"
+                                " known, so the lead insert's clearance cannot be checked."
+                                " Give bore_mm (the shaft's diameter there) in this table")
+        return out
+    spec = machine.spec.counterweights[counterweight]
+    try:
+        out["build"] = build_extra(add, cw["radius_mm"], bore_mm=bore,
+                                   wall_mm=WALL_MM if wall_mm is None else wall_mm,
+                                   depth_mm=insert_depth_mm, factor=factor,
+                                   max_s_gcm=spec.max_static_moment_gcm, where=where)
+        out["build"]["bore_source"] = source
+    except NotBuildable as exc:
+        out["build_refused"] = str(exc)
     return out
+
+
+def counterweight_bore(machine: Machine, counterweight: str) -> tuple[float | None, str]:
+    """The diameter (mm) of the shaft a counterweight is clamped on, and where it comes from:
+    its table's ``bore_mm``, else the largest solid of its link's ``[masses]`` on the link's
+    axis (a cylinder or tube along z through the frame's origin, not a hole) that spans the
+    counterweight's plane ``z_mm``; (None, why) when neither gives it."""
+    spec = machine.spec.counterweights[counterweight]
+    if spec.bore_mm is not None:
+        return float(spec.bore_mm), f"bore_mm of [counterweights.{counterweight}]"
+    masses = machine.spec.masses.get(spec.link)
+    if spec.z_mm is None or masses is None or not masses.solids:
+        return None, "no bore_mm, and no solids on the link's axis at z_mm to read it from"
+    best = None
+    for k, solid in enumerate(masses.solids):
+        if solid.type not in ("cylinder", "hollow_cylinder") or solid.hole:
+            continue
+        ax, base = solid.axis, solid.base
+        if ax[0] != 0.0 or ax[1] != 0.0 or ax[2] == 0.0 or base[0] != 0.0 or base[1] != 0.0:
+            continue
+        z0, z1 = sorted((base[2], base[2] + math.copysign(solid.length, ax[2])))
+        if not z0 <= spec.z_mm <= z1:
+            continue
+        r = solid.radius if solid.type == "cylinder" else solid.r_out
+        if best is None or r > best[0]:
+            best = (r, k)
+    if best is None:
+        return None, f"no solid of [masses.{spec.link}] on its axis at z = {spec.z_mm:g} mm"
+    return 2.0 * best[0], f"[masses.{spec.link}] solids[{best[1]}] at z = {spec.z_mm:g} mm"
 
 
 def tradeoff(B: BalanceBasis, n: int = 2048, seed: int = 0, span: float | None = None) -> dict:

@@ -89,6 +89,15 @@ def assembles_batch(machine: Machine, P: np.ndarray) -> np.ndarray:
 THREAD_METRICS = THREAD_FIGURES
 
 
+def _channel_inputs(machine: Machine, ref) -> dict | None:
+    """The setting inputs (rad) a channel or range metric is read at: the stitch regulator at
+    ``ref.regulator_deg`` where given, else the machine's working setting (None)."""
+    s = machine.spec.sewing
+    if ref.regulator_deg is None or s is None or s.regulator is None:
+        return None
+    return {s.regulator: math.radians(ref.regulator_deg)}
+
+
 def _metric(machine: Machine, ref, P: np.ndarray) -> tuple[float, np.ndarray | None]:
     """A metric's value and its derivative by every parameter (None for a value-only metric),
     for the design P; ``ref`` names it (``metric``, ``regulator_deg``, ``phi_deg``, as a
@@ -115,13 +124,15 @@ def _metric(machine: Machine, ref, P: np.ndarray) -> tuple[float, np.ndarray | N
         from ..engine.extremes import extremes
 
         channel = name.split(":", 1)[1]
-        ex = extremes(machine, channel, params=P)
+        inputs = _channel_inputs(machine, ref)
+        ex = extremes(machine, channel, params=P, inputs=inputs)
         phi = np.array([ex.maximum.phi, ex.minimum.phi])
-        S = sensitivities(machine, phi, params=P, outputs=[channel])
+        S = sensitivities(machine, phi, params=P, inputs=inputs, outputs=[channel])
         v, d, _ = S.channel(channel)
         return float(v[0] - v[1]), d[0] - d[1]
     try:
-        S = sensitivities(machine, np.radians([ref.phi_deg]), params=P, outputs=[name])
+        S = sensitivities(machine, np.radians([ref.phi_deg]), params=P,
+                          inputs=_channel_inputs(machine, ref), outputs=[name])
         v, d, _ = S.channel(name)
     except KeyError as exc:
         raise OptionError("metric", exc.args[0]) from None
@@ -178,14 +189,16 @@ def metric_batch(machine: Machine, refs, P: np.ndarray, ok: np.ndarray | None = 
         elif name.startswith("range:"):
             channel = name.split(":", 1)[1]
             rate, acc = _channel_rates(channel)
-            k = kinematics(m, phi, params=P, omega=1.0, on_failure="mask")
+            k = kinematics(m, phi, params=P, inputs=_channel_inputs(m, ref), omega=1.0,
+                           on_failure="mask")
             V, S, C = (k.channel(c)[0].reshape(len(P), len(phi)) for c in (channel, rate, acc))
             if channel.startswith("theta_"):
                 V = np.unwrap(V, axis=1)
             h = 2.0 * math.pi / len(phi)
             vals = extreme_rows(V, S, C, h, +1)[1] - extreme_rows(V, S, C, h, -1)[1]
         else:
-            k = kinematics(m, np.radians([ref.phi_deg]), params=P, on_failure="mask")
+            k = kinematics(m, np.radians([ref.phi_deg]), params=P,
+                           inputs=_channel_inputs(m, ref), on_failure="mask")
             vals = k.channel(name)[0][..., 0]
         out[key] = np.where(ok, vals, np.nan)
     return out, ok

@@ -133,7 +133,108 @@ def load_problem(path: str | Path) -> tuple[ProblemSpec, Machine]:
                                    f" not a parameter of '{machine.name}'",
                                    f"Did you mean {', '.join(near)}?" if near else
                                    f"`sewmech check {machine.name} --parameters` lists them")
+    refs = [("objective.parts", k, p) for k, p in enumerate(spec.objective.parts)]
+    refs += [("constraints", k, c) for k, c in enumerate(spec.constraints)]
+    channels = None
+    for table, k, ref in refs:
+        channels = _check_metric(where, table, k, ref, machine, channels)
     return spec, machine
+
+
+#: how each form of objective is made dimensionless from its parts' values f (their own units):
+#: w is a part's weight, t its target, s its scale (``scale`` if given, else |t| for a target
+#: and |f| at the start for a minimum or maximum)
+OBJECTIVE_FORMS = {
+    "weighted_sum": "the sum of the parts' w ((f - t) / s)^2 (a target t), w f / s (min) and"
+                    " -w f / s (max)",
+    "weighted_uniform": "the largest of the parts' w |f - t| / s",
+}
+
+
+def metric_unit(machine: Machine, name: str) -> str:
+    """The unit of a problem's metric (as the metric gives it: mm, deg for the ``*_deg``
+    metrics, a channel's own unit: rad for link angles)."""
+    from ..engine.kinematics import kinematics
+    from ..sewing.gradients import METRICS
+    from .evaluate import THREAD_METRICS
+
+    if name in METRICS or name in THREAD_METRICS:
+        return "deg" if name.endswith("_deg") else "mm"
+    channel = name.split(":", 1)[1] if name.startswith("range:") else name
+    try:
+        return kinematics(machine, [0.0], on_failure="mask").channel(channel)[1]
+    except KeyError:
+        return ""
+
+
+#: the metrics read off the feed (they need a stitch regulator and read it at a setting)
+FEED_METRICS = ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
+
+
+def _in_range(where: str, table: str, k: int, ref: MetricRef, machine: Machine) -> None:
+    inp = machine.spec.inputs[machine.spec.sewing.regulator]
+    lo = inp.min_deg if inp.min_deg is not None else -180.0
+    hi = inp.max_deg if inp.max_deg is not None else 180.0
+    if not lo <= ref.regulator_deg <= hi:
+        raise MachineFileError(where, table, f"{k}.regulator_deg", f"{ref.regulator_deg:g}"
+                               f" deg is outside the regulator's range {lo:g} .. {hi:g} deg",
+                               "Give a setting within it")
+
+
+def _check_metric(where: str, table: str, k: int, ref: MetricRef, machine: Machine,
+                  channels: list[str] | None) -> list[str]:
+    """A problem file's metric against what sewmech can evaluate on its machine, where it
+    enters: an unknown name is an error located at its table and key, with the known metrics
+    it resembles. Returns the machine's channel names (computed once)."""
+    import difflib
+
+    from ..engine.kinematics import kinematics
+    from ..sewing.gradients import METRICS
+    from .evaluate import THREAD_METRICS
+
+    name = ref.metric
+    if channels is None:
+        channels = kinematics(machine, [0.0], on_failure="mask").channel_names()
+    key = f"{k}.metric"
+    s = machine.spec.sewing
+    if name in METRICS:
+        if name in FEED_METRICS and (s is None or s.regulator is None):
+            raise MachineFileError(where, table, key, f"{name} needs a machine with a stitch"
+                                   f" regulator ([sewing] regulator); '{machine.name}' has"
+                                   " none", "Choose another metric")
+        if name in FEED_METRICS and ref.regulator_deg is not None:
+            _in_range(where, table, k, ref, machine)
+        if name not in FEED_METRICS and ref.regulator_deg is not None:
+            raise MachineFileError(where, table, f"{k}.regulator_deg", f"{name} does not"
+                                   " depend on the regulator", "Leave out regulator_deg")
+        return channels
+    if name in THREAD_METRICS:
+        if ref.regulator_deg is not None:
+            raise MachineFileError(where, table, f"{k}.regulator_deg", f"{name} does not"
+                                   " depend on the regulator", "Leave out regulator_deg")
+        return channels
+    channel = name.split(":", 1)[1] if name.startswith("range:") else name
+    if channel in channels:
+        if name.startswith("range:") and channel.split("_")[0] not in ("p", "theta", "q"):
+            raise MachineFileError(where, table, key, f"{name}: a range is of a position"
+                                   " channel (p_POINT_x, theta_LINK, q_VAR)",
+                                   "Give range: and a position channel")
+        if ref.regulator_deg is not None:  # the channel at that setting
+            if s is None or s.regulator is None:
+                raise MachineFileError(where, table, f"{k}.regulator_deg", f"machine"
+                                       f" '{machine.name}' has no stitch regulator",
+                                       "Leave out regulator_deg")
+            _in_range(where, table, k, ref, machine)
+        return channels
+    known = [*METRICS, *THREAD_METRICS]
+    ranges = [f"range:{c}" for c in channels if c.split("_")[0] in ("p", "theta", "q")]
+    near = difflib.get_close_matches(name, ranges if name.startswith("range:") else
+                                     [*known, *channels, *ranges], n=3)
+    what = f"'{channel}' is not a channel of '{machine.name}'" if name.startswith("range:") \
+        else f"unknown metric '{name}'"
+    raise MachineFileError(where, table, key, what, f"Did you mean {', '.join(near)}?" if near
+                           else f"Metrics: {', '.join(known)}, range:CHANNEL, or a channel"
+                           " (p_POINT_x, theta_LINK, q_VAR) at phi_deg (docs/design.md)")
 
 
 class Problem:
@@ -218,8 +319,24 @@ class Problem:
             self._scales = np.array(out)
         return self._scales
 
+    def parts(self, x: np.ndarray) -> list[dict]:
+        """Each part of the objective at x in its own unit: ``metric``, ``regulator_deg``,
+        ``phi_deg``, ``unit``, ``sense``, ``target``, ``weight``, ``scale`` (the s that
+        divides it, :data:`OBJECTIVE_FORMS`) and ``value`` (None where it cannot be formed)."""
+        out = []
+        for p, sc in zip(self.spec.objective.parts, self._part_scales()):
+            try:
+                v = float(self.metric(p, x)[0])
+            except SewmechError:
+                v = None
+            out.append({"metric": p.metric, "regulator_deg": p.regulator_deg,
+                        "phi_deg": p.phi_deg, "unit": metric_unit(self.machine, p.metric),
+                        "sense": p.sense, "target": p.target, "weight": p.weight,
+                        "scale": float(sc), "value": v})
+        return out
+
     def objective(self, x: np.ndarray) -> tuple[float, np.ndarray]:
-        """The objective (dimensionless) and its gradient by x."""
+        """The objective (dimensionless, :data:`OBJECTIVE_FORMS`) and its gradient by x."""
         x = np.asarray(x, dtype=float)
         parts = self.spec.objective.parts
         s = self._part_scales()

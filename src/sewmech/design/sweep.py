@@ -15,7 +15,7 @@ Columns: ``design`` (the index), every parameter in its file unit (mm; deg for a
 column named ``NAME_deg``), ``assembles``
 (the mechanism assembles at every whole degree of the turn at both ends of every setting
 input, every closed-form unit at least 0.01 mm from failing there, which keeps it assembled
-between the degrees too), every output (its unit: mm, deg for ``*_deg`` metrics, N mm, N; NaN where the design
+between the degrees too), every output (its unit: mm, deg for ``*_deg`` metrics, N m, N; NaN where the design
 cannot be evaluated) and ``feasible`` (it assembles and every output is a number within its
 limits). A NaN is never feasible.
 """
@@ -166,8 +166,8 @@ def evaluate_chunk(sweep: Sweep, start: int, stop: int) -> Chunk:
 
 
 def _dynamics(sweep: Sweep, P: np.ndarray, ok: np.ndarray) -> dict[str, np.ndarray]:
-    """Peak |driving torque| (N mm) and peak |shaking force| (N) over a turn, at the
-    machine's default settings and the sweep's speed, the machine's loads and masses; NaN for
+    """Peak |driving torque| (N m) and peak |shaking force| (N) over a turn, at the
+    machine's working setting and the sweep's speed, the machine's loads and masses; NaN for
     designs that do not assemble or whose force equations are singular somewhere."""
     from ..engine.dynamics import SingularForceSystem
 
@@ -180,7 +180,7 @@ def _dynamics(sweep: Sweep, P: np.ndarray, ok: np.ndarray) -> dict[str, np.ndarr
 
     def peaks(Q):
         r = plan(Q)
-        return (np.abs(r.input_torque).max(axis=-1),
+        return (np.abs(r.input_torque).max(axis=-1) * 1e-3,  # N mm -> N m
                 np.linalg.norm(r.shaking_force, axis=-1).max(axis=-1))
 
     try:

@@ -24,7 +24,7 @@ name = "stitch_30"                 # the column (default: the metric, and its se
 min = 3.6                          # limits: a design outside them is not feasible
 max = 4.2
 
-[dynamics]                         # for peak_torque (N mm) and peak_shaking_force (N)
+[dynamics]                         # for peak_torque (N m) and peak_shaking_force (N)
 rpm = 1000.0                       # default: the machine file's [speed]
 step_deg = 2.0
 
@@ -56,7 +56,8 @@ from ._models import Bounds, Header, MetricRef, Strict
 
 DOC = "docs/sweeps.md"
 #: the outputs the force analysis gives (one DynamicsPlan call per chunk of designs)
-DYNAMICS_METRICS = {"peak_torque": "N mm", "peak_shaking_force": "N"}
+#: (N m, as every table and figure of sewmech gives a torque; N mm inside)
+DYNAMICS_METRICS = {"peak_torque": "N m", "peak_shaking_force": "N"}
 #: the most designs a sweep file may ask for (a grid's product included)
 MAX_DESIGNS = 10**10
 
@@ -213,6 +214,15 @@ def _near(name: str, names) -> str:
     return f"Did you mean {', '.join(near)}?" if near else ""
 
 
+def _regulator_in_range(where: str, k: int, o, machine: Machine) -> None:
+    spec_in = machine.spec.inputs[machine.spec.sewing.regulator]
+    lo = spec_in.min_deg if spec_in.min_deg is not None else -180.0
+    hi = spec_in.max_deg if spec_in.max_deg is not None else 180.0
+    if not lo <= o.regulator_deg <= hi:
+        raise MachineFileError(where, "outputs", f"{k}.regulator_deg", f"{o.regulator_deg:g}"
+                               f" deg is outside the regulator's range {lo:g} .. {hi:g} deg")
+
+
 def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
     """What the schema cannot know: names against the machine, grid points, column names."""
     from ..engine.kinematics import kinematics
@@ -266,13 +276,7 @@ def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
                                        " not depend on the regulator", "Leave out"
                                        " regulator_deg")
             if feed and o.regulator_deg is not None:
-                spec_in = machine.spec.inputs[s.regulator]
-                lo = spec_in.min_deg if spec_in.min_deg is not None else -180.0
-                hi = spec_in.max_deg if spec_in.max_deg is not None else 180.0
-                if not lo <= o.regulator_deg <= hi:
-                    raise MachineFileError(where, "outputs", f"{k}.regulator_deg",
-                                           f"{o.regulator_deg:g} deg is outside the"
-                                           f" regulator's range {lo:g} .. {hi:g} deg")
+                _regulator_in_range(where, k, o, machine)
         elif name in DYNAMICS_METRICS:
             if spec.dynamics is None:
                 raise MachineFileError(where, "outputs", f"{k}.metric", f"{name} comes from"
@@ -280,7 +284,7 @@ def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
                                        "Add [dynamics] (rpm and step_deg have defaults)")
             if o.regulator_deg is not None:
                 raise MachineFileError(where, "outputs", f"{k}.regulator_deg", "the force"
-                                       " analysis runs at the machine's default settings",
+                                       " analysis runs at the machine's working setting",
                                        "Leave out regulator_deg")
         elif name.startswith("range:") or name in channels:
             channel = name.split(":", 1)[1] if name.startswith("range:") else name
@@ -290,10 +294,12 @@ def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
             if name.startswith("range:") and channel.split("_")[0] not in ("p", "theta", "q"):
                 raise MachineFileError(where, "outputs", f"{k}.metric", f"{name}: a range is of"
                                        " a position channel (p_POINT_x, theta_LINK, q_VAR)")
-            if o.regulator_deg is not None:
-                raise MachineFileError(where, "outputs", f"{k}.regulator_deg", "channels are"
-                                       " read at the machine's default settings",
-                                       "Leave out regulator_deg")
+            if o.regulator_deg is not None:  # (the channel at that setting)
+                if s is None or s.regulator is None:
+                    raise MachineFileError(where, "outputs", f"{k}.regulator_deg", f"machine"
+                                           f" '{machine.name}' has no stitch regulator",
+                                           "Leave out regulator_deg")
+                _regulator_in_range(where, k, o, machine)
         else:
             known = [*METRICS, *DYNAMICS_METRICS]
             raise MachineFileError(where, "outputs", f"{k}.metric", f"unknown metric '{name}'",

@@ -149,6 +149,24 @@ def tolerances_of(machine: Machine, spec: ToleranceSpec | None, where: str = "to
     return tol
 
 
+#: the angular tolerance (+- deg) that ranks the angles beside the lengths by their effect where
+#: no tolerance file gives one (``sewmech sensitivity``): a point 30 mm from its pivot moves by
+#: 0.026 mm when the angle moves by 0.05 deg, IT9's half-band on a length of 18-30 mm
+RANKING_ANGLE_DEG = 0.05
+
+
+def ranking_tolerances(machine: Machine, spec: ToleranceSpec | None = None,
+                       where: str = "tolerances") -> np.ndarray:
+    """The tolerances (+-, internal units) by which derivatives of different units are compared:
+    a derivative times its parameter's tolerance is what that tolerance moves the output by.
+    ``spec``'s (:func:`tolerances_of`), or by default IT9 on every length and
+    +-:data:`RANKING_ANGLE_DEG` on every angle; 0 where a parameter is not a made dimension (a
+    setting input, a speed ratio, a counterweight, a loop's starting guess)."""
+    if spec is None:
+        spec = ToleranceSpec(defaults=Defaults(angle_deg=RANKING_ANGLE_DEG))
+    return tolerances_of(machine, spec, where)
+
+
 def costs_of(machine: Machine, spec: ToleranceSpec | None) -> np.ndarray:
     """Each parameter's cost weight b_j (cost b_j / t_j of a tolerance +- t_j; default 1)."""
     b = np.ones(len(machine.parameter_names))

@@ -30,7 +30,7 @@ import numpy as np
 from ..engine.errors import OptionError
 from ..engine.machine import Machine
 from ..engine.sensitivity import sensitivities
-from ..sewing.gradients import METRICS, Gradient, metric_values
+from ..sewing.gradients import METRICS, Gradient, metric_values, require_a_stitch
 from ..sewing.samples import WINDOWED, sample_feed_values
 from .tolerance_file import ToleranceSpec, costs_of, tolerances_of
 
@@ -58,10 +58,23 @@ class ToleranceResult:
     allocation_rule: str | None = None
     band: float | None = None
 
+    @property
+    def sigma_divisor(self) -> tuple[float, str]:
+        """What divides the RSS to give the metric's standard deviation to first order, and its
+        name: 3 for normal dimensions (a tolerance is 3 sigma), sqrt(3) for uniform ones (the
+        standard deviation of a uniform distribution over +-t is t / sqrt(3))."""
+        return (3.0, "3") if self.distribution == "normal" else (math.sqrt(3.0), "sqrt(3)")
+
+    @property
+    def sigma(self) -> float:
+        """The metric's standard deviation to first order, RSS / :attr:`sigma_divisor`: what the
+        Monte Carlo's ``std`` should come close to where the metric is near linear."""
+        return self.rss / self.sigma_divisor[0]
+
     def to_json(self) -> dict:
         return {"metric": self.metric, "unit": self.unit, "value": self.value,
                 "distribution": self.distribution, "worst_case": self.worst_case,
-                "rss": self.rss, "monte_carlo": self.monte_carlo,
+                "rss": self.rss, "sigma": self.sigma, "monte_carlo": self.monte_carlo,
                 "contributions": self.contributions,
                 "tolerances": {n: float(t) for n, t in zip(self.names, self.tolerance)},
                 "derivatives": {n: float(d) for n, d in zip(self.names, self.derivative)},
@@ -76,18 +89,23 @@ FEED = ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
 def metric_gradient(machine: Machine, metric: str, *, regulator_deg: float | None = None,
                     phi_deg: float = 0.0) -> tuple[float, np.ndarray, str]:
     """A metric (a key of :data:`sewmech.sewing.gradients.METRICS`) or a position channel at
-    ``phi_deg``: its value, its derivatives by every parameter and its unit."""
+    ``phi_deg``: its value, its derivatives by every parameter and its unit. A metric that is
+    degenerate at the setting (a stitch of round-off length at the zero mark) is refused
+    (:func:`sewmech.sewing.gradients.require_a_stitch`)."""
     value, d, unit, _ = _gradient(machine, metric, regulator_deg, phi_deg)
     return value, d, unit
 
 
-def _gradient(machine: Machine, metric: str, regulator_deg: float | None, phi_deg: float
+def _gradient(machine: Machine, metric: str, regulator_deg: float | None, phi_deg: float,
+              option: str = "regulator_deg", give: str = "regulator_deg={deg:g}"
               ) -> tuple[float, np.ndarray, str, Gradient | None]:
     """:func:`metric_gradient` and the metric's :class:`Gradient` (its events; None for a
-    channel)."""
+    channel); ``option`` and ``give`` name the setting in a refusal."""
     if metric in METRICS:
-        g = METRICS[metric](machine, _setting(machine, regulator_deg) if metric in FEED
-                            else None)
+        reg = _setting(machine, regulator_deg) if metric in FEED else None
+        g = METRICS[metric](machine, reg)
+        if reg is not None:
+            require_a_stitch(machine, metric, g.value, reg, option=option, give=give)
         return g.value, g.d_dparam, g.unit, g
     inputs = _inputs(machine, regulator_deg)
     try:
@@ -142,11 +160,14 @@ def sample_values(machine: Machine, metric: str, P: np.ndarray, *,
 def tolerance_analysis(machine: Machine, metric: str, spec: ToleranceSpec | None = None, *,
                        regulator_deg: float | None = None, phi_deg: float = 0.0,
                        samples: int = 10_000, seed: int = 0, band: float | None = None,
-                       where: str = "tolerances") -> ToleranceResult:
+                       where: str = "tolerances", option: str = "regulator_deg",
+                       give: str = "regulator_deg={deg:g}") -> ToleranceResult:
     """Worst case, RSS, Monte Carlo (``samples`` designs, ``seed``), contributions and, with
     ``band`` (+- in the metric's unit), the allocated tolerances, for ``metric`` under the
     tolerances of ``spec`` (default: IT9 on every length, see
-    :func:`sewmech.design.tolerance_file.tolerances_of`)."""
+    :func:`sewmech.design.tolerance_file.tolerances_of`), at ``regulator_deg`` (default: the
+    machine's working setting). A metric that is degenerate at the setting (a stitch of
+    round-off length) is refused, naming ``option`` and a setting in ``give``'s form."""
     if not (isinstance(samples, int) and 100 <= samples <= 1_000_000):
         raise OptionError("--samples", f"must be a whole number in 100 .. 1000000, got"
                           f" {samples!r}", "Give e.g. --samples 10000")
@@ -154,7 +175,7 @@ def tolerance_analysis(machine: Machine, metric: str, spec: ToleranceSpec | None
         raise OptionError("--band", f"must be a number > 0, got {band!r}")
     tol = tolerances_of(machine, spec, where)
     dist = (spec or ToleranceSpec()).defaults.distribution
-    value, d, unit, nominal = _gradient(machine, metric, regulator_deg, phi_deg)
+    value, d, unit, nominal = _gradient(machine, metric, regulator_deg, phi_deg, option, give)
     on = tol > 0
     contrib = (d * tol) ** 2
     rss = float(np.sqrt(contrib.sum()))

@@ -185,7 +185,11 @@ class InfluenceResult:
     plane, its angle deg (in the frame the trial masses' angles were given in); coefficients :
     (rows, planes) complex influence coefficients, mm/s per g cm; residual : (rows,) complex
     vibration predicted after the correction, mm/s; before, after : RMS of the vibration
-    amplitudes over the rows before and predicted after, mm/s."""
+    amplitudes over the rows before and predicted after, mm/s (after is 0 when the
+    correction cancels every reading, see ``cancelled``); cancelled : None, or why the
+    predicted vibration is nil (as many readings as planes: the correction is fitted to cancel
+    them exactly, so what is left is round-off, not a level); level_change_db : the predicted
+    change in level, dB, None when cancelled."""
 
     correction_gcm: np.ndarray
     correction_angle_deg: np.ndarray
@@ -193,15 +197,24 @@ class InfluenceResult:
     residual: np.ndarray
     before: float
     after: float
+    cancelled: str | None = None
+
+    @property
+    def level_change_db(self) -> float | None:
+        if self.cancelled is not None or not (self.before > 0 and self.after > 0):
+            return None
+        return level_change_db(self.before, self.after)
 
     def to_json(self, planes=None) -> dict:
         names = planes or [f"plane {j + 1}" for j in range(len(self.correction_gcm))]
-        return {"corrections": {n: {"static_moment_gcm": float(s), "angle_deg": float(a)}
-                                for n, s, a in zip(names, self.correction_gcm,
-                                                   self.correction_angle_deg)},
-                "before_rms_mm_s": self.before, "after_rms_mm_s": self.after,
-                "level_change_db": level_change_db(self.before, self.after)
-                if self.before > 0 and self.after > 0 else None}
+        out = {"corrections": {n: {"static_moment_gcm": float(s), "angle_deg": float(a)}
+                               for n, s, a in zip(names, self.correction_gcm,
+                                                  self.correction_angle_deg)},
+               "before_rms_mm_s": self.before, "after_rms_mm_s": self.after,
+               "level_change_db": self.level_change_db}
+        if self.level_change_db is None:
+            out["level_change_note"] = self.cancelled or "no vibration before or after"
+        return out
 
 
 def influence_balance(baseline: ArrayLike, trials: ArrayLike, trial_gcm: ArrayLike,
@@ -226,8 +239,9 @@ def influence_balance(baseline: ArrayLike, trials: ArrayLike, trial_gcm: ArrayLi
         raise AnalysisError("influence", "a trial mass has a zero static moment",
                             "Give each trial mass's static moment > 0 g cm")
     if len(V0) < len(Ut):
-        raise AnalysisError("influence", f"{len(V0)} readings cannot fix {len(Ut)} planes",
-                            "Measure at more places or speeds than there are planes")
+        raise AnalysisError("influence", f"{_count(len(V0), 'reading')} cannot fix"
+                            f" {_count(len(Ut), 'plane')}", "Measure at more places or speeds"
+                            " than there are planes")
     A = ((Vt - V0[None, :]) / Ut[:, None]).T  # (rows, planes)
     if np.linalg.matrix_rank(A, tol=1e-9 * max(np.abs(A).max(), 1e-300)) < len(Ut):
         raise AnalysisError("influence", "the trial runs do not tell the planes apart (the"
@@ -236,6 +250,22 @@ def influence_balance(baseline: ArrayLike, trials: ArrayLike, trial_gcm: ArrayLi
                             " place or speed")
     U, *_ = np.linalg.lstsq(A, -V0, rcond=None)
     res = V0 + A @ U
-    return InfluenceResult(np.abs(U), np.degrees(np.angle(U)), A, res,
-                           float(np.sqrt(np.mean(np.abs(V0) ** 2))),
-                           float(np.sqrt(np.mean(np.abs(res) ** 2))))
+    before = float(np.sqrt(np.mean(np.abs(V0) ** 2)))
+    after = float(np.sqrt(np.mean(np.abs(res) ** 2)))
+    cancelled = None
+    if len(V0) == len(Ut):
+        cancelled = (f"{_count(len(V0), 'reading')} and {_count(len(Ut), 'plane')}: the"
+                     " correction is fitted to cancel every reading, so nothing is left to"
+                     " give a level after (measure at more places or speeds for a check)")
+    elif after <= 1e-12 * before:  # readings without noise that a correction cancels
+        cancelled = ("the correction cancels every reading (what is left is round-off), so"
+                     " there is no level after to compare")
+    if cancelled is not None:
+        after, res = 0.0, np.zeros_like(res)
+    return InfluenceResult(np.abs(U), np.degrees(np.angle(U)), A, res, before, after,
+                           cancelled)
+
+
+def _count(n: int, noun: str) -> str:
+    """``n`` and ``noun``, in the plural unless n is 1: "1 reading", "3 readings"."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"

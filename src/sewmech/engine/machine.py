@@ -613,8 +613,11 @@ def check_loads(machine_name: str, links, points, point_links, loads, file: str)
                 raise MachineFileError(file, table, key, f"machine '{machine_name}' has no"
                                        f" moving {key} '{value}'.{hint}")
         if load.link not in point_links[load.point]:
+            on = [p for p in points if load.link in point_links.get(p, ())]
             raise MachineFileError(file, table, "point", f"'{load.point}' is not a point of link"
-                                   f" '{load.link}' (it is on: {', '.join(point_links[load.point])})")
+                                   f" '{load.link}' (it is on: {', '.join(point_links[load.point])})"
+                                   f"; the points of '{load.link}' are: {', '.join(on)}",
+                                   "Name one of them, or the link the point is on")
         for q in load.toward or ():
             if q not in points:
                 raise MachineFileError(file, table, "toward", f"machine '{machine_name}' has no"
@@ -1083,8 +1086,18 @@ class _Compiler:
         link = self.known_link(table, "link", u.link)
         origin = self.known_point(table, "origin", u.origin)
         if u.link not in self.point_links[u.origin]:
+            on = [p for p in self.points if u.link in self.point_links.get(p, ())]
+            where = f"'{u.origin}' is on {', '.join(self.point_links[u.origin])}"
+            if on:
+                raise self.err(table, "origin", f"origin '{u.origin}' is not a point of link"
+                               f" '{u.link}' ({where}); the points of '{u.link}' solved above"
+                               f" this unit are: {', '.join(on)}", "Set origin to one of them,"
+                               f" or link to a link '{u.origin}' is on")
             raise self.err(table, "origin", f"origin '{u.origin}' is not a point of link"
-                           f" '{u.link}' (it is on: {', '.join(self.point_links[u.origin])})")
+                           f" '{u.link}' ({where}); no point of '{u.link}' is solved above this"
+                           " unit", f"Solve a point of '{u.link}' first (a loop unit names the"
+                           " points its links are pinned at in its joints), or set link to a"
+                           f" link '{u.origin}' is on")
         for pname, (uu, vv) in u.points.items():
             i = self.new_point(table, f"points.{pname}", pname, (u.link,))
             src = ("units", ui, "points", pname)

@@ -3,7 +3,7 @@
 A part is built from solids in the part's own frame (x, y, z in mm): solid and hollow
 cylinders, cones, frustums, boxes, spheres, each placed by a position and an axis (or a rotation),
 and holes as negative solids. ``compose`` adds them with the parallel-axis rule in tensor form,
-I_O = I_C + m (|d|^2 E - d d^T) (DOMAIN.md 5; Meriam & Kraige, Dynamics, App. D).
+I_O = I_C + m (|d|^2 E - d d^T) ([Meriam-Kraige]).
 
 Units: lengths mm, mass kg, inertia kg mm^2, densities kg/m^3 at the edges (``density``
 arguments), converted inside. The inertia tensor is the full 3 x 3 matrix about the centre of

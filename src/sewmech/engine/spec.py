@@ -629,7 +629,9 @@ class CounterweightSpec(_Spec):
     ``static_moment_gcm`` (S = m * r, g cm) at ``angle_deg`` (from u, counter-clockwise) and
     ``radius_mm`` (r). ``z_mm``: its axial plane, needed on a link that turns with the upper
     shaft (``[shaft] links``) for the bearing reactions; ``max_static_moment_gcm``: the most
-    the space allows, a limit for the balancing. The file's ``[masses]`` stay as they
+    the space allows, a limit for the balancing; ``bore_mm``: the diameter of the shaft it is
+    clamped on, for the recipe of a built counterweight (default: the link's own solid on its
+    axis at ``z_mm``). The file's ``[masses]`` stay as they
     are; a counterweight is an addition, and each of its values is a parameter
     (``NAME.mass``, ``NAME.u``, ``NAME.v`` or ``NAME.static_moment``, ``NAME.angle``,
     ``NAME.radius``) that ``--set``, sweeps and the balancing change.
@@ -643,6 +645,7 @@ class CounterweightSpec(_Spec):
     radius_mm: PosFloat | None = None
     z_mm: Float | None = None
     max_static_moment_gcm: PosFloat | None = None
+    bore_mm: PosFloat | None = None
     note: str = ""
 
     @model_validator(mode="after")
@@ -839,6 +842,30 @@ def _short(value, limit: int = 60) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
+#: what a counterweight's value out of its domain means, and what to give instead
+_COUNTERWEIGHT_DOMAIN = {
+    "static_moment_gcm": ("a counterweight's static moment cannot be negative",
+                          "Give 0 (no counterweight) or more; turn it by angle_deg instead"),
+    "mass_g": ("a counterweight's mass cannot be negative",
+               "Give 0 (no counterweight) or more; move it by at_mm instead"),
+    "radius_mm": ("the radius where the counterweight's centre of mass sits must be > 0 mm",
+                  "Give its distance from the origin of the link's frame (a counterweight on"
+                  " that point balances nothing)"),
+    "max_static_moment_gcm": ("the largest static moment the space allows must be > 0 g cm",
+                              "Give what fits there, or leave the key out for no limit"),
+    "bore_mm": ("the diameter of the shaft the counterweight is clamped on must be > 0 mm",
+                "Give the shaft's diameter at the counterweight, or leave the key out"),
+}
+
+
+def _counterweight_domain(key: str, got) -> tuple[str, str]:
+    """(message, hint) of a counterweight value below its domain."""
+    what, hint = _COUNTERWEIGHT_DOMAIN.get(key, ("must be a positive number", "Give one"))
+    unit = {"gcm": " g cm", "g": " g", "mm": " mm"}.get(key.rpartition("_")[2], "")
+    shown = f"{got:g}{unit}" if isinstance(got, int | float) else _short(got)
+    return f"is {shown}: {what}", hint
+
+
 def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpec,
              doc: str = "docs/machine-files.md") -> MachineFileError:
     loc = tuple(err["loc"])
@@ -875,6 +902,8 @@ def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpe
         msg = f"length_unit must be \"mm\", got {_short(got)}"
         hint = ("sewmech reads every length of a machine file in millimetres; convert the"
                 " file's lengths to mm")
+    elif etype in ("greater_than", "greater_than_equal") and table.startswith("counterweights."):
+        msg, hint = _counterweight_domain(key, got)
     elif etype in ("greater_than", "greater_than_equal") and "length" in key:
         msg = f"must be a positive length in mm, got {_short(got)}"
     elif etype == "union_tag_not_found":

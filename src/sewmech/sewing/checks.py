@@ -4,7 +4,7 @@
 and needle descent, :mod:`sewmech.sewing.timing`) and of the feed (:func:`sewmech.sewing.feed.
 check_feed`) that the machine's ``[sewing]`` roles allow; the report and ``sewmech report``
 print them. Each is a :class:`~sewmech.sewing.timing.Check`: value, expectation, pass/fail and
-source (DOMAIN.md).
+source (a key of docs/references.md, :mod:`sewmech.sewing.references`).
 """
 
 from __future__ import annotations
@@ -32,25 +32,25 @@ def check_timing(machine: Machine, params=None) -> list[Check]:
         sw = shuttle_swing(machine, params).swing_deg
         lo, hi = SHUTTLE_SWING_DEG
         out.append(Check("shuttle swing", sw, "deg", f"{lo:g}-{hi:g}", lo <= sw <= hi,
-                         "DOMAIN.md 1.1 (JA household oscillating shuttle)"))
+                         "[EC-household-machine] (JA household oscillating shuttle)"))
     if s.shuttle_point is not None:
         ll = loop_lift(machine, params)
         lo, hi = LOOP_LIFT_MM
         out.append(Check("loop lift when the shuttle point meets the needle", ll.rise_mm, "mm",
                          f"{lo:g}-{hi:g}", lo <= ll.rise_mm <= hi,
-                         "DOMAIN.md 3.1 (Soviet household machines)"))
+                         "[Melnikov-seamstress] (Soviet household machines)"))
         out.append(Check("shuttle point above the needle eye at the meeting",
                          ll.point_above_eye_mm, "mm", "> 0 (point above the eye)",
-                         ll.point_above_eye_mm > 0.0, "DOMAIN.md 3.1 (Singer 31-15: 1.6 mm)"))
+                         ll.point_above_eye_mm > 0.0, "[NAVEDTRA-14218] (Singer 31-15: 1.6 mm)"))
     if s.take_up_eye is not None:
         lag = take_up_lag_deg(machine, params)
         out.append(Check("take-up eye top after needle top", lag, "deg", "> 0 (lags)", lag > 0.0,
-                         "DOMAIN.md 3.3"))
+                         "[Thread-holder-timing] (household machines)"))
         d = needle_descent_at_take_up_top(machine, params)
         lo, hi = NEEDLE_DESCENT_AT_TAKE_UP_TOP_MM
         out.append(Check("needle descent when the take-up eye is at its top", d, "mm",
                          f"{lo:g}-{hi:g} (a few mm, about 1/8 in)", lo <= d <= hi,
-                         "DOMAIN.md 3.3 (household machines)"))
+                         "[Thread-holder-timing] (household machines: about 1/8 in)"))
     if s.feed_dog is not None and s.regulator is not None:
         out += check_feed(machine, params)
     return out

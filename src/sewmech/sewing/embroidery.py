@@ -1,5 +1,5 @@
-"""The double-crank thread take-up of an embroidery semi-automatic (Kozlov; the seed
-``embroidery-take-up.ru.txt``): design procedure, thread drawn L(phi) for any (alpha, beta),
+"""The double-crank thread take-up of an embroidery semi-automatic (Kozlov,
+[Kozlov-take-up]): design procedure, thread drawn L(phi) for any (alpha, beta),
 the paper's table, the comparison with a base machine's diagram, and the colour changer.
 
 The mechanism is the shipped machine file ``embroidery-131`` (or any file with the same point

@@ -33,8 +33,10 @@ from ..engine.machine import Machine
 from ..engine.spec import SewingSpec
 from .timing import Check, needle_windows
 
-FEED_DOG_RISE_MM = (1.2, 1.5)  # DOMAIN.md 1.1: Podolsk household machine, by fabric thickness
-MAX_STITCH_MM = (3.6, 4.2)  # DOMAIN.md 1.1: Singer 31-15 (3.6) .. measured class-15 clone (4.2)
+FEED_DOG_RISE_MM = (1.2, 1.5)  # [Sdelai-sam-1999]: Podolsk household machine, by fabric thickness
+# the Singer 31-15 (3.6, [Navy-Singer-31-15]) .. a class-15 clone measured (4.2,
+# [SewingMachineNut-2018])
+MAX_STITCH_MM = (3.6, 4.2)
 
 
 def _roles(machine: Machine) -> SewingSpec:
@@ -44,6 +46,12 @@ def _roles(machine: Machine) -> SewingSpec:
                          " [sewing] feed_dog (the tooth-tip point) and regulator (the stitch"
                          " regulator input)")
     return s
+
+
+#: the regulator's zero mark, deg: a regulator input is its setting from the zero mark (the slot
+#: square to the fork: no feed; docs/notation.md). Its file default is the machine's working
+#: setting instead, which the analyses default to
+ZERO_MARK_DEG = 0.0
 
 
 def regulator_range_deg(machine: Machine) -> tuple[float, float]:
@@ -338,25 +346,26 @@ def _overlap_deg(a0, a1, b0, b1) -> float:
 
 
 def check_feed(machine: Machine, params=None) -> list:
-    """The feed checks (DOMAIN.md 1.1 and 3.2) as :class:`sewmech.timing.Check` rows."""
+    """The feed checks (sources: docs/references.md) as :class:`sewmech.timing.Check` rows."""
     s = _roles(machine)
     lo, hi = regulator_range_deg(machine)
-    zero = machine.spec.inputs[s.regulator].default_deg
-    c = feed_cycles(machine, [lo, zero, hi], params=params)
+    c = feed_cycles(machine, [lo, ZERO_MARK_DEG, hi], params=params)
     w_in, w_below = needle_windows(machine, params)
     out = []
     a, b = FEED_DOG_RISE_MM
     lift = float(c.lift_mm[1])
     out.append(Check("feed dog above the plate at the top of lift (zero mark)", lift, "mm",
-                     f"{a:g}-{b:g}", a <= lift <= b, "DOMAIN.md 1.1 (Podolsk household machine)"))
+                     f"{a:g}-{b:g}", a <= lift <= b,
+                     "[Sdelai-sam-1999] (Podolsk household machine)"))
     a, b = MAX_STITCH_MM
     for name, v in (("longest forward stitch", float(c.stitch_mm[2])),
                     ("longest reverse stitch", -float(c.stitch_mm[0]))):
         out.append(Check(name, v, "mm", f"{a:g}-{b:g}", a <= v <= b,
-                         "DOMAIN.md 1.1 (class-15 machines measured; Singer 31-15)"))
+                         "[Navy-Singer-31-15], [SewingMachineNut-2018] (Singer 31-15;"
+                         " class-15 machines measured)"))
     z = float(c.stitch_mm[1])
     out.append(Check("stitch at the regulator's zero mark", z, "mm", "|s| <= 0.01",
-                     abs(z) <= 0.01, "the JB kinematics report: no feed at the 0 mark"))
+                     abs(z) <= 0.01, "[JB-kinematics] (no feed at the 0 mark)"))
     # the dog when the needle point reaches the plate, at the longest forward stitch
     phi_plate = math.radians(w_below.start_deg)
     r = kinematics(machine, np.array([phi_plate]), params=params,
@@ -364,12 +373,12 @@ def check_feed(machine: Machine, params=None) -> list:
     h = float(r.point(s.feed_dog).p[0, 1] - s.plate_y)
     out.append(Check("dog height when the needle point reaches the plate", h, "mm",
                      "<= 0 (level with or below the plate)", h <= 0.0,
-                     "DOMAIN.md 3.2 (Singer 31-15, Juki TL-2010Q, Brother S-7000DD)"))
+                     "[NAVEDTRA-14218], [Juki-TL-2010Q], [Brother-S-7000DD]"))
     worst = max(_overlap_deg(float(c.rise_deg[k]), float(c.fall_deg[k]), w_in.start_deg,
                              w_in.end_deg) for k in range(3) if np.isfinite(c.rise_deg[k]))
     out.append(Check("overlap of 'needle in fabric' and 'dog above plate'", worst, "deg",
                      "0 (the dog feeds only while the needle is out)", worst == 0.0,
-                     "DOMAIN.md 3.2"))
+                     "[Juki-how-it-works], [SMI-feed-dog]"))
     return out
 
 

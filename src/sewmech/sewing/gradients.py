@@ -302,6 +302,44 @@ METRICS = {"stitch_length": stitch_length_gradient, "feed_lift": feed_lift_gradi
            "loop_lift": loop_lift_gradient, "shuttle_swing_deg": shuttle_swing_gradient}
 
 
+#: a stitch shorter than this fraction of the regulator's longest one is round-off of no stitch
+#: (at the zero mark the dog moves only up and down: JB1-3 computes 9e-7 mm there, 2e-7 of its
+#: 4.08 mm)
+DEGENERATE_STITCH = 1e-6
+
+
+def require_a_stitch(machine: Machine, metric: str, value: float, regulator_deg: float, *,
+                     option: str = "regulator_deg", give: str = "regulator_deg={deg:g}",
+                     params=None) -> None:
+    """Refuse a feed metric that is degenerate at the setting: the stitch length where it is
+    round-off of zero (below :data:`DEGENERATE_STITCH` of the longest stitch at the ends of the
+    regulator's travel), whose tolerances and derivatives would be those of a stitch that does
+    not exist. The error names the metric, the setting and ``option``, and suggests a setting
+    in ``give``'s form (``{deg}``): the machine's working setting, or the forward end of the
+    regulator's travel where the working setting is the one refused. Other metrics pass."""
+    from ..engine.errors import OptionError
+    from .feed import regulator_range_deg
+
+    if metric != "stitch_length":
+        return
+    lo, hi = regulator_range_deg(machine)
+    longest = float(np.nanmax(np.abs(feed_cycles(machine, [lo, hi], params=params).stitch_mm)))
+    if not abs(value) <= DEGENERATE_STITCH * longest:
+        return
+    s = _roles(machine)
+    working = machine.spec.inputs[s.regulator].default_deg
+    if regulator_deg != working:
+        suggest, why = working, "the machine's working setting"
+    else:
+        suggest, why = hi, ("the forward end of the regulator's travel; the machine file's"
+                            f" [inputs.{s.regulator}] default_deg should be its working setting")
+    raise OptionError(option, f"{metric} at regulator {regulator_deg:g} deg is {value:.2g} mm:"
+                      f" round-off of no stitch (below {DEGENERATE_STITCH:g} of the longest,"
+                      f" {longest:.3g} mm; the regulator's zero mark), so its tolerances and"
+                      " derivatives would be those of a stitch that does not exist",
+                      f"Give a setting that feeds, e.g. {give.format(deg=suggest)} ({why})")
+
+
 def metric_values(machine: Machine, name: str, regulator_deg: float, params: np.ndarray,
                   step_deg: float = 1.0) -> np.ndarray:
     """The metric ``name`` (a key of :data:`METRICS`) for a batch of designs ``params``

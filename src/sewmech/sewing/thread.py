@@ -20,7 +20,8 @@ jumps towards 360 deg means it does not).
 
 The take-up's supply is S(phi) = max L_tu - L_tu(phi), L_tu the length of the take-up section
 of the path (from ``take_up[0]`` to ``take_up[1]``): the thread the take-up has released
-towards the needle (DOMAIN.md 2.3). Lengths in mm, angles rad inside, degrees at the edges.
+towards the needle ([Krasowska-take-up], [US-10017890]). Lengths in mm, angles rad inside,
+degrees at the edges.
 """
 
 from __future__ import annotations
@@ -141,7 +142,7 @@ def _path_of(machine: Machine, r, on_failure: str = "raise") -> ThreadPath:
 
 # ---- demand of the stitch-forming side, and the balance ------------------------------------------
 
-CHECK_SPRING_STROKE_MM = 10.0  # DOMAIN.md 2.2 item 5: Juki LK-1900B check spring, 8-10 mm
+CHECK_SPRING_STROKE_MM = 10.0  # [Juki-LK-1900B]: the check spring's stroke, 8-10 mm
 
 
 def path_length_gradient(centres: ArrayLike, rho: ArrayLike) -> np.ndarray:
@@ -169,10 +170,10 @@ def consumption_per_stitch(stitch_mm: ArrayLike, fabric_mm: ArrayLike,
     """Needle and bobbin thread per stitch of a balanced lockstitch (type 301), mm.
 
     Each thread runs one stitch length along its face of the fabric and half the thickness
-    down (or up) to the interlacing at mid-thickness and back: l + t each (DOMAIN.md 2.1, the
-    geometric form of the industry formula); a finite thread diameter d adds the bend of each
+    down (or up) to the interlacing at mid-thickness and back: l + t each ([Thread-consumption-301],
+    the geometric form of the industry formula); a finite thread diameter d adds the bend of each
     thread round the other at the interlacing, pi d / 2 per thread (Malek et al., Autex 2020,
-    DOMAIN.md 2.1, in its simplest form). Also returned: the industry formula
+    [Malek-2020], in its simplest form). Also returned: the industry formula
     C = 2 + 2 T S (inches of thread per inch of seam, T thickness in inches, S stitches per inch)
     converted to mm per stitch, for comparison (with d = 0 it equals needle + bobbin).
     """
@@ -266,10 +267,11 @@ def thread_balance(machine: Machine, *, stitch_mm: float = 2.5, fabric_mm: float
                    step_deg: float = 0.5, params=None) -> ThreadBalance:
     """The thread balance of one cycle: the take-up's supply against the stitch's demand.
 
-    Follows DOMAIN.md 2.3 with the machine's own geometry: the take-up section and the path to
-    the needle eye from ``[thread]``, the eye and fabric from ``[sewing]``, loop seizure from
-    the shuttle timing, and the loop drawn round a bobbin case of ``bobbin_case_radius`` about
-    the shuttle axis until the shuttle has turned ``cast_off_deg`` past seizure.
+    Supply against demand ([Krasowska-take-up], [US-10017890]) with the machine's own
+    geometry: the take-up section and the path to the needle eye from ``[thread]``, the eye
+    and fabric from ``[sewing]``, loop seizure from the shuttle timing, and the loop drawn round
+    a bobbin case of ``bobbin_case_radius`` about the shuttle axis until the shuttle has turned
+    ``cast_off_deg`` past seizure.
     """
     return _balance(machine, stitch_mm, fabric_mm, step_deg, params)[0]
 
@@ -350,21 +352,25 @@ def _balance(machine: Machine, stitch_mm: float, fabric_mm: float | None, step_d
 
 
 def check_thread(machine: Machine, balance: ThreadBalance | None = None) -> list:
-    """The thread-balance checks of DOMAIN.md 2.3 as :class:`sewmech.timing.Check` rows."""
+    """The thread-balance checks as :class:`sewmech.timing.Check` rows (their sources:
+    docs/references.md)."""
     b = thread_balance(machine) if balance is None else balance
     out = []
     v = b.min_overfeed_while_loop_grows
     out.append(Check("least overfeed while the shuttle enlarges the loop", v, "mm",
-                     ">= 0 (no thread pulled through the tension)", v >= 0.0, "DOMAIN.md 2.3"))
+                     ">= 0 (no thread pulled through the tension)", v >= 0.0,
+                     "[US-10017890], [Krasowska-take-up] (the loop takes no more than the"
+                     " take-up supplies)"))
     v = b.overfeed_at_needle_entry
     out.append(Check("overfeed when the needle enters the fabric", v, "mm",
                      f"0-{CHECK_SPRING_STROKE_MM:g} (the check spring takes it)",
                      0.0 <= v <= CHECK_SPRING_STROKE_MM,
-                     "DOMAIN.md 2.3; check-spring stroke: DOMAIN.md 2.2 item 5 (Juki LK-1900B)"))
+                     "[Juki-LK-1900B] (check-spring stroke 8-10 mm)"))
     v = b.reserve_after_cast_off
     out.append(Check("take-up reserve once the loop is cast off", v, "mm",
                      f">= {b.consumption_mm:.2f} (the needle thread one stitch consumes)",
-                     v >= b.consumption_mm, "DOMAIN.md 2.3 (stitch set, l + t drawn per cycle)"))
+                     v >= b.consumption_mm, "[Thread-consumption-301] (stitch set:"
+                     " l + t drawn per cycle)"))
     return out
 
 

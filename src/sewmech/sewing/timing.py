@@ -5,10 +5,11 @@ Everything here reads the machine through its ``[sewing]`` roles (needle point a
 link and point, take-up eye, throat plate), so it works for any lockstitch machine file. Angles
 are returned in degrees (``*_deg``) because they are read by people; lengths in mm.
 
-The bands the checks use are the public facts of the household oscillating-shuttle class
-collected in DOMAIN.md: shuttle swing 206-210 deg (section 1.1, the encyclopaedia entry on
-household sewing machines), loop lift 2.0-2.5 mm (section 3.1, Soviet household machines), the
-take-up eye's top lagging the needle's top (section 3.3).
+The bands the checks use are the published facts of the household oscillating-shuttle class
+(docs/references.md): shuttle swing 206-210 deg (the encyclopaedia entry on household sewing
+machines, [EC-household-machine]), loop lift 2.0-2.5 mm (Soviet household machines,
+[Melnikov-seamstress]), the take-up eye's top lagging the needle's top
+([Thread-holder-timing]).
 """
 
 from __future__ import annotations
@@ -26,9 +27,9 @@ from ..engine.kinematics import kinematics
 from ..engine.machine import Machine
 from ..engine.spec import SewingSpec
 
-SHUTTLE_SWING_DEG = (206.0, 210.0)  # DOMAIN.md 1.1
-LOOP_LIFT_MM = (2.0, 2.5)  # DOMAIN.md 3.1
-# DOMAIN.md 3.3: "a few millimeters (around 1/8 inch)"; read as 1.5-6 mm
+SHUTTLE_SWING_DEG = (206.0, 210.0)  # [EC-household-machine]
+LOOP_LIFT_MM = (2.0, 2.5)  # [Melnikov-seamstress]
+# [Thread-holder-timing]: "a few millimeters (around 1/8 inch)"; read as 1.5-6 mm
 NEEDLE_DESCENT_AT_TAKE_UP_TOP_MM = (1.5, 6.0)
 
 
@@ -172,7 +173,7 @@ def shuttle_swing(machine: Machine, params=None) -> Swing:
 
 def needle_descent_at_take_up_top(machine: Machine, params=None) -> float:
     """How far (mm) the needle point has come down from its top when the take-up eye is at
-    its highest (DOMAIN.md 3.3: a few millimetres, about 1/8 in, on household machines)."""
+    its highest ([Thread-holder-timing]: a few millimetres, about 1/8 in, on household machines)."""
     eye = _need(roles(machine).take_up_eye, "take_up_eye", machine)
     top = extremes(machine, f"p_{eye}_y", params=params).maximum
     return needle_stroke(machine, params).top_y - _y(machine, roles(machine).needle_point,

@@ -15,6 +15,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from ...engine.errors import OptionError
+from ..display import is_round_off, number
 from .common import (DEFAULT_MACHINE, SET_HELP, _load, _settings, command, console,
                          print_json)
 
@@ -28,6 +29,7 @@ METRICS = ("stitch_length", "feed_lift", "dog_height_at_needle_plate", "needle_t
 def _metric(m, name: str, settings: dict) -> tuple[float, np.ndarray, str, dict]:
     """A sewing metric's value, derivatives, unit and event angles (deg)."""
     from ...sewing.gradients import METRICS as FUNCTIONS
+    from ...sewing.gradients import require_a_stitch
     from ...sewing.timing import roles
 
     s = roles(m)
@@ -42,6 +44,8 @@ def _metric(m, name: str, settings: dict) -> tuple[float, np.ndarray, str, dict]
     reg = settings.get(s.regulator)
     deg = m.spec.inputs[s.regulator].default_deg if reg is None else math.degrees(reg)
     g = FUNCTIONS[name](m, deg)
+    require_a_stitch(m, name, g.value, deg, option="--input",
+                     give=f"--input {s.regulator}={{deg:g}}")
     return g.value, g.d_dparam, g.unit, {**g.events_deg, "regulator": deg}
 
 
@@ -59,14 +63,22 @@ def sensitivity_cmd(
     phi_deg: float = typer.Option(0.0, "--phi-deg", help="shaft angle, deg (position"
                                   " channels)"),
     inputs: list[str] = typer.Option(None, "--input", help="a setting input NAME=DEG, e.g."
-                                     " regulator=30; repeatable (default: the file's)"),
-    top: int = typer.Option(15, help="rows of the table: the largest derivatives"),
-    as_json: bool = typer.Option(False, "--json", help="print output, phi_deg, value, unit and"
-                                 " d_dparam (parameter -> derivative, internal units) as JSON"),
+                                     " regulator=30; repeatable (default: the machine's"
+                                     " working setting)"),
+    top: int = typer.Option(15, help="rows of the table: the parameters whose tolerance moves"
+                            " the output most"),
+    tolerances: Path = typer.Option(None, help="tolerance file (TOML, docs/accuracy.md) whose"
+                                    " tolerances rank the parameters; default: IT9 on every"
+                                    " length, +-0.05 deg on every angle"),
+    as_json: bool = typer.Option(False, "--json", help="print output, phi_deg, value, unit,"
+                                 " d_dparam (parameter -> derivative, internal units),"
+                                 " tolerances and effects as JSON"),
     sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
 ):
     """Exact derivatives of one output by every parameter of the machine, at one shaft angle
-    (units: the output's per the parameter's, mm and rad)."""
+    (units: the output's per the parameter's, mm and rad), ranked by what each parameter's
+    tolerance moves the output by (derivative x tolerance), so that lengths and angles compare."""
+    from ...design.tolerance_file import RANKING_ANGLE_DEG, load_tolerance_file, ranking_tolerances
     from ...engine.sensitivity import sensitivities
 
     if not (math.isfinite(phi_deg) and abs(phi_deg) <= 1e6):
@@ -75,6 +87,10 @@ def sensitivity_cmd(
         raise OptionError("--top", f"must be at least 1, got {top}")
     m = _load(machine, sets)
     settings = _settings(m, inputs)
+    tol = ranking_tolerances(m, load_tolerance_file(tolerances) if tolerances else None,
+                             str(tolerances or "tolerances"))
+    ranked_by = (f"the tolerances of {tolerances}" if tolerances else
+                 f"IT9 on lengths, +-{RANKING_ANGLE_DEG:g} deg on angles")
     names = m.parameter_names
     if output in METRICS:
         value, d, unit, events = _metric(m, output, settings)
@@ -92,22 +108,53 @@ def sensitivity_cmd(
         value, d = float(value[0]), d[0]
         at = f"at phi = {phi_deg:g} deg"
         data = {"output": output, "phi_deg": phi_deg}
+    effect = d * tol
     data.update({"value": float(value), "unit": unit,
                  "d_dparam": {n: float(x) for n, x in zip(names, d)},
-                 "parameter_units": dict(zip(names, m.parameter_units))})
+                 "parameter_units": dict(zip(names, m.parameter_units)),
+                 "ranked_by": ranked_by,
+                 "tolerances": {n: float(t) for n, t in zip(names, tol) if t > 0},
+                 "effects": {n: float(e) for n, e, t in zip(names, effect, tol) if t > 0}})
     if as_json:
         print_json(data)
         return
+    out_scale, per_unit = _scales(m, unit)
+    moves = np.array([not is_round_off(x, out_scale / per_unit(u))
+                      for x, u in zip(d, m.parameter_units)])
     table = Table(title=f"{m.name}: d {output} / d parameter {at} ({output} ="
-                        f" {value:.6g} {unit})")
-    for col in ("parameter", "derivative", "unit"):
-        table.add_column(col, justify="right" if col == "derivative" else "left")
-    order = np.argsort(-np.abs(d))[:top]
-    for j in order:
-        table.add_row(names[j], f"{d[j]:.6g}", escape(f"{unit} per {m.parameter_units[j]}"))
+                        f" {value:.6g} {unit}), ranked by what each tolerance moves it by",
+                  caption=f"effect: derivative x tolerance ({ranked_by}), {unit}")
+    for col in ("parameter", "tolerance", "effect", "derivative", "unit"):
+        table.add_column(col, justify="left" if col in ("parameter", "unit") else "right")
+    made = np.flatnonzero((tol > 0) & moves)
+    for j in made[np.argsort(-np.abs(effect[made]), kind="stable")][:top]:
+        u = m.parameter_units[j]
+        t = f"+-{math.degrees(tol[j]):.3g} deg" if u == "rad" else f"+-{tol[j]:.3g} {u}"
+        table.add_row(names[j], t, number(effect[j]), number(d[j], digits=6),
+                      escape(f"{unit} per {u}"))
     console.print(table)
-    zero = int(np.sum(d == 0.0))
-    console.print(f"{len(names)} parameters; {zero} do not move {output} {at}")
+    exact = [j for j in np.flatnonzero(tol == 0) if moves[j]]
+    if exact:
+        console.print(escape("not toleranced (setting inputs, speed ratios, counterweights, or"
+                             " held exact): " + ", ".join(
+                                 f"{names[j]} {number(d[j], digits=6)} {unit} per"
+                                 f" {m.parameter_units[j]}" for j in exact)), highlight=False)
+    console.print(f"{len(names)} parameters; {int(np.sum(~moves))} do not move {output} {at}",
+                  highlight=False)
+
+
+def _scales(m, unit: str):
+    """The size of an output in ``unit`` (below whose round-off a value is 0) and, per unit of
+    a parameter, the size that parameter's unit stands for: lengths the machine's size (its
+    largest length), angles one radian. A derivative's round-off is that of the output's size
+    over the parameter's."""
+    size = max([abs(float(v)) for v, u in zip(m.defaults, m.parameter_units) if u == "mm"]
+               + [1.0])
+    base, _, per = unit.partition("/")
+    out = {"mm": size, "rad": 2.0 * math.pi, "deg": 360.0}.get(base, 1.0)
+    w = m.spec.speed.rpm * 2.0 * math.pi / 60.0
+    out *= {"": 1.0, "s": w, "s^2": w * w}.get(per, 1.0)
+    return out, (lambda u: size if u == "mm" else 1.0)
 
 
 @command("tolerance")
@@ -123,7 +170,8 @@ def tolerance_cmd(
     band: float = typer.Option(None, help="allocate: the widest tolerances (least cost) that"
                                " keep the output within +-BAND (its unit)"),
     regulator_deg: float = typer.Option(None, "--regulator-deg", help="stitch regulator"
-                                        " setting, deg (default: the file's)"),
+                                        " setting, deg (default: the machine's working"
+                                        " setting)"),
     phi_deg: float = typer.Option(0.0, "--phi-deg", help="shaft angle of a position channel,"
                                   " deg"),
     top: int = typer.Option(12, help="rows of the contributions table"),
@@ -157,7 +205,8 @@ def tolerance_cmd(
         progress.add_task(f"tolerance analysis of {output} ({samples} designs)", total=None)
         res = tolerance_analysis(m, output, spec, regulator_deg=regulator_deg, phi_deg=phi_deg,
                                  samples=samples, seed=seed, band=band,
-                                 where=str(tolerances or "tolerances"))
+                                 where=str(tolerances or "tolerances"), option="--regulator-deg",
+                                 give="--regulator-deg {deg:g}")
     data = {"machine": m.name, **res.to_json()}
     if out is not None:
         _write_tolerance(m, out, res, data)
@@ -169,8 +218,9 @@ def tolerance_cmd(
     console.print(f"{m.name}: {output} = {res.value:.6g} {u}; {len(res.names)} toleranced"
                   f" dimensions ({res.distribution})")
     console.print(f"  worst case +-{res.worst_case:.4g} {u}, RSS +-{res.rss:.4g} {u}")
-    console.print(f"  Monte Carlo ({mc['n']} designs): std {mc['std']:.4g} {u} (RSS / 3 ="
-                  f" {res.rss / 3:.4g}), p99 of |deviation| {mc['p99']:.4g} {u}, range"
+    console.print(f"  Monte Carlo ({mc['n']} designs): std {mc['std']:.4g} {u} (RSS /"
+                  f" {res.sigma_divisor[1]} = {res.sigma:.4g} {u} to first order,"
+                  f" {res.distribution} dimensions), p99 of |deviation| {mc['p99']:.4g} {u}, range"
                   f" {mc['min']:.4g} .. {mc['max']:.4g}")
     how = mc.get("evaluation", {})
     if "located" in how:
@@ -223,7 +273,7 @@ def _write_tolerance(m, out: Path, res, data: dict) -> None:
         fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
         ax.hist(res.deviations, bins=80, density=True, color="C0", alpha=0.6,
                 label=f"Monte Carlo, {res.monte_carlo['n']} designs")
-        sigma = res.rss / 3.0 if res.distribution == "normal" else res.rss / math.sqrt(3.0)
+        sigma = res.sigma
         x = np.linspace(-res.worst_case, res.worst_case, 400)
         ax.plot(x, np.exp(-0.5 * (x / sigma) ** 2) / (sigma * math.sqrt(2 * math.pi)), "k-",
                 lw=1.2, label=f"normal, sigma from the RSS ({sigma:.3g} {u})")

@@ -16,6 +16,7 @@ from rich.table import Table
 
 from ...engine.errors import AnalysisError, OptionError, SewmechError
 from ...engine.machine import Machine, file_value, load_machine, shipped_machines
+from ..display import is_round_off, number
 from .common import (DEFAULT_MACHINE, SET_HELP, Format, _bounded, _load, _phi, _phi_grid, _rpm,
                      _settings, command, console, print_json, process_ends)
 
@@ -24,8 +25,8 @@ from .common import (DEFAULT_MACHINE, SET_HELP, Format, _bounded, _load, _phi, _
 def machines_cmd():
     """List the machine files shipped with sewmech."""
     table = Table(title="shipped machines")
-    for col in ("name", "title", "units", "file"):
-        table.add_column(col)
+    for col in ("name", "title", "units", "file"):  # a path is never cut: in a narrow
+        table.add_column(col, overflow="fold")       # terminal it goes on to the next line
     for name, path in sorted(shipped_machines().items()):
         m = load_machine(path)
         table.add_row(name, m.spec.machine.title, str(len(m.unit_names)), str(path))
@@ -97,7 +98,7 @@ def check_cmd(
         text += ("; the cranks' ratios do not repeat within 100 turns, so only the first turn"
                  " is proved")
     if len(proofs) > 1:
-        text += " at the default setting and at " + ", ".join(lb for lb, _ in proofs[1:])
+        text += " at the working setting and at " + ", ".join(lb for lb, _ in proofs[1:])
     if proofs[0][1].loop_steps:
         from ...engine.assembly import LOOP_STEP_DEG
 
@@ -113,10 +114,12 @@ def check_cmd(
 
 def _margin_table(m: Machine, proofs) -> Table:
     """The smallest assembly margin of every closed-form unit over the turn and settings."""
-    table = Table(title=f"{m.name}: assembly margins (how far each unit is from failing to"
-                        " assemble; smallest over the turn)")
-    for col in ("unit", "condition", "margin [mm]", "at phi [deg]", "setting"):
-        table.add_column(col, justify="right" if col.startswith(("margin", "at")) else "left")
+    table = Table(title=f"{m.name}: assembly margins", caption="how far each unit is from"
+                  " failing to assemble: the smallest over the turn and the settings")
+    for col in ("unit", "condition", "margin [mm]", "at phi [deg]", "setting"):  # (escaped:
+        # rich would take [mm] for a style)
+        table.add_column(escape(col), justify="right" if col.startswith(("margin", "at"))
+                         else "left")
     worst: dict[str, tuple] = {}
     for label, proof in proofs:
         for g in proof.margins:
@@ -124,7 +127,7 @@ def _margin_table(m: Machine, proofs) -> Table:
                 worst[g.unit] = (g, label or "default")
     for g, label in worst.values():
         table.add_row(g.unit, escape(g.condition), f"{g.value_mm:.4g}", f"{g.phi_deg:.4g}",
-                      label)
+                      escape(label))
     return table
 
 
@@ -144,7 +147,39 @@ def _print_parameters(m: Machine) -> None:
                       highlight=False, soft_wrap=True)
 
 
+def _channels(res):
+    """Every channel of a kinematics result as (label, unit, x, rate, accel, scale, size): the
+    values in the unit shown (``scale`` converts from the internal one) and ``size``, the size
+    of the quantity in internal units, below whose round-off a value reads 0 (mm: the largest
+    distance of any point from the origin; rad: a turn)."""
+    w = float(np.max(np.abs(res.omega_shaft))) if res.phi.size else 0.0
+    pts = [res.point(pt).p for pt in res.point_names]
+    length = max([float(np.nanmax(np.abs(p))) for p in pts if p.size] + [1.0])
+    turn = 2.0 * math.pi
+    out = []
+    for pt in res.point_names:
+        m = res.point(pt)
+        for c, ax in (("x", 0), ("y", 1)):
+            out.append((f"{pt}.{c}", "mm", m.p[:, ax], m.v[:, ax], m.a[:, ax], 1.0, length))
+    for lk in res.link_names:
+        if lk == "frame":
+            continue
+        m = res.link(lk)
+        th = np.unwrap(m.theta)
+        th -= turn * np.round(th[0] / turn)  # start in (-180, 180] deg
+        out.append((f"theta {lk}", "deg", th, m.omega, m.epsilon, 180.0 / math.pi, turn))
+    for var in res.variable_names:
+        m = res.variable(var)
+        rad = m.unit == "rad"
+        out.append((f"q {var}", "deg" if rad else m.unit, m.q, m.q_dot, m.q_ddot,
+                    180.0 / math.pi if rad else 1.0, turn if rad else length))
+    return out, w
+
+
 def _summary(res) -> Table:
+    """A whole turn: each channel's least and greatest value and its largest rate and
+    acceleration; a channel is called constant only when it neither moves nor has a rate or an
+    acceleration (each at the round-off of its size, :mod:`sewmech.app.display`)."""
     rpm = res.omega_shaft[0] * 60 / (2 * math.pi) if res.phi.size else 0.0
     table = Table(title=f"{res.machine}: kinematics over {res.phi.size} positions ({rpm:g} rpm)",
                   caption="rate: unit/s, accel: unit/s^2; link angles are unwrapped"
@@ -152,31 +187,49 @@ def _summary(res) -> Table:
     for col in ("channel", "unit", "min", "max", "max |rate|", "max |accel|"):
         table.add_column(col, justify="right" if col not in ("channel", "unit") else "left",
                          overflow="fold")  # long names wrap instead of being cut
-
-    def row(label, unit, x, dx, ddx, scale=1.0):
-        if np.ptp(x) < 1e-12:
-            table.add_row(label, unit, f"{x[0] * scale:.4f}", "(constant)", "0", "0")
-            return
-        table.add_row(label, unit, f"{x.min() * scale:.4f}", f"{x.max() * scale:.4f}",
-                      f"{np.abs(dx).max() * scale:.4g}", f"{np.abs(ddx).max() * scale:.4g}")
-
     if not res.phi.size:
         return table
-    for pt in res.point_names:
-        m = res.point(pt)
-        for c, ax in (("x", 0), ("y", 1)):
-            row(f"{pt}.{c}", "mm", m.p[:, ax], m.v[:, ax], m.a[:, ax])
-    for lk in res.link_names:
-        if lk == "frame":
+    channels, w = _channels(res)
+    for label, unit, x, dx, ddx, scale, size in channels:
+        rate, acc = float(np.abs(dx).max()), float(np.abs(ddx).max())
+        if (is_round_off(float(np.ptp(x)), size) and is_round_off(rate, size * w)
+                and is_round_off(acc, size * w * w)):
+            table.add_row(label, unit, number(x[0] * scale, size * scale, 7), "(constant)",
+                          "0", "0")
             continue
-        m = res.link(lk)
-        th = np.unwrap(m.theta)
-        th -= 2.0 * math.pi * np.round(th[0] / (2.0 * math.pi))  # start in (-180, 180] deg
-        row(f"theta {lk}", "deg", th, m.omega, m.epsilon, 180.0 / math.pi)
-    for var in res.variable_names:
-        m = res.variable(var)
-        scale = 180.0 / math.pi if m.unit == "rad" else 1.0
-        row(f"q {var}", "deg" if m.unit == "rad" else m.unit, m.q, m.q_dot, m.q_ddot, scale)
+        table.add_row(label, unit, number(x.min() * scale, size * scale, 7),
+                      number(x.max() * scale, size * scale, 7),
+                      number(rate * scale, size * w * scale), number(acc * scale,
+                                                                     size * w * w * scale))
+    return table
+
+
+def _values(res) -> Table:
+    """At the shaft angles asked for (--phi-deg): each channel's value, rate and acceleration
+    at each angle, one row an angle."""
+    rpm = res.omega_shaft[0] * 60 / (2 * math.pi) if res.phi.size else 0.0
+    phi_deg = np.degrees(res.phi)
+    at = ", ".join(f"{p:g}" for p in phi_deg)
+    table = Table(title=f"{res.machine}: kinematics at phi = {at} deg ({rpm:g} rpm)",
+                  caption="value: unit, rate: unit/s, accel: unit/s^2; link angles in"
+                          " (-180, 180] deg")
+    for col in ("channel", "unit", "phi, deg", "value", "rate", "accel"):
+        table.add_column(col, justify="right" if col not in ("channel", "unit") else "left",
+                         overflow="fold")
+    if not res.phi.size:
+        return table
+    channels, w = _channels(res)
+    several = res.phi.size > 1
+    for label, unit, x, dx, ddx, scale, size in channels:
+        if unit == "deg" and label.startswith("theta "):
+            x = np.angle(np.exp(1j * x))  # each angle on its own, not unwrapped across them
+            x = np.where(x <= -math.pi, x + 2.0 * math.pi, x)
+        for k in range(res.phi.size):
+            table.add_row(label if k == 0 else "", unit if k == 0 else "", f"{phi_deg[k]:g}",
+                          number(x[k] * scale, size * scale, 7),
+                          number(dx[k] * scale, size * w * scale),
+                          number(ddx[k] * scale, size * w * w * scale),
+                          end_section=several and k == res.phi.size - 1)
     return table
 
 
@@ -185,7 +238,9 @@ def kinematics_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="shipped machine name or TOML file"),
     step_deg: float = typer.Option(5.0, help="shaft-angle step, deg"),
     phi_deg: list[float] = typer.Option(None, "--phi-deg", help="only at these shaft angles,"
-                                        " deg; repeatable (default: a turn in --step-deg steps)"),
+                                        " deg; repeatable: each channel's value, rate and"
+                                        " acceleration at each (default: a turn in --step-deg"
+                                        " steps, summarised)"),
     rpm: float = typer.Option(None, help="shaft speed, rev/min (default: the file's)"),
     out: Path = typer.Option(None, help="write the channels into this directory"),
     format: Format = typer.Option(Format.csv, "--format", help="file format with --out"),
@@ -214,7 +269,7 @@ def kinematics_cmd(
         json.dump(kinematics_to_dict(res), sys.stdout)
         sys.stdout.write("\n")
         return
-    console.print(_summary(res))
+    console.print(_summary(res) if not phi_deg else _values(res))
     if out is not None:
         console.print(f"written: {out / f'{m.name}-kinematics.{format.value}'}")
 
@@ -370,8 +425,7 @@ def feed_cmd(
     _bounded("--step-mm", step_mm, 0.01, 10.0, "mm", "0.5")
     m = _load(machine, sets)
     lo, hi = FD.regulator_range_deg(m)
-    zero = m.spec.inputs[m.spec.sewing.regulator].default_deg
-    cyc = FD.feed_cycles(m, [lo, zero, hi]).to_pandas()
+    cyc = FD.feed_cycles(m, [lo, FD.ZERO_MARK_DEG, hi]).to_pandas()  # reverse, zero, forward
     marks = FD.scale_marks(m, step_mm)
     timing = FD.set_feed_timing(m, 0.0) if m.spec.sewing.feed_cam else None
     phase_now = next((u.phase_deg for u in m.spec.units if timing and
@@ -395,8 +449,8 @@ def feed_cmd(
         table.add_row(*(f"{getattr(row, c):.4g}" for c in cols))
     console.print(table)
     mt = Table(title=f"scale-plate marks every {step_mm:g} mm")
-    mt.add_column("stitch [mm]", justify="right")
-    mt.add_column("regulator [deg]", justify="right")
+    mt.add_column(escape("stitch [mm]"), justify="right")
+    mt.add_column(escape("regulator [deg]"), justify="right")
     for k in marks:
         mt.add_row(f"{k.stitch_mm:+.2f}", f"{k.regulator_deg:+.4f}")
     console.print(mt)
@@ -433,8 +487,8 @@ def embroidery_cmd(
         sys.stdout.write("\n")
         return
     table = Table(title=f"{m.name}: thread drawn, alpha {alpha_deg:g} deg, beta {beta_deg:g} deg")
-    table.add_column("phi [deg]", justify="right")
-    table.add_column("L [mm]", justify="right")
+    table.add_column(escape("phi [deg]"), justify="right")
+    table.add_column(escape("L [mm]"), justify="right")
     for a, b in zip(phi, L):
         table.add_row(f"{a:g}", f"{b:.2f}")
     console.print(table)
@@ -482,6 +536,7 @@ def report_cmd(
     from rich.progress import Progress
 
     from ...sewing.timing import roles
+    from ..display import number_in
     from ..files.outdir import preflight
     from ..report import write_report
 
@@ -517,7 +572,7 @@ def report_cmd(
     for col in ("check", "value", "expected", "result"):
         table.add_column(col)
     for c in pd.read_csv(index.parent / f"{m.name}-checks.csv").itertuples():
-        table.add_row(c.check, f"{c.value:.4g} {c.unit}", c.expected,
+        table.add_row(c.check, f"{number_in(c.value, c.unit, digits=4)} {c.unit}", c.expected,
                       "[green]pass[/]" if c.result == "pass" else "[red]FAIL[/]")
     console.print(table)
     console.print(f"[bold]report:[/] {index.resolve()}")

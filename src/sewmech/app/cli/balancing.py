@@ -16,8 +16,8 @@ from rich.markup import escape
 from rich.table import Table
 
 from ...engine.errors import OptionError
-from .common import (DEFAULT_MACHINE, SET_HELP, _bounded, _load, _phi_grid, _rpm, command,
-                         console, print_json)
+from .common import (DEFAULT_MACHINE, SET_HELP, _bounded, _choice, _load, _phi_grid, _rpm,
+                     choices_metavar, command, console, print_json)
 
 
 class Criterion(str, Enum):
@@ -52,12 +52,12 @@ def _weights(items: list[str] | None) -> dict[str, float] | None:
     return out
 
 
-def _figure_rows(res) -> Table:
+def _figure_rows(res, after: str = "after") -> Table:
     from ..report.balancing import FIGURE_LABELS
 
     table = Table(title=f"balancing figures at {res.rpm:g} rpm (computed on the whole machine)")
-    for col in ("figure", "unit", "before", "after", "change"):
-        table.add_column(col, justify="left" if col in ("figure", "unit") else "right")
+    for col in ("figure", "unit", "before", after, "change"):
+        table.add_column(escape(col), justify="left" if col in ("figure", "unit") else "right")
     for k, (label, unit) in FIGURE_LABELS.items():
         b, a = res.before[k], res.after[k]
         if b is None:
@@ -84,12 +84,12 @@ def _cw_table(res) -> Table:
 @command("balance")
 def balance_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="shipped machine name or TOML file"),
-    criterion: Criterion = typer.Option(Criterion.delta_q, help="what to minimise: delta-q"
-                                        " (the balancing paper's equal peaks of Qx and Qy, one"
-                                        " counterweight), peak or rms shaking force, moment"
-                                        " (peak shaking moment about the upper shaft), bearings"
-                                        " (larger peak reaction of the upper shaft's bearings),"
-                                        " torque (fluctuation) or weighted"),
+    criterion: str = typer.Option(Criterion.delta_q.value, metavar=choices_metavar(Criterion),
+                                  help="what to minimise: delta-q (the balancing paper's equal"
+                                  " peaks of Qx and Qy, one counterweight), peak or rms shaking"
+                                  " force, moment (peak shaking moment about the upper shaft),"
+                                  " bearings (larger peak reaction of the upper shaft's"
+                                  " bearings), torque (fluctuation) or weighted"),
     counterweights: list[str] = typer.Option(None, "--counterweight", help="a counterweight"
                                              " of the file to choose; repeatable (default:"
                                              " all; delta-q: the one on the upper shaft)"),
@@ -111,6 +111,7 @@ def balance_cmd(
     figures before and after."""
     from ...design.balancing import balance, paper_workflow, shaft_counterweight
 
+    criterion = Criterion(_choice("--criterion", criterion, Criterion, "peak"))
     _bounded("--step-deg", step_deg, 0.1, 30.0, "deg", "1")
     _phi_grid(step_deg)  # it divides 360
     m = _load(machine, sets)
@@ -132,36 +133,68 @@ def balance_cmd(
                   moment_point=point)
     data = {"machine": m.name, **res.to_json()}
     if criterion is Criterion.delta_q:
-        paper = paper_workflow(m, next(iter(res.counterweights)), rpm=rpm, step_deg=step_deg)
+        paper = paper_workflow(m, next(iter(res.counterweights)), rpm=rpm, step_deg=step_deg,
+                               result=res)
         data["paper"] = {k: v for k, v in paper.items() if k != "result"}
     if out is not None:
         _write_balance(m, out, res, data, names, rpm, point)
     if as_json:
         print_json(data)
         return
-    console.print(_cw_table(res))
-    console.print(escape(res.message))
-    console.print(_figure_rows(res))
+    if res.proposed:
+        console.print(_cw_table(res))
+        console.print(escape(res.message))
+        console.print(_figure_rows(res))
+    else:
+        alt = res.alternative
+        console.print(f"[bold]{res.criterion}: {res.status}[/]")
+        console.print(escape(res.message))
+        console.print(_cw_table(alt))
+        console.print(_figure_rows(alt, f"with --criterion {alt.criterion}"))
+        again = [f"--set {x}" for x in sets or ()] + ([f"--rpm {rpm:g}"] if rpm else [])
+        console.print(escape(" ".join([f"the least peak shaking force: sewmech balance"
+                                       f" {machine} --criterion {alt.criterion}"
+                                       f" --counterweight {next(iter(alt.counterweights))}",
+                                       *again])))
     if "paper" in data:
-        p = data["paper"]
-        console.print(f"the balancing paper's method: S_1 {p['s1_gcm']:.4g} g cm (the shaft's"
-                      f" crank), S_add {p['s_add_gcm']:.4g} g cm, S_opt {p['s_opt_gcm']:.4g}"
-                      " g cm")
-        b = p.get("build")
-        if b:
-            ins = b["insert"]
-            console.print(f"built {b['factor']:g} x: {b['s_built_gcm']:.4g} g cm, a steel block"
-                          f" of {b['body_s_gcm']:.4g} g cm ({b['body_mass_g']:.3g} g at"
-                          f" {ins['radius_mm']:.3g} mm) with a lead insert"
-                          f" {ins['diameter_mm']:.3g} mm across and {ins['depth_mm']:.3g} mm"
-                          f" deep ({ins['mass_g']:.3g} g of lead, {b['hole_edge_mm']:.3g} mm"
-                          " from the shaft's axis to its edge), which drilled out takes it"
-                          " back to S_add")
+        for line in paper_lines(data["paper"]):
+            console.print(escape(line))
     console.print(f"basis checked on the whole machine: largest difference"
                   f" {res.basis_error:.2g} (N, N m)")
     if out is not None:
         console.print(f"written: figures, {m.name}-balance.json and"
                       f" {m.name}-balance-criteria.csv in {out}")
+
+
+def paper_lines(p: dict) -> list[str]:
+    """The balancing paper's method as the command prints it: S_1, S_add, S_opt, and the
+    built counterweight's recipe, or why there is none."""
+    lines = []
+    if p["s_add_gcm"] is None:
+        lines.append(f"the balancing paper's method: S_1 {p['s1_gcm']:.4g} g cm (the shaft's"
+                     " crank, all its solids); no S_add (Delta-Q has no root)")
+    else:
+        lines.append(f"the balancing paper's method: S_1 {p['s1_gcm']:.4g} g cm (the shaft's"
+                     f" crank, all its solids), S_add {p['s_add_gcm']:.4g} g cm, S_opt ="
+                     f" |S_1 + S_add| {p['s_opt_gcm']:.4g} g cm (the crank's net static moment"
+                     " with the extra counterweight)")
+    b = p.get("build")
+    if b:
+        ins, blk = b["insert"], b["block"]
+        lines.append(
+            f"built {b['factor']:g} x: {b['s_built_gcm']:.4g} g cm, a steel cup"
+            f" {blk['diameter_mm']:.3g} mm across and {blk['length_mm']:.3g} mm long, its axis"
+            f" parallel to the shaft at {blk['radius_mm']:.3g} mm ({blk['steel_g']:.3g} g of"
+            f" steel, clamped on the {b['bore_mm']:.3g} mm shaft), with a lead insert"
+            f" {ins['diameter_mm']:.3g} mm across and {ins['depth_mm']:.3g} mm deep"
+            f" ({ins['mass_g']:.3g} g of lead; walls at least {b['wall_mm']:g} mm: its edge"
+            f" {b['hole_edge_mm']:.3g} mm from the shaft's axis, {b['clearance_mm']:.3g} mm of"
+            " steel to the shaft), which drilled out takes it back to S_add")
+        if b.get("factor_note"):
+            lines.append(f"  margin {b['factor_note']}")
+    elif p.get("build_refused"):
+        lines.append(f"no recipe for the built counterweight: {p['build_refused']}")
+    return lines
 
 
 def _point(text: str | None) -> tuple[float, float] | None:
@@ -271,23 +304,38 @@ def influence_balance_cmd(
     file: Path = typer.Argument(..., help="CSV with columns run, place, amplitude_mm_s,"
                                 " phase_deg, trial_gcm, trial_angle_deg: run 0 without trial"
                                 " masses, then one run per correction plane with its trial"
-                                " mass (static moment g cm, angle deg); a place is a sensor"
-                                " and speed (any label), measured in every run"),
+                                " mass (static moment g cm > 0, angle deg); a place is a sensor"
+                                " and speed (any label), measured in every run; amplitudes"
+                                " are magnitudes (>= 0), phases as below"),
+    phase_lag: bool = typer.Option(False, "--phase-lag", help="the phases are lags, counted"
+                                   " against the sense of trial_angle_deg (most vibration"
+                                   " analysers with a shaft mark): each is read as -phase_deg"),
     as_json: bool = typer.Option(False, "--json", help="print the result as JSON"),
 ):
     """Correction masses for a built machine from trial runs (influence coefficients, least
-    squares over the places and speeds measured)."""
-    from ...design.vibration import influence_balance, phasor
+    squares over the places and speeds measured).
+
+    Phases: phase_deg is the angle of the once-per-turn vibration against the mark on the
+    shaft, counted in the same sense as trial_angle_deg (it grows when a trial mass is turned
+    forward); give --phase-lag for an instrument that counts it against that sense. The
+    corrections' angles come out in the frame of the trial angles."""
+    from ...design.vibration import _count, influence_balance, phasor
     from ...engine.errors import AnalysisError
     from ..files.io import read_csv_columns
 
     cols = read_csv_columns(file, ["amplitude_mm_s", "phase_deg", "trial_gcm",
-                                   "trial_angle_deg"], ["run", "place"])
+                                   "trial_angle_deg"], ["run", "place"],
+                            nonnegative={"amplitude_mm_s": "An amplitude is a magnitude: give"
+                                         " it >= 0 and add 180 deg to its phase_deg instead",
+                                         "trial_gcm": "A trial mass's static moment is a"
+                                         " magnitude: give it > 0 and add 180 deg to its"
+                                         " trial_angle_deg instead"})
     runs = list(dict.fromkeys(cols["run"]))
     places = list(dict.fromkeys(cols["place"]))
     if "0" not in runs or len(runs) < 2:
         raise AnalysisError(str(file), f"runs {', '.join(runs)}: need run 0 (no trial mass)"
                             " and one run per correction plane", "Label the runs 0, 1, 2, ...")
+    sign = -1.0 if phase_lag else 1.0
     table: dict = {}
     trial: dict = {}
     for r, p, a, ph, s, ang in zip(cols["run"], cols["place"], cols["amplitude_mm_s"],
@@ -296,11 +344,15 @@ def influence_balance_cmd(
         if (r, p) in table:
             raise AnalysisError(str(file), f"run {r} measures place {p} twice",
                                 "One line per run and place")
-        table[r, p] = phasor(a, ph)
+        table[r, p] = phasor(a, sign * ph)
         if r != "0":
             if r in trial and trial[r] != (s, ang):
                 raise AnalysisError(str(file), f"run {r} gives two different trial masses",
                                     "One trial mass per run")
+            if s == 0.0:
+                raise AnalysisError(str(file), f"run {r}: its trial mass has trial_gcm = 0",
+                                    "Give the static moment of the trial mass added in this"
+                                    " run (> 0 g cm)")
             trial[r] = (s, ang)
     missing = [f"run {r} place {p}" for r in runs for p in places if (r, p) not in table]
     if missing:
@@ -309,20 +361,30 @@ def influence_balance_cmd(
     planes = [r for r in runs if r != "0"]
     V0 = np.array([table["0", p] for p in places])
     Vt = np.array([[table[r, p] for p in places] for r in planes])
-    res = influence_balance(V0, Vt, [trial[r][0] for r in planes],
-                            [trial[r][1] for r in planes])
-    data = {**res.to_json([f"run {r}" for r in planes]), "n_places": len(places)}
+    try:
+        res = influence_balance(V0, Vt, [trial[r][0] for r in planes],
+                                [trial[r][1] for r in planes])
+    except AnalysisError as exc:
+        raise AnalysisError(str(file), exc.message, exc.hint) from None
+    data = {**res.to_json([f"run {r}" for r in planes]), "n_places": len(places),
+            "phase": "lag" if phase_lag else "same sense as trial_angle_deg"}
     if as_json:
         print_json(data)
         return
-    t = Table(title=f"correction masses from {len(places)} places and {len(planes)} trial runs")
+    t = Table(title=f"correction masses from {_count(len(places), 'place')} and"
+                    f" {_count(len(planes), 'trial run')}")
     for col in ("plane (trial run)", "static moment [g cm]", "angle [deg]"):
         t.add_column(escape(col))
     for name, v in data["corrections"].items():
         t.add_row(name, f"{v['static_moment_gcm']:.4g}", f"{v['angle_deg']:.4g}")
     console.print(t)
-    console.print(f"vibration RMS over the places {res.before:.4g} -> {res.after:.4g} mm/s"
-                  " predicted")
+    if res.cancelled is not None:
+        console.print(escape(f"vibration RMS over the places {res.before:.4g} -> 0 mm/s"
+                             f" predicted: {res.cancelled}"))
+    else:
+        db = res.level_change_db
+        console.print(f"vibration RMS over the places {res.before:.4g} -> {res.after:.4g} mm/s"
+                      " predicted" + (f" ({db:+.2f} dB)" if db is not None else ""))
 
 
 @command("level-change")

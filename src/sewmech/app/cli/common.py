@@ -22,7 +22,7 @@ from enum import Enum
 
 import numpy as np
 import typer
-from rich.console import Console
+from rich.console import Console, ConsoleDimensions
 from rich.markup import escape
 
 from ...engine.errors import OptionError, SewmechError
@@ -33,8 +33,28 @@ DEFAULT_MACHINE = "jb1-3"
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="sewmech: kinematics and dynamics of sewing-machine mechanisms (mm, s,"
                        " rad inside; degrees at the edges).")
-console = Console()
-err_console = Console(stderr=True)
+
+
+#: the width of the lines written to a pipe or a file: no table there is ever narrower than
+#: its values (a terminal's tables fit the terminal, wrapping a long cell onto more lines)
+PIPE_WIDTH = 100_000
+
+
+class _Console(Console):
+    """rich's Console, except that output which is not a terminal (a pipe, a file) has no width
+    limit: rich would lay tables out in 80 columns there (or in the width of a terminal the
+    input comes from) and cut their values (``regulator…``). ``COLUMNS`` counts only in a
+    terminal."""
+
+    def _size(self) -> ConsoleDimensions:
+        size = Console.size.fget(self)
+        return size if self.is_terminal else ConsoleDimensions(PIPE_WIDTH, size.height)
+
+    size = property(_size, Console.size.fset)
+
+
+console = _Console()
+err_console = _Console(stderr=True)
 
 #: exit codes: 2 a user error (bad file, option or output path), 70 an internal error,
 #: 130 interrupted by Ctrl-C; 143 / 129 by SIGTERM / SIGHUP (128 + the signal's number)
@@ -247,6 +267,27 @@ def _settings(m: Machine, inputs: list[str] | None) -> dict[str, float]:
                               "Give each input once")
         settings[name] = math.radians(deg)
     return settings
+
+
+def _choice(option: str, value: str, choices, example: str | None = None) -> str:
+    """``value`` if it is one of ``choices`` (strings, or an Enum whose values are the
+    choices), else an :class:`OptionError`: one ``error:`` line through :func:`_guard`, where
+    typer's own check of an Enum option prints a usage box instead. Declare such an option as
+    a string with ``metavar=choices_metavar(choices)`` and check it here."""
+    names = [getattr(c, "value", c) for c in choices]
+    if value in names:
+        return value
+    import difflib
+
+    close = difflib.get_close_matches(str(value), names, n=1, cutoff=0.6)
+    hint = (f"Did you mean {option} {close[0]}?" if close
+            else f"Give e.g. {option} {example or names[0]}")
+    raise OptionError(option, f"{value!r} is not one of {', '.join(names)}", hint)
+
+
+def choices_metavar(choices) -> str:
+    """The metavar of a string option that takes one of ``choices``: ``[a|b|c]``."""
+    return "[" + "|".join(getattr(c, "value", c) for c in choices) + "]"
 
 
 def _bounded(option: str, value: float, lo: float, hi: float, unit: str, example: str):

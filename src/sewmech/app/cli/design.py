@@ -11,6 +11,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
+from ..display import number
 from .common import command, console, print_json
 
 
@@ -36,7 +37,7 @@ def optimize_cmd(
     from rich.progress import Progress
 
     from ...design.optimize import optimize
-    from ...design.problem import Problem, load_problem
+    from ...design.problem import OBJECTIVE_FORMS, Problem, load_problem, metric_unit
 
     spec, machine = load_problem(problem)
     p = Problem(spec, machine)
@@ -53,6 +54,9 @@ def optimize_cmd(
             "units": dict(zip(p.names, p.units)),
             "x_start": {n: float(v) for n, v in zip(p.names, p.start)},
             "objective": float(r.fun), "objective_start": float(r.objective_start),
+            "objective_form": OBJECTIVE_FORMS[spec.objective.form],
+            "objective_parts": [{**a, "start": a.pop("value"), "answer": b["value"]}
+                                for a, b in zip(p.parts(p.start), p.parts(r.x))],
             "constraints": r.constraints, "n_evaluations": int(r.n_evaluations),
             "history": [float(h) for h in r.history]}
     if "front" in r:
@@ -69,10 +73,40 @@ def optimize_cmd(
         t.add_row(n, f"{s0:.6g}", f"{x:.6g}", u, f"{lo:g} .. {hi:g}")
     console.print(t)
     console.print(f"objective {r.objective_start:.6g} -> {r.fun:.6g} in {r.n_evaluations}"
-                  f" evaluations ({escape(str(r.message))})")
+                  f" evaluations ({escape(str(r.message))})", highlight=False)
+    console.print(f"  (normalised, dimensionless: {OBJECTIVE_FORMS[spec.objective.form]})",
+                  highlight=False)
+    pt = Table(title="the objective's parts in their own units")
+    for col in ("part", "at", "goal", "scale s", "start", "answer", "unit"):
+        pt.add_column(col, justify="right" if col in ("scale s", "start", "answer") else "left",
+                      overflow="fold")
+    for part in data["objective_parts"]:
+        scale = part["scale"]
+        goal = part["sense"] if part["sense"] != "target" else f"target {part['target']:g}"
+        if part["weight"] != 1.0:
+            goal += f", w {part['weight']:g}"
+        pt.add_row(part["metric"], _at(part), goal, number(scale, digits=6),
+                   number(part["start"], scale, 6), number(part["answer"], scale, 6),
+                   part["unit"])
+    console.print(pt)
+    units = {c.metric: metric_unit(machine, c.metric) for c in spec.constraints}
     for name, c in r.constraints.items():
         mark = "[green]met[/]" if c["satisfied"] else "[red]VIOLATED[/]"
-        console.print(f"  {escape(name)} = {c['value']:.6g} {mark}")
+        unit = units.get(name.split(" (")[0], "")
+        value = "none" if c["value"] is None else f"{c['value']:.6g}"
+        console.print(f"  {escape(name)} = {value}{' ' + unit if unit else ''} {mark}",
+                      highlight=False)
+
+
+def _at(part: dict) -> str:
+    """Where a part is read: the regulator setting of a feed metric, the angle of a channel."""
+    from ..report.design import _is_channel
+
+    if part["regulator_deg"] is not None:
+        return f"regulator {part['regulator_deg']:g} deg"
+    if _is_channel(part["metric"]):
+        return f"phi {part['phi_deg']:g} deg"
+    return ""
 
 
 def _write(out: Path, problem, data: dict, problem_file: Path) -> None:

@@ -4,12 +4,13 @@ imports this module."""
 
 from __future__ import annotations
 
+import contextlib
 import socket
 
 import typer
 
 from ...engine.errors import OptionError
-from .common import DEFAULT_MACHINE, command, console
+from .common import DEFAULT_MACHINE, Terminated, command, console
 
 
 @command("serve")
@@ -22,7 +23,8 @@ def serve_cmd(
                              " it can use the page)"),
 ):
     """Start the interactive page: change a dimension or the stitch regulator and watch the
-    mechanism, its curves, forces and checks move (docs/serve.md). Ctrl-C stops it."""
+    mechanism, its curves, forces and checks move (docs/serve.md). Ctrl-C stops it (exit
+    code 0)."""
     from pathlib import Path
 
     import uvicorn
@@ -52,7 +54,12 @@ def serve_cmd(
                           "Choose another --port (0: any free one)") from None
     bound = sock.getsockname()[1]
     shown = f"[{host}]" if ":" in host else host
-    console.print(f"sewmech: the page is at http://{shown}:{bound}/ (Ctrl-C stops the server)",
-                  highlight=False, soft_wrap=True)
-    config = uvicorn.Config(app, log_level="warning", lifespan="off")
-    uvicorn.Server(config).run(sockets=[sock])
+    with contextlib.suppress(KeyboardInterrupt, Terminated):
+        # Ctrl-C, the documented way to stop the page's server (or a service manager's
+        # SIGTERM), is a normal end with exit code 0. Once it runs, uvicorn closes the
+        # connections on the signal, then raises it again, which ends here
+        console.print(f"sewmech: the page is at http://{shown}:{bound}/ (Ctrl-C stops the"
+                      " server)", highlight=False, soft_wrap=True)
+        config = uvicorn.Config(app, log_level="warning", lifespan="off")
+        uvicorn.Server(config).run(sockets=[sock])
+    console.print("sewmech: the page's server stopped", highlight=False)

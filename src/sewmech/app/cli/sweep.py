@@ -201,9 +201,10 @@ def sweep_summary_cmd(
             "max": _num(v[fin].max()) if fin.any() else None,
             "feasible_min": _num(fv.min()) if fv.size else None,
             "feasible_max": _num(fv.max()) if fv.size else None}
-    for name in params:
+    for p, name in zip(record["parameters"], params):
         v = cols[name][feasible]
         summary["feasible_region"][name] = {"unit": units.get(name, ""),
+                                            "lower": p.get("lower"), "upper": p.get("upper"),
                                             "min": _num(v.min()) if v.size else None,
                                             "max": _num(v.max()) if v.size else None}
     rows = np.nonzero(feasible)[0]
@@ -228,14 +229,22 @@ def sweep_summary_cmd(
                   f" ({100.0 * (summary['feasible_fraction'] or 0.0):.2f} %)", highlight=False)
     t = Table(title="outputs")
     for c in ("output", "unit", "evaluated", "min", "max", "feasible min", "feasible max"):
-        t.add_column(c)
+        t.add_column(c, justify="left" if c in ("output", "unit") else "right")
     for name, s in summary["outputs"].items():
         t.add_row(escape(name), s["unit"], f"{s['evaluated']:,}", *(_fmt(s[k]) for k in (
             "min", "max", "feasible_min", "feasible_max")))
     console.print(t)
+    t = Table(title="feasible region: each parameter's range over the feasible designs")
+    for c in ("parameter", "unit", "swept from", "to", "feasible min", "feasible max"):
+        t.add_column(c, justify="left" if c in ("parameter", "unit") else "right")
+    for name, s in summary["feasible_region"].items():
+        t.add_row(escape(name), s["unit"], *(_fmt(s[k]) for k in ("lower", "upper", "min",
+                                                                  "max")))
+    console.print(t)
     if summary["best"]:  # a column per design: the names are long, the numbers short
-        t = Table(title=f"best {len(summary['best'])} feasible designs by {escape(sort_by)}"
-                        f" ({'largest' if descending else 'smallest'} first)")
+        console.print(f"best {len(summary['best'])} feasible designs by {escape(sort_by)}"
+                      f" ({'largest' if descending else 'smallest'} first):", highlight=False)
+        t = Table()
         t.add_column("design")
         for b in summary["best"]:
             t.add_column(str(b["design"]), justify="right")
@@ -257,6 +266,118 @@ def _fmt(x) -> str:
     return "-" if x is None else f"{x:.6g}"
 
 
+def _spread_is_round_off(v: np.ndarray) -> bool:
+    """Whether the finite values of ``v`` are one value: their spread no more than round-off of
+    their size (a stitch that a lift cam cannot change, 3.7765 mm give or take 1.6e-11 mm)."""
+    from ..display import is_round_off
+
+    v = v[np.isfinite(v)]
+    return v.size > 0 and is_round_off(float(np.ptp(v)), float(np.abs(v).max()))
+
+
+def _constant_note(name: str, unit: str, v: np.ndarray, where: str) -> str:
+    from ..display import number
+
+    v = v[np.isfinite(v)]
+    return (f"{name} = {number(float(np.median(v)), digits=6)} {unit} in {where} (its spread,"
+            f" {np.ptp(v):.2g} {unit}, is round-off: shown as one value)")
+
+
+def scatter_matrix(record: dict, summary: dict, cols: dict, params: list,
+                   color_by: str | None, shown: np.ndarray):
+    """The scatter matrix of the parameters (the rows ``shown``), the feasible designs coloured
+    by ``color_by``, the others grey; the diagonal: each parameter's histogram. An output that
+    takes one value over the feasible designs (up to round-off) is one colour and a note, never
+    a colour bar that spreads its round-off over the whole scale."""
+    import matplotlib.pyplot as plt
+
+    feasible = cols["feasible"].astype(bool)
+    units = record["columns"]
+    k = len(params)
+    fig, axes = plt.subplots(k, k, figsize=(2.2 * k + 1.5, 2.2 * k + 0.5), squeeze=False,
+                             constrained_layout=True)
+    f_shown = shown[feasible[shown]]
+    i_shown = shown[~feasible[shown]]
+    c = cols[color_by][f_shown].astype(float) if color_by else None
+    note = None
+    if c is not None and _spread_is_round_off(c):
+        note = _constant_note(color_by, units.get(color_by, ""), c, "every feasible design")
+        c = None
+    sc = None
+    for a in range(k):
+        for b in range(k):
+            ax = axes[a, b]
+            xa, xb = cols[params[b]], cols[params[a]]
+            if a == b:
+                ax.hist([xa[feasible], xa], bins=30, color=["C2", "0.8"],
+                        label=["feasible", "all"], histtype="stepfilled", alpha=0.7)
+            else:
+                ax.scatter(xa[i_shown], xb[i_shown], s=2, color="0.85", lw=0)
+                if c is None:
+                    ax.scatter(xa[f_shown], xb[f_shown], s=3, color="C2", lw=0)
+                else:
+                    sc = ax.scatter(xa[f_shown], xb[f_shown], s=3, c=c, lw=0, cmap="viridis")
+            if a == k - 1:
+                ax.set_xlabel(f"{params[b]} [{units.get(params[b], '')}]", fontsize=7)
+            if b == 0:
+                ax.set_ylabel(f"{params[a]} [{units.get(params[a], '')}]", fontsize=7)
+            ax.tick_params(labelsize=6)
+    if sc is not None:
+        fig.colorbar(sc, ax=axes, label=f"{color_by} [{units.get(color_by, '')}]"
+                     " (feasible designs; grey: not feasible)", shrink=0.8)
+    title = (f"{record['name']}: {summary['feasible']:,} of {summary['designs_written']:,}"
+             " designs feasible")
+    if note is not None:  # wrapped to the figure's width (about 11 characters an inch)
+        import textwrap
+
+        title += "\n" + textwrap.fill(f"colour: {note}; green: feasible, grey: not",
+                                      int(fig.get_figwidth() * 11))
+    fig.suptitle(title, fontsize=9)
+    return fig
+
+
+def histograms(record: dict, cols: dict, outputs: list):
+    """Each output's histogram, evaluated and feasible designs; an output that takes one value
+    (up to round-off) is one bar at that value and says so."""
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
+
+    feasible = cols["feasible"].astype(bool)
+    units = record["columns"]
+    m = len(outputs)
+    ncol = min(3, m)
+    nrow = math.ceil(m / ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4 * ncol, 3 * nrow), squeeze=False,
+                             constrained_layout=True)
+    for j, name in enumerate(outputs):
+        ax = axes[j // ncol, j % ncol]
+        v = cols[name].astype(float)
+        fin = np.isfinite(v)
+        unit = units.get(name, "")
+        if fin.any():
+            if _spread_is_round_off(v[fin]):  # one bar, not 40 bins of round-off
+                x = float(np.median(v[fin]))
+                half = 0.05 * abs(x) or 1.0
+                bins = np.array([x - half / 4, x + half / 4])
+                v = np.where(fin, x, v)
+                ax.set_xlim(x - half, x + half)
+                ax.set_title(_constant_note(name, unit, cols[name].astype(float)[fin],
+                                            "every design").replace(" (", "\n("), fontsize=7)
+            else:
+                bins = np.histogram_bin_edges(v[fin], bins=40)
+            ax.hist(v[fin], bins=bins, color="0.75", label="evaluated")
+            ax.hist(v[fin & feasible], bins=bins, color="C2", label="feasible")
+        ax.set_xlabel(f"{name} [{unit}]", fontsize=8)
+        ax.xaxis.set_major_locator(MaxNLocator(5))  # long tick labels never run together
+        ax.set_ylabel("designs", fontsize=8)
+        ax.legend(fontsize=7)
+        ax.grid(True, alpha=0.3)
+    for j in range(m, nrow * ncol):
+        axes[j // ncol, j % ncol].set_visible(False)
+    fig.suptitle(f"{record['name']}: outputs", fontsize=9)
+    return fig
+
+
 def _write_summary(out: Path, summary: dict, record: dict, cols: dict, params: list,
                    outputs: list, color_by: str | None, best_rows: np.ndarray) -> None:
     import csv
@@ -264,69 +385,21 @@ def _write_summary(out: Path, summary: dict, record: dict, cols: dict, params: l
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     from ..drawing.figures import save_figure
     from ..files.io import atomic_write
     from ..files.outdir import output_dir
 
-    feasible = cols["feasible"].astype(bool)
     units = record["columns"]
     rng = np.random.default_rng(0)
-    shown = np.arange(len(feasible))
+    shown = np.arange(len(cols["feasible"]))
     if shown.size > 20_000:  # a readable and quick figure: a fixed random subset
         shown = np.sort(rng.choice(shown, 20_000, replace=False))
     with output_dir(out, command="sweep-summary") as root:
-        k = len(params)
-        fig, axes = plt.subplots(k, k, figsize=(2.2 * k + 1.5, 2.2 * k + 0.5), squeeze=False,
-                                 constrained_layout=True)
-        f_shown = shown[feasible[shown]]
-        i_shown = shown[~feasible[shown]]
-        c = cols[color_by][f_shown].astype(float) if color_by else None
-        sc = None
-        for a in range(k):
-            for b in range(k):
-                ax = axes[a, b]
-                xa, xb = cols[params[b]], cols[params[a]]
-                if a == b:
-                    ax.hist([xa[feasible], xa], bins=30, color=["C2", "0.8"],
-                            label=["feasible", "all"], histtype="stepfilled", alpha=0.7)
-                else:
-                    ax.scatter(xa[i_shown], xb[i_shown], s=2, color="0.85", lw=0)
-                    sc = ax.scatter(xa[f_shown], xb[f_shown], s=3, c=c, lw=0, cmap="viridis")
-                if a == k - 1:
-                    ax.set_xlabel(f"{params[b]} [{units.get(params[b], '')}]", fontsize=7)
-                if b == 0:
-                    ax.set_ylabel(f"{params[a]} [{units.get(params[a], '')}]", fontsize=7)
-                ax.tick_params(labelsize=6)
-        if sc is not None and color_by:
-            fig.colorbar(sc, ax=axes, label=f"{color_by} [{units.get(color_by, '')}]"
-                         " (feasible designs; grey: not feasible)", shrink=0.8)
-        fig.suptitle(f"{record['name']}: {summary['feasible']:,} of"
-                     f" {summary['designs_written']:,} designs feasible", fontsize=9)
-        save_figure(fig, root, "scatter-matrix")
+        save_figure(scatter_matrix(record, summary, cols, params, color_by, shown), root,
+                    "scatter-matrix")
         if outputs:
-            m = len(outputs)
-            ncol = min(3, m)
-            nrow = math.ceil(m / ncol)
-            fig, axes = plt.subplots(nrow, ncol, figsize=(4 * ncol, 3 * nrow), squeeze=False,
-                                     constrained_layout=True)
-            for j, name in enumerate(outputs):
-                ax = axes[j // ncol, j % ncol]
-                v = cols[name].astype(float)
-                fin = np.isfinite(v)
-                if fin.any():
-                    bins = np.histogram_bin_edges(v[fin], bins=40)
-                    ax.hist(v[fin], bins=bins, color="0.75", label="evaluated")
-                    ax.hist(v[fin & feasible], bins=bins, color="C2", label="feasible")
-                ax.set_xlabel(f"{name} [{units.get(name, '')}]", fontsize=8)
-                ax.set_ylabel("designs", fontsize=8)
-                ax.legend(fontsize=7)
-                ax.grid(True, alpha=0.3)
-            for j in range(m, nrow * ncol):
-                axes[j // ncol, j % ncol].set_visible(False)
-            fig.suptitle(f"{record['name']}: outputs", fontsize=9)
-            save_figure(fig, root, "histograms")
+            save_figure(histograms(record, cols, outputs), root, "histograms")
         names = ["design", *params, *outputs, "feasible"]
         with atomic_write(root / "best.csv") as fh:
             w = csv.writer(fh)

@@ -185,10 +185,13 @@ class Figures:
 
 
 def table_html(df: pd.DataFrame, classes: str = "") -> str:
-    """A table for the page; a value that is not defined (NaN: no feed at the zero mark, no
-    take-up setting that passes) reads "none", never "NaN"."""
-    return df.to_html(index=False, classes=classes, border=0, float_format=lambda x: f"{x:.6g}",
-                      escape=True, na_rep="none")
+    """A table for the page, every value at the precision of its quantity
+    (:func:`sewmech.app.display.table_cells`): round-off reads 0, a flag yes or no, a value
+    that is not defined (NaN: no feed at the zero mark, no take-up setting that passes)
+    "none", never "NaN"."""
+    from ..display import table_cells
+
+    return table_cells(df).to_html(index=False, classes=classes, border=0, escape=True)
 
 
 def shade(ax, x, mask, color, label):

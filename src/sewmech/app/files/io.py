@@ -11,7 +11,7 @@ import json
 import math
 import os
 import tempfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -189,12 +189,16 @@ def pair_forces_frame(res):
 
 
 def read_csv_columns(path: str | Path, numbers: Sequence[str], texts: Sequence[str] = (),
-                     *, what: str = "measurements") -> dict[str, np.ndarray]:
+                     *, what: str = "measurements",
+                     nonnegative: Mapping[str, str] | None = None) -> dict[str, np.ndarray]:
     """The columns ``numbers`` (as floats) and ``texts`` (as strings) of a CSV file with a
     header line; other columns are ignored, blank lines and lines starting with ``#`` skipped.
+    ``nonnegative``: number columns that must be >= 0, each with what to do instead (a
+    magnitude's sign belongs to an angle).
 
     Raises AnalysisError naming the file, and the line and column of a bad value, when a column
-    is missing, a number is not a finite number, or there are no data lines."""
+    is missing, a number is not a finite number (or negative where it may not be), or there
+    are no data lines."""
     import csv
 
     from ...engine.errors import AnalysisError
@@ -233,5 +237,8 @@ def read_csv_columns(path: str | Path, numbers: Sequence[str], texts: Sequence[s
             if not math.isfinite(v):
                 raise AnalysisError(f"{where}:{k}", f"column {c}: {cell!r} is not a number",
                                     "Give a finite number (a dot for decimals)")
+            if nonnegative and c in nonnegative and v < 0.0:
+                raise AnalysisError(f"{where}:{k}", f"column {c}: {cell} is negative",
+                                    nonnegative[c])
             out[c].append(v)
     return {c: np.array(v, dtype=float if c in numbers else object) for c, v in out.items()}

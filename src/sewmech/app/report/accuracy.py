@@ -59,17 +59,17 @@ def accuracy_section(figs, machine: Machine) -> dict:
                  f" {reg:g} deg) stray, every length at IT{REPORT_GRADE}", fontsize=9)
     figs.add(fig, "accuracy-stitch", "Stitch length: the dimensions that matter",
              f"Each dimension's share of the stitch length's variance when every length is"
-             f" made within +-IT{REPORT_GRADE}/2 of its size (ISO 286-1), from the exact"
+             f" made within +-IT{REPORT_GRADE}/2 of its size (ISO 286-1 [ISO-286]), from the exact"
              " derivatives of the stitch length (the dog's rise and fall through the plate"
              " moving with the design); the line is the running total.",
              pd.DataFrame({"parameter": names, "derivative": g.d_dparam[order],
                            "tolerance": tol[order], "share": share}))
     intro = (f'<h2 id="accuracy">Accuracy</h2><p>How far the feed strays when every length is'
-             f" made within +-IT{REPORT_GRADE}/2 of its size (ISO 286-1; angles exact), at"
-             f" the longest forward stitch (regulator {reg:g} deg): worst case and RSS from the"
-             " exact derivatives of each metric by every dimension (docs/accuracy.md;"
-             " <code>sewmech tolerance</code> adds the Monte Carlo check and allocation)."
-             "</p>")
+             f" made within +-IT{REPORT_GRADE}/2 of its size (ISO 286-1 [ISO-286]; angles"
+             f" exact), at the longest forward stitch (regulator {reg:g} deg): worst case and"
+             " RSS from the exact derivatives of each metric by every dimension"
+             " (docs/accuracy.md; <code>sewmech tolerance</code> adds the Monte Carlo check"
+             " and allocation).</p>")
     from ..drawing.figures import table_html
 
     return {"table": table, "html": intro + table_html(table.round(6))

@@ -14,6 +14,7 @@ import pandas as pd
 from ...design.balancing import (CRITERIA, FIGURES, BalanceResult, balance, balance_basis,
                                 paper_workflow, shaft_counterweight, tradeoff)
 from ...engine.machine import Machine
+from .page import arc_cam_note
 
 #: labels and units of the figures, for tables
 FIGURE_LABELS = {"delta_q_N": ("Delta-Q = | max|Qx| - max|Qy| |", "N"),
@@ -32,6 +33,9 @@ def results_frame(results: dict[str, BalanceResult]) -> pd.DataFrame:
     rows = []
     for crit, r in results.items():
         row = {"criterion": crit, "status": r.status}
+        if not r.proposed:  # nothing proposed: no counterweights, no figures after
+            rows.append(row)
+            continue
         for name, cw in r.counterweights.items():
             row[f"{name} S [g cm]"] = cw["static_moment_gcm"]
             row[f"{name} angle [deg]"] = cw["angle_deg"]
@@ -81,7 +85,12 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
     if criterion is None:
         criterion = "delta-q" if "delta-q" in results else "weighted"
     main = results[criterion]
-    paper = paper_workflow(machine, shaft_cw, basis=Bq) if shaft_cw else None
+    paper = (paper_workflow(machine, shaft_cw, basis=Bq, result=results.get("delta-q"))
+             if shaft_cw else None)
+    if not main.proposed:  # delta-q without a root: the figures show what is achievable
+        criterion = f"{main.alternative.criterion} (delta-q has no root)"
+        main = main.alternative
+    proposed = {c: r for c, r in results.items() if r.proposed}
     rpm = main.rpm
     phi_deg = np.degrees(main.curves["phi"])
     before, after = main.curves["before"], main.curves["after"]
@@ -110,7 +119,8 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
     figs.add(fig, "bal-components", "Shaking force components, before and after",
              "The x and y components of the resultant inertia force of all moving links on"
              f" the frame over one turn, as the file has it and with {cws} (dotted: each"
-             " component's peak). The balancing paper's criterion makes the two peaks equal.",
+             " component's peak). The balancing paper's criterion makes the two peaks equal."
+             + arc_cam_note(machine),
              pd.DataFrame({"phi_deg": phi_deg, "Qx_before_N": before["F"][:, 0],
                            "Qy_before_N": before["F"][:, 1], "Qx_after_N": after["F"][:, 0],
                            "Qy_after_N": after["F"][:, 1]}))
@@ -120,7 +130,7 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
     ax.plot(before["F"][:, 0], before["F"][:, 1], color="k", lw=1.6, label="as the file has it")
     data = {"phi_deg": phi_deg, "Qx_before_N": before["F"][:, 0],
             "Qy_before_N": before["F"][:, 1]}
-    for k, (crit, r) in enumerate(results.items()):
+    for k, (crit, r) in enumerate(proposed.items()):
         F = r.curves["after"]["F"]
         ax.plot(F[:, 0], F[:, 1], lw=1.1, color=f"C{k}", label=crit,
                 ls="-" if crit == criterion else "--")
@@ -134,7 +144,8 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
     ax.set_title(f"{name}: shaking force hodograph, each criterion's answer")
     figs.add(fig, "bal-hodograph", "Shaking force hodographs",
              "The tip of the shaking force vector over one turn before balancing and with each"
-             " criterion's counterweights (solid: the one shown in the other figures).",
+             " criterion's counterweights (solid: the one shown in the other figures)."
+             + arc_cam_note(machine),
              pd.DataFrame(data))
 
     # ---- bearings as polar plots -------------------------------------------------------------
@@ -156,7 +167,8 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
         figs.add(fig, "bal-bearings", "Upper-shaft bearing reactions, before and after",
                  "The force each bearing of the upper shaft takes, as a polar plot (angle: its"
                  " direction in the frame; radius: its size in N) over one turn, before and"
-                 f" with the {criterion} counterweights.", pd.DataFrame(bdata))
+                 f" with the {criterion} counterweights." + arc_cam_note(machine),
+                 pd.DataFrame(bdata))
 
     # ---- trade-off front ---------------------------------------------------------------------
     if front:
@@ -187,7 +199,7 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
         on = T["front"]
         ax.scatter(fx[on], fy[on], c=fc[on], s=28, cmap="viridis", edgecolors="k",
                    linewidths=0.6, label="not dominated")
-        for k, (crit, r) in enumerate(results.items()):
+        for k, (crit, r) in enumerate(proposed.items()):
             ax.scatter([of(r.after, names[0])], [of(r.after, names[1])], marker="*", s=150,
                        color=f"C{k}", edgecolors="k", zorder=5,
                        label=f"{crit} ({of(r.after, names[2]):.3g})")
@@ -216,7 +228,7 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
     # ---- tables ------------------------------------------------------------------------------
     comp = pd.DataFrame([{"figure": FIGURE_LABELS[k][0], "unit": FIGURE_LABELS[k][1],
                           "before": main.before[k],
-                          **{c: r.after[k] for c, r in results.items()}}
+                          **{c: r.after[k] for c, r in proposed.items()}}
                          for k in FIGURES if main.before[k] is not None])
     key = pd.DataFrame([(FIGURE_LABELS[k][0] + " before", main.before[k], FIGURE_LABELS[k][1])
                         for k in FIGURES if main.before[k] is not None]
@@ -230,37 +242,50 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
 def section_html(machine: Machine, sec: dict) -> str:
     """The balancing section's heading and text: what was balanced, every criterion's answer
     side by side, and the paper's workflow."""
+    from ..display import is_round_off
     from ..drawing.figures import table_html
 
     main = sec["main"]
     names = ", ".join(html.escape(n) for n in main.counterweights)
+    none = "".join(f" <b>{html.escape(c)}</b> proposes nothing: {html.escape(r.message)}."
+                   for c, r in sec["results"].items() if not r.proposed)
+    err = sec["basis_error"]  # round-off of the forces (the basis is exact): said so
+    agree = ("as the balancing basis predicts, to round-off" if is_round_off(
+        err, main.before["peak_force_N"]) else f"largest difference from the balancing basis"
+        f" {err:.2g} N")
     return (f'<h2 id="balancing">Balancing</h2><p>Counterweights chosen at {main.rpm:g} rpm for'
             f" each criterion (docs/balancing.md), every answer computed again on the whole"
-            f" machine (largest difference from the balancing basis"
-            f" {sec['basis_error']:.2g} N). Shown below: <b>{html.escape(main.criterion)}</b>"
-            f" ({html.escape(main.status)}: {html.escape(main.message)}) on {names}.</p>"
+            f" machine ({agree}). Shown below: <b>{html.escape(main.criterion)}</b>"
+            f" ({html.escape(main.status)}: {html.escape(main.message)}) on {names}.{none}</p>"
             + table_html(sec["comparison"]) + paper_html(sec["paper"]))
 
 
 def paper_html(paper: dict | None) -> str:
-    """The balancing paper's workflow as a short table (empty without a shaft counterweight)."""
+    """The balancing paper's workflow as a short table (empty without a shaft counterweight):
+    S_1, S_add, S_opt and the built counterweight's recipe, or why there is none."""
     if not paper:
         return ""
-    rows = [("S_1: static moment the shaft's crank has (its solids)", paper["s1_gcm"], "g cm",
-             f"at {paper['s1_angle_deg']:.4g} deg"),
-            ("S_add: the extra counterweight for Delta-Q = 0", paper["s_add_gcm"], "g cm",
-             f"at {paper['s_add_angle_deg']:.4g} deg ({paper['status']})"),
-            ("S_opt = |S_1 + S_add|", paper["s_opt_gcm"], "g cm",
-             f"at {paper['s_opt_angle_deg']:.4g} deg")]
+    rows = [("S_1: static moment the shaft's crank has (all its solids)", paper["s1_gcm"],
+             "g cm", f"at {paper['s1_angle_deg']:.4g} deg")]
+    if paper["s_add_gcm"] is not None:
+        rows += [("S_add: the extra counterweight for Delta-Q = 0", paper["s_add_gcm"], "g cm",
+                  f"at {paper['s_add_angle_deg']:.4g} deg ({paper['status']})"),
+                 ("S_opt = |S_1 + S_add|: the crank's net static moment with it",
+                  paper["s_opt_gcm"], "g cm", f"at {paper['s_opt_angle_deg']:.4g} deg")]
     b = paper.get("build")
     if b:
-        ins = b["insert"]
-        rows += [(f"built {b['factor']:g} x stronger", b["s_built_gcm"], "g cm", ""),
-                 ("steel block's own static moment", b["body_s_gcm"], "g cm",
-                  f"{b['body_mass_g']:.4g} g as if at radius {ins['radius_mm']:.4g} mm"),
+        ins, blk = b["insert"], b["block"]
+        rows += [(f"built {b['factor']:g} x stronger", b["s_built_gcm"], "g cm",
+                  b.get("factor_note", "")),
+                 ("steel cup: outer diameter", blk["diameter_mm"], "mm",
+                  f"its axis parallel to the shaft at {blk['radius_mm']:.4g} mm, clamped on the"
+                  f" {b['bore_mm']:.4g} mm shaft"),
+                 ("steel cup: length", blk["length_mm"], "mm",
+                  f"{blk['steel_g']:.4g} g of steel; bottom {blk['bottom_mm']:.3g} mm"),
                  ("lead insert: hole diameter", ins["diameter_mm"], "mm",
-                  (f"at radius {ins['radius_mm']:.4g} mm in {ins['body']};"
-                   f" {b['hole_edge_mm']:.3g} mm from the shaft's axis to its edge")),
+                  f"on the cup's axis; side walls {blk['side_wall_mm']:.3g} mm, its edge"
+                  f" {b['hole_edge_mm']:.3g} mm from the shaft's axis ({b['clearance_mm']:.3g}"
+                  f" mm of steel to the shaft; at least {b['wall_mm']:g} mm everywhere)"),
                  ("lead insert: hole depth", ins["depth_mm"], "mm",
                   f"{ins['mass_g']:.4g} g of lead, adds {ins['s_gcm']:.4g} g cm"),
                  ("trim to S_add: the lead drilled out", b["trim_diameter_mm"], "mm",
@@ -272,8 +297,10 @@ def paper_html(paper: dict | None) -> str:
     df = pd.DataFrame(rows, columns=["step", "value", "unit", "where"])
     from ..drawing.figures import table_html
 
+    refused = ("" if b else "<p>No recipe for the built counterweight: "
+               f"{html.escape(paper.get('build_refused', ''))}.</p>")
     return ("<h3>The balancing paper's method</h3><p>Delta-Q = 0 chooses the extra"
             f" counterweight <b>{html.escape(paper['counterweight'])}</b> on"
             f" {html.escape(paper['link'])}; it is built stronger with a drilled lead insert"
             " and trimmed on the machine until the x and y vibration velocities are equal"
-            " (<code>sewmech trial-balance</code>).</p>" + table_html(df))
+            " (<code>sewmech trial-balance</code>).</p>" + table_html(df) + refused)

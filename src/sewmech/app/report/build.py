@@ -32,10 +32,11 @@ from ...sewing import feed as FD
 from ...sewing import timing as T
 from ...sewing.checks import check_timing
 from ..drawing.figures import Figures, figure_pool, shade, subplots
+from ..drawing.mechanism import mechanism_figure
 from ..files.outdir import output_dir
 from .comparison import comparison_section
 from .feed import feed_section
-from .page import dynamics_intro, page_html
+from .page import dynamics_intro, left_out_html, page_html
 from .thread import thread_section
 
 MM_TO_M = 1e-3
@@ -138,6 +139,9 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
 
     figs = Figures(root, machine.name)
     ref = f"phi = {conv.reference_phi_deg:g} deg: {conv.reference_event}"
+
+    # ---- the mechanism, every point and pair labelled: the key to the tables' names --------
+    _mechanism(figs, machine, res, phi_deg)
 
     # ---- motion diagrams ---------------------------------------------------------------
     cols = [("needle point", s.needle_point, "point")]
@@ -257,8 +261,22 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
              pd.DataFrame(tdata))
     step("figures")
     blocks = figs.blocks
+    mechanism = blocks.pop(0)
+    blocks.insert(0, '<h2 id="motion-timing">Motion and timing</h2>')
     feed_tables = {}
+    order = list(_SECTIONS)
+
+    def left_out(upto: int) -> None:  # a note for every section before ``upto`` not computed
+        while order and len(_SECTIONS) - len(order) < upto:
+            other = order.pop(0)
+            blocks.append(left_out_html(_SECTION_IDS.get(other, other), _SECTIONS[other],
+                                        _left_out(machine, other)))
+
     for name, (section_blocks, result) in sections.results():
+        left_out(list(_SECTIONS).index(name))
+        order.pop(0)
+        if name in _SECTION_IDS:  # the sections whose text has no heading of its own
+            blocks.append(f'<h2 id="{_SECTION_IDS[name]}">{_SECTIONS[name]}</h2>')
         if name == "feed":
             feed_tables = result
             for done in ("feed trajectories", "stitch curve", "sensitivity"):
@@ -278,6 +296,7 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
         blocks += section_blocks
         if name != "feed":
             step(name)
+    left_out(len(_SECTIONS))
 
     # ---- tables --------------------------------------------------------------------------
     chk = pd.DataFrame([{"check": c.name, "value": c.value, "unit": c.unit,
@@ -323,9 +342,58 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
     for name, df in feed_tables.get("csv", {}).items():
         df.to_csv(root / f"{machine.name}-{name}.csv", index=False, float_format="%.10g")
     page = page_html(machine, f"{ref} ({reference})", chk, tim, par, blocks, text, src.name,
-                 feed_tables.get("html", []))
+                     feed_tables.get("html", []), mechanism=mechanism)
     (root / "index.html").write_text(page, encoding="utf-8")
     step("page")
+
+
+#: the report's sections in page order, with their titles
+_SECTIONS = {"feed": "Feed", "dynamics": "Dynamics", "thread": "Needle thread",
+             "balancing": "Balancing", "accuracy": "Accuracy", "comparison": "Variants"}
+#: the ids of the sections whose own text carries no heading (the others' do, with their name)
+_SECTION_IDS = {"feed": "feed", "thread": "thread", "comparison": "variants"}
+
+
+def _left_out(machine: Machine, name: str) -> str:
+    """Why the report has no section ``name`` for this machine."""
+    file = Path(machine.file).name
+    return {
+        "feed": f"Left out because the [sewing] table of {file} names no feed_dog and"
+                " regulator: the machine has no feed to analyse.",
+        "dynamics": f"Left out because {file} has no [masses] tables: the forces need every"
+                    " moving link's mass (docs/machine-files.md).",
+        "thread": f"Left out because {file} has no [thread] table with a bobbin_case_radius:"
+                  " the thread balance needs the needle thread's path and the loop round the"
+                  " bobbin case.",
+        "balancing": f"Left out because {file} has no [counterweights] table: there is no"
+                     " counterweight to choose. Add one to balance the machine"
+                     " (docs/balancing.md).",
+        "accuracy": "Left out because the accuracy section studies the feed, and the machine"
+                    " has none.",
+        "comparison": "Left out because no variant was given to compare: name one in the"
+                      " file's [machine] variants or with --compare.",
+    }[name]
+
+
+def _mechanism(figs: Figures, machine: Machine, res, phi_deg: np.ndarray) -> None:
+    """The labelled drawing at the convention's shaft angle (the nearest of the grid)."""
+    conv = machine.spec.convention
+    k = int(np.argmin(np.abs((phi_deg - conv.reference_phi_deg + 180.0) % 360.0 - 180.0)))
+    settings = "".join(f", {name} at {spec.default_deg:g} deg"
+                       for name, spec in machine.spec.inputs.items())
+    at = f"phi = {phi_deg[k]:g} deg ({conv.reference_event}){settings}"
+    fig, data = mechanism_figure(machine, res, k, title=f"{machine.name} at {at}")
+    figs.add(fig, "mechanism", "Points, links and pairs by name",
+             f"Every point of the machine file and every pair of the force analysis (italic),"
+             f" at {at}: the names the checks, the force tables and the machine file use."
+             " Triangles: points on the frame. A pin between two links carries its point's"
+             " name; where more links share a point, each pin is named point:link; a"
+             " slider's guide, a slot, a cam contact and a crank's driving torque are named"
+             " after their unit or point (unit.guide, point.slot, unit.cam, unit.torque)"
+             + (", a cam contact labelled at its cam's axis" if machine.spec.cams else "")
+             + ", a torque at its crank's. Dashed: the paths of the needle point, the take-up"
+             " eye, the shuttle point and the feed dog over the turn. The data: every name,"
+             " its place and its label's place, mm.", data)
 
 
 #: what the sections that run in worker processes read (set before the workers are forked)

@@ -58,10 +58,11 @@ def problem_page(root: Path, problem, data: dict, problem_file: Path) -> None:
         _feed_paths(figs, machine, reg, before, after)
     if any(r.metric.startswith("thread_") for r in refs):
         _overfeed(figs, machine, before, after)
-    channels = sorted({r.metric.split(":", 1)[-1] for r in refs
-                       if r.metric.startswith("range:") or _is_channel(r.metric)})
-    for channel in channels:
-        _channel(figs, machine, channel, before, after)
+    channels = sorted({(r.metric.split(":", 1)[-1], r.regulator_deg) for r in refs
+                       if r.metric.startswith("range:") or _is_channel(r.metric)},
+                      key=lambda c: (c[0], -1e9 if c[1] is None else c[1]))
+    for channel, reg in channels:
+        _channel(figs, machine, channel, before, after, reg)
     metrics = _metrics_table(problem, x_after)
     text = problem_file.read_text(encoding="utf-8")
     page = page_html(data, problem, metrics, figs.blocks, text, problem_file.name)
@@ -139,15 +140,12 @@ def _mechanism(figs: Figures, name: str, before, after, machine) -> None:
     """Every point's path over a turn for the start (grey) and the answer (colour), the links
     at phi = 0."""
     from ...engine.kinematics import kinematics
+    from ..drawing.mechanism import link_points
 
     phi = np.radians(np.arange(0.0, 361.0, 2.0))
     fig, ax = subplots(figsize=(7.5, 7), constrained_layout=True)
     cols = {}
-    links: dict = {}
-    for pt, owners in machine.point_links.items():
-        for link in owners:
-            if link != "frame":
-                links.setdefault(link, []).append(pt)
+    links = link_points(machine)
     for params, style, label in ((before, dict(color="0.6", lw=0.8), "start"),
                                  (after, dict(lw=1.3), "answer")):
         r = kinematics(machine, phi, params=params, on_failure="mask")
@@ -228,15 +226,21 @@ def _overfeed(figs: Figures, machine, before, after) -> None:
              pd.DataFrame(cols))
 
 
-def _channel(figs: Figures, machine, channel: str, before, after) -> None:
+def _channel(figs: Figures, machine, channel: str, before, after, reg: float | None = None
+             ) -> None:
+    """A channel over a turn for the start and the answer, at the regulator setting ``reg``
+    (deg; None: the machine's working setting)."""
     from ...engine.kinematics import kinematics
 
     phi = np.radians(np.arange(0.0, 361.0, 1.0))
     fig, ax = subplots(figsize=(7, 4.2), constrained_layout=True)
     cols = {"phi_deg": np.degrees(phi)}
     angle = channel.startswith("theta_")
+    s = machine.spec.sewing
+    inputs = {s.regulator: math.radians(reg)} if reg is not None else None
     for params, style, label in _start_and_answer(before, after):
-        v = kinematics(machine, phi, params=params, on_failure="mask").channel(channel)[0]
+        v = kinematics(machine, phi, params=params, inputs=inputs,
+                       on_failure="mask").channel(channel)[0]
         v = np.degrees(np.unwrap(v)) if angle else v
         ax.plot(np.degrees(phi), v, label=label, **style)
         cols[f"{label} {channel} [{'deg' if angle else 'mm'}]"] = v
@@ -244,8 +248,10 @@ def _channel(figs: Figures, machine, channel: str, before, after) -> None:
     ax.set_ylabel(f"{channel} [{'deg' if angle else 'mm'}]")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
-    figs.add(fig, f"channel-{channel}", f"{channel} over a turn",
-             f"{channel} for the start (dashed) and the answer.", pd.DataFrame(cols))
+    at = "" if reg is None else f" at regulator {reg:g} deg"
+    figs.add(fig, f"channel-{channel}" + ("" if reg is None else f"-{reg:g}"),
+             f"{channel} over a turn{at}",
+             f"{channel} for the start (dashed) and the answer{at}.", pd.DataFrame(cols))
 
 
 def page_html(data: dict, problem, metrics: pd.DataFrame, blocks, text: str, file_name: str

@@ -16,6 +16,7 @@ from ...engine.machine import Machine
 from ...sewing import feed as FD
 from ...sewing.transmission import needle_force, pressure_angles, regulator_torques
 from ..files.io import pair_forces_frame
+from .page import arc_cam_note
 
 #: shaft torque for the needle-force view, N mm [estimate: a household machine's motor of about
 #: 70 W at 1000 r/min of the shaft after the belt gives about 0.67 N m; 0.5 N m is a margin]
@@ -49,6 +50,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
     rest = inverse_dynamics(machine, phi, omega=1e-6, loads=loads, **common)
     at = "".join(f", {k} at {math.degrees(v):g} deg" for k, v in settings.items())
     rows = []
+    kinks = arc_cam_note(machine)
 
     # ---- driving torque -------------------------------------------------------------------------
     fig, ax = subplots(figsize=(9, 4), constrained_layout=True)
@@ -69,7 +71,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
     figs.add(fig, "dyn-torque", "Driving torque",
              "The motor's torque on the upper shaft over one revolution with the process loads"
              " of the machine file (shaded: their windows), without them (the no-load torque at"
-             " working speed), and at rest (what the weights and loads alone ask).",
+             " working speed), and at rest (what the weights and loads alone ask)." + kinks,
              pd.DataFrame({"phi_deg": phi_deg, "torque_Nm": full.input_torque * 1e-3,
                            "no_load_torque_Nm": noload.input_torque * 1e-3,
                            "static_torque_Nm": rest.input_torque * 1e-3}))
@@ -79,6 +81,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
              ("mean driving torque (with loads)", float(tq.mean()), "N m"),
              ("peak no-load torque at working speed",
               float(np.abs(noload.input_torque).max() * 1e-3), "N m"),
+             ("peak power", float(np.abs(full.input_power).max() * 1e-3), "W"),
              ("mean power with loads", float(full.input_power.mean() * 1e-3), "W")]
 
     # ---- energy, reduced inertia, speed fluctuation -------------------------------------------
@@ -135,8 +138,9 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
     figs.add(fig, "dyn-shaking", "Shaking force and moment",
              "The resultant of the links' inertia forces (-sum m a_G) that the frame passes to"
              " the table, and its moment about the upper-shaft axis (the motor's reaction"
-             " included).", pd.DataFrame({"phi_deg": phi_deg, "Fx_N": F[:, 0], "Fy_N": F[:, 1],
-                                           "M_Nm": full.shaking_moment * 1e-3}))
+             " included)." + kinks,
+             pd.DataFrame({"phi_deg": phi_deg, "Fx_N": F[:, 0], "Fy_N": F[:, 1],
+                           "M_Nm": full.shaking_moment * 1e-3}))
     rows += [("peak shaking force", float(np.linalg.norm(F, axis=-1).max()), "N"),
              ("peak shaking moment", float(np.abs(full.shaking_moment).max() * 1e-3), "N m")]
 
@@ -162,7 +166,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
                  "The force each bearing puts on the upper shaft, as polar diagrams (direction"
                  " in the machine frame, magnitude in N): the cranks' pair forces act in their"
                  " own planes along the shaft, and the turning parts' products of inertia add a"
-                 " couple.", pd.DataFrame(data))
+                 " couple." + kinks, pd.DataFrame(data))
 
     # ---- pair forces --------------------------------------------------------------------------
     peak = []
@@ -240,7 +244,7 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
                  "The torque that the feed mechanism's forces put on the regulator slot over"
                  " the cycle, at reverse, zero and forward settings, for this machine and its"
                  " variants (regulator designs compared): the detent or friction must exceed"
-                 " its peak.", pd.DataFrame(data), table=pd.DataFrame(table).round(5))
+                 " its peak." + kinks, pd.DataFrame(data), table=pd.DataFrame(table).round(5))
         rows.append(("peak torque on the regulator (forward)",
                      float(np.abs(full.setting_torques[s.regulator]).max() * 1e-3), "N m"))
 

@@ -10,6 +10,7 @@ import pandas as pd
 
 from ...engine.machine import Machine
 from ...sewing import feed as FD
+from ..display import signed
 from ..drawing.figures import Figures, subplots
 
 
@@ -27,10 +28,10 @@ def feed_section(figs: Figures, machine: Machine, step) -> dict:
     fig, (ax, bx) = subplots(1, 2, figsize=(11, 4.6), constrained_layout=True)
     data = {"phi_deg": c.phi_deg}
     for k, reg in enumerate(regs):
-        lab = f"{c.stitch_mm[k]:+.2f} mm (regulator {reg:+.2f} deg)"
+        lab = f"{signed(c.stitch_mm[k])} mm (regulator {signed(reg)} deg)"
         ax.plot(c.x[k], c.y[k], lw=1.4, label=lab)
-        data[f"x_mm_reg_{reg:+.4f}deg"] = c.x[k]
-        data[f"y_above_plate_mm_reg_{reg:+.4f}deg"] = c.y[k]
+        data[f"x_mm_reg_{signed(reg, 4)}deg"] = c.x[k]
+        data[f"y_above_plate_mm_reg_{signed(reg, 4)}deg"] = c.y[k]
     for a in (ax, bx):
         a.axhline(0.0, color="k", lw=1)
         a.set_xlabel("dog tooth tip x [mm] (+x: towards the back)")
@@ -63,7 +64,8 @@ def feed_section(figs: Figures, machine: Machine, step) -> dict:
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
     bx.plot(curve.regulator_deg, curve.lift_mm, color="C2", label="lift above plate")
-    bx.axhspan(*FD.FEED_DOG_RISE_MM, color="C2", alpha=0.1, label="DOMAIN.md 1.1 band")
+    bx.axhspan(*FD.FEED_DOG_RISE_MM, color="C2", alpha=0.1,
+               label="published band [Sdelai-sam-1999]")
     bx.set_ylabel("dog lift [mm]")
     bx.set_xlabel(f"regulator angle [deg] (travel {lo:g} .. {hi:g})")
     bx.legend(fontsize=8)
@@ -74,7 +76,8 @@ def feed_section(figs: Figures, machine: Machine, step) -> dict:
     figs.add(fig, "stitch-curve", "Stitch length and scale-plate marks",
              "Stitch length (the dog's fore-aft travel while above the plate) and lift over the"
              " regulator's travel; dots: the regulator angle of every 0.5 mm mark of the scale"
-             " plate, forward and reverse (table below).", curve.to_pandas(), table=mk)
+             " plate, forward and reverse (table below); shaded: the lift of the Podolsk"
+             " household machine [Sdelai-sam-1999].", curve.to_pandas(), table=mk)
     step("stitch curve")
 
     sens = FD.sensitivity(machine, 0.05)

@@ -47,7 +47,8 @@ def thread_section(figs: Figures, machine: Machine):
                            "source": c.source} for c in checks])
     figs.add(fig, "thread-balance", "Needle-thread balance",
              "What the take-up releases (supply) against what needle, fabric and shuttle hold"
-             " (demand) over one revolution, and their difference, the overfeed (DOMAIN.md 2.3);"
+             " (demand) over one revolution, and their difference, the overfeed"
+             " ([Krasowska-take-up]);"
              " shaded: the loop on the shuttle from seizure to cast-off. The balance checks"
              " below are design diagnostics of the thread path, the take-up and the loop model"
              " (see the sewmech.thread documentation), separate from the machine-class checks.",
@@ -81,7 +82,8 @@ def _consumption_figure(figs: Figures, machine: Machine):
                  f" d = {d:g} mm; dashed: C = 2 + 2TS)", fontsize=10)
     figs.add(fig, "thread-consumption", "Thread consumption per stitch",
              "Needle and bobbin thread of one balanced lockstitch against stitch length and"
-             " fabric thickness (DOMAIN.md 2.1), beside the industry formula C = 2 + 2TS per"
+             " fabric thickness ([Thread-consumption-301], [Malek-2020]), beside the industry"
+             " formula C = 2 + 2TS per"
              " inch of seam; the two differ by the thread-diameter term.", pd.DataFrame(rows))
 
 

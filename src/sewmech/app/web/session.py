@@ -489,8 +489,13 @@ class Session:
 
 
 def check_dict(c) -> dict:
+    """A check as the page shows it; ``references``: the entries its source's keys cite
+    (key, source, url: docs/references.md)."""
+    from ...sewing.references import cited
+
     return {"check": c.name, "value": _num(c.value), "unit": c.unit, "expected": c.expected,
-            "passed": bool(c.passed), "source": c.source}
+            "passed": bool(c.passed), "source": c.source,
+            "references": [r.brief() for r in cited(c.source)]}
 
 
 def error_dict(exc: BaseException) -> dict:

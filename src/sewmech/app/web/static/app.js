@@ -250,7 +250,8 @@ function renderChecks() {
     const v = tr.insertCell(); v.className = "num"; v.textContent = `${fmt(c.value, 3)} ${c.unit}`;
     tr.insertCell().textContent = c.expected;
     const r = tr.insertCell(); r.className = c.passed ? "pass" : "fail"; r.textContent = c.passed ? "pass" : "FAIL";
-    tr.insertCell().textContent = c.source;
+    const src = tr.insertCell(); src.textContent = c.source;  // keys of docs/references.md
+    src.title = (c.references || []).map((r) => `[${r.key}] ${r.source} ${r.url}`.trim()).join("\n");
   }
   if (S.checks && S.checks.error) {
     const tr = body.insertRow(); const td = tr.insertCell(); td.colSpan = 5; td.className = "fail";
@@ -268,11 +269,17 @@ function renderChecks() {
 
 // ---- drawing --------------------------------------------------------------------------------
 const COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#17becf"];
+const FONT = "10px system-ui, sans-serif", LABEL_FONT = "11px system-ui, sans-serif";
 
-function ctxOf(canvas) {
+// a canvas sized to its box (CSS pixels x the device's pixel ratio), its height `aspect` times
+// its width (default: the ratio of its width and height attributes in the HTML); every text
+// drawn through text() is kept in canvas.labels as its box, so that nothing is drawn over
+// another text or outside the canvas (the browser tests read them)
+function ctxOf(canvas, aspect) {
   const dpr = window.devicePixelRatio || 1;
-  const w = canvas.clientWidth || canvas.width, h = Math.round(w * canvas.height / canvas.width);
-  if (canvas._w !== w || canvas._dpr !== dpr) {
+  if (!canvas._aspect) canvas._aspect = canvas.height / canvas.width;
+  const w = canvas.clientWidth || canvas.width, h = Math.round(w * (aspect || canvas._aspect));
+  if (canvas._w !== w || canvas._h !== h || canvas._dpr !== dpr) {
     canvas._w = w; canvas._dpr = dpr; canvas._h = h;
     canvas.width = Math.round(w * dpr); canvas.height = Math.round(h * dpr);
     canvas.style.height = h + "px";
@@ -280,7 +287,41 @@ function ctxOf(canvas) {
   const c = canvas.getContext("2d");
   c.setTransform(dpr, 0, 0, dpr, 0, 0);
   c.clearRect(0, 0, canvas._w, canvas._h);
+  canvas.labels = [];
   return [c, canvas._w, canvas._h];
+}
+
+// the box a text would take, {x0, x1, y0, y1} (the font's full height, the text's advance)
+function textBox(c, s, x, y, align = "left", baseline = "alphabetic", rotated = false) {
+  c.textAlign = align; c.textBaseline = baseline;
+  const m = c.measureText(s);
+  const w = m.width, asc = m.fontBoundingBoxAscent, desc = m.fontBoundingBoxDescent;
+  // the text's own frame: u along its baseline from its anchor, v down
+  const u0 = align === "center" ? -w / 2 : align === "right" || align === "end" ? -w : 0;
+  if (!rotated) return {x0: x + u0, x1: x + u0 + w, y0: y - asc, y1: y + desc};
+  // turned a quarter counter-clockwise about the anchor (a y axis's label)
+  return {x0: x - asc, x1: x + desc, y0: y - u0 - w, y1: y - u0};
+}
+
+function text(c, s, x, y, o = {}) {
+  const box = textBox(c, s, x, y, o.align, o.baseline, o.rotated);
+  // an optional text (a tick's label) that would touch another one is left out
+  if (o.optional && c.canvas.labels.some((b) => overlaps(box, b, 1))) return null;
+  if (o.rotated) {
+    c.save(); c.translate(x, y); c.rotate(-Math.PI / 2); c.fillText(s, 0, 0); c.restore();
+  } else {
+    if (o.halo) {  // a white edge: the text reads over the lines it sits on
+      c.save(); c.strokeStyle = "rgba(255, 255, 255, 0.9)"; c.lineWidth = 3; c.lineJoin = "round";
+      c.strokeText(s, x, y); c.restore();
+    }
+    c.fillText(s, x, y);
+  }
+  c.canvas.labels.push({text: s, kind: o.kind || "", ...box});
+  return box;
+}
+
+function overlaps(a, b, gap = 0) {
+  return a.x0 < b.x1 + gap && b.x0 < a.x1 + gap && a.y0 < b.y1 + gap && b.y0 < a.y1 + gap;
 }
 
 function niceTicks(lo, hi, n = 5) {
@@ -292,62 +333,131 @@ function niceTicks(lo, hi, n = 5) {
   return out;
 }
 
-// a line chart: series [{x, y, color, label, dash}], options {xlabel, ylabel, cursor, equal, bands, hlines, xticks}
+// the ticks of an axis whose labels do not run together: every k-th of `ticks`, k as small as
+// the labels' widths (along the axis) allow in `length` pixels
+function spacedTicks(c, ticks, length, lo, hi, size) {
+  const inside = ticks.filter((t) => t >= lo && t <= hi);
+  if (inside.length < 2) return inside;
+  const need = Math.max(...inside.map(size)) + 8;
+  const px = length * (inside[1] - inside[0]) / (hi - lo);
+  const k = Math.max(1, Math.ceil(need / px));
+  return inside.filter((_, i) => i % k === 0);
+}
+
+function yRange(series, hlines, axis) {
+  let y0 = Infinity, y1 = -Infinity;
+  for (const s of series) if ((s.axis || 0) === axis) for (const v of s.y) {
+    if (v !== null) { y0 = Math.min(y0, v); y1 = Math.max(y1, v); }
+  }
+  for (const h of hlines || []) if ((h.axis || 0) === axis) { y0 = Math.min(y0, h.y); y1 = Math.max(y1, h.y); }
+  if (!(y1 >= y0)) return null;
+  const py = (y1 - y0) * 0.06 || Math.max(Math.abs(y0) * 0.06, 1);
+  return [y0 - py, y1 + py];
+}
+
+// a line chart: series [{x, y, color, label, dash, axis}] (axis 1: the right-hand axis, in its
+// own unit), options {xlabel, ylabel, y2label, cursor, equal, hlines, xticks, xrange, markers}.
+// The margins are measured from the texts: the legend in rows above the plot (never cut), the
+// tick labels spaced so that they never run together
 function chart(canvas, series, o = {}) {
   const [c, W, H] = ctxOf(canvas);
-  const L = 52, R = 8, T = 8, B = 30;
-  let xs = [], ys = [];
-  for (const s of series) for (let i = 0; i < s.x.length; i++) {
-    if (s.x[i] !== null && s.y[i] !== null) { xs.push(s.x[i]); ys.push(s.y[i]); }
+  c.font = FONT; c.lineWidth = 1;
+  const has2 = series.some((s) => s.axis === 1);
+  const xs = [];
+  for (const s of series) for (let i = 0; i < s.x.length; i++) if (s.x[i] !== null && s.y[i] !== null) xs.push(s.x[i]);
+  if (!xs.length) {
+    c.fillStyle = "#888";
+    const lines = wrapText(c, o.empty || "nothing to show", W - 20);
+    lines.forEach((ln, i) => text(c, ln, 10, H / 2 + i * 13, {kind: "note"}));
+    return;
   }
-  for (const h of o.hlines || []) ys.push(h.y);
-  if (!xs.length) { c.fillStyle = "#888"; c.fillText(o.empty || "nothing to show", L, H / 2); return; }
   let x0 = o.xrange ? o.xrange[0] : Math.min(...xs), x1 = o.xrange ? o.xrange[1] : Math.max(...xs);
-  let y0 = Math.min(...ys), y1 = Math.max(...ys);
-  const py = (y1 - y0) * 0.06 || 1; y0 -= py; y1 += py;
   if (!o.xrange) { const px = (x1 - x0) * 0.04 || 1; x0 -= px; x1 += px; }
-  const pw = W - L - R, ph = H - T - B;
-  if (o.equal) {  // the same mm per pixel on both axes
-    const sx = (x1 - x0) / pw, sy = (y1 - y0) / ph, s = Math.max(sx, sy);
-    const cx = (x0 + x1) / 2, cy = (y0 + y1) / 2;
-    x0 = cx - s * pw / 2; x1 = cx + s * pw / 2; y0 = cy - s * ph / 2; y1 = cy + s * ph / 2;
+  let [y0, y1] = yRange(series, o.hlines, 0) || [-1, 1];
+  const r2 = has2 ? yRange(series, o.hlines, 1) || [-1, 1] : null;
+  // the legend: entries in rows, as wide as the canvas allows
+  const entries = series.map((s, j) => ({s, j})).filter((e) => e.s.label);
+  const rows = [[]];
+  let rowW = 0;
+  const maxW = W - 12;
+  for (const e of entries) {
+    e.w = 14 + c.measureText(e.s.label).width;
+    if (rows[rows.length - 1].length && rowW + 12 + e.w > maxW) { rows.push([]); rowW = 0; }
+    rowW += (rows[rows.length - 1].length ? 12 : 0) + e.w;
+    rows[rows.length - 1].push(e);
   }
-  const X = (x) => L + (x - x0) / (x1 - x0) * pw, Y = (y) => T + (y1 - y) / (y1 - y0) * ph;
-  c.font = "10px system-ui, sans-serif"; c.lineWidth = 1;
-  for (const b of o.bands || []) {
-    c.fillStyle = b.color;
-    for (const [a, z] of b.spans) c.fillRect(X(a), T, X(z) - X(a), ph);
+  const lineH = 14, T = 6 + (entries.length ? rows.length * lineH : 4), B = 36;
+  const fmtY = (t) => fmt(t, 3);
+  const widest = (ticks, lo, hi) => Math.max(0, ...ticks.filter((t) => t >= lo && t <= hi)
+    .map((t) => c.measureText(fmtY(t)).width));
+  const yt2 = has2 ? niceTicks(r2[0], r2[1]) : [], wy2 = has2 ? widest(yt2, r2[0], r2[1]) : 0;
+  // the left margin as wide as the y ticks' labels, which depend on the range, which (equal
+  // scales) depends on the margin: until it settles
+  const rx = [x0, x1], ry = [y0, y1];
+  let L, pw, yt, wy = 0;
+  const R = has2 ? 24 + wy2 : 10, ph = H - T - B;
+  for (let pass = 0; pass < 4; pass++) {
+    L = 24 + wy; pw = W - L - R;
+    [x0, x1] = rx; [y0, y1] = ry;
+    if (o.equal) {  // the same mm per pixel on both axes
+      const sx = (x1 - x0) / pw, sy = (y1 - y0) / ph, sc = Math.max(sx, sy);
+      const cx = (x0 + x1) / 2, cy = (y0 + y1) / 2;
+      x0 = cx - sc * pw / 2; x1 = cx + sc * pw / 2; y0 = cy - sc * ph / 2; y1 = cy + sc * ph / 2;
+    }
+    yt = niceTicks(y0, y1);
+    const w = widest(yt, y0, y1);
+    if (w <= wy) break;
+    wy = w;
   }
-  c.strokeStyle = "#e3e3e3"; c.fillStyle = "#555"; c.textAlign = "center";
-  for (const t of o.xticks || niceTicks(x0, x1)) {
-    if (t < x0 || t > x1) continue;
+  const X = (x) => L + (x - x0) / (x1 - x0) * pw;
+  const Ys = [(y) => T + (y1 - y) / (y1 - y0) * ph];
+  if (has2) Ys.push((y) => T + (r2[1] - y) / (r2[1] - r2[0]) * ph);
+  const Y = Ys[0];
+  // the axes' labels first, then the ticks' labels, each left out where it would touch one
+  c.font = LABEL_FONT; c.fillStyle = "#333";
+  if (o.xlabel) text(c, o.xlabel, L + pw / 2, H - 3, {align: "center", baseline: "bottom", kind: "axis"});
+  if (o.ylabel) text(c, fitText(c, o.ylabel, ph), 3, T + ph / 2, {align: "center", baseline: "top", rotated: true, kind: "axis"});
+  if (has2 && o.y2label) {
+    text(c, fitText(c, o.y2label, ph), W - 3, T + ph / 2, {align: "center", baseline: "bottom", rotated: true, kind: "axis"});
+  }
+  c.font = FONT;
+  // grid and tick labels
+  c.strokeStyle = "#e3e3e3"; c.fillStyle = "#555";
+  const xticks = spacedTicks(c, o.xticks || niceTicks(x0, x1), pw, x0, x1, (t) => c.measureText(fmt(t, 2)).width);
+  for (const t of xticks) {
     c.beginPath(); c.moveTo(X(t), T); c.lineTo(X(t), T + ph); c.stroke();
-    c.fillText(fmt(t, 2), X(t), T + ph + 12);
+    text(c, fmt(t, 2), X(t), T + ph + 4, {align: "center", baseline: "top", kind: "tick", optional: true});
   }
-  c.textAlign = "right";
-  for (const t of niceTicks(y0, y1)) {
-    if (t < y0 || t > y1) continue;
+  const fh = 12;  // a tick label's height, px
+  for (const t of spacedTicks(c, yt, ph, y0, y1, () => fh)) {
     c.beginPath(); c.moveTo(L, Y(t)); c.lineTo(L + pw, Y(t)); c.stroke();
-    c.fillText(fmt(t, 3), L - 4, Y(t) + 3);
+    text(c, fmtY(t), L - 4, Y(t), {align: "right", baseline: "middle", kind: "tick", optional: true});
+  }
+  if (has2) {
+    for (const t of spacedTicks(c, yt2, ph, r2[0], r2[1], () => fh)) {
+      c.strokeStyle = "#999"; c.beginPath(); c.moveTo(L + pw, Ys[1](t)); c.lineTo(L + pw + 3, Ys[1](t)); c.stroke();
+      text(c, fmtY(t), L + pw + 5, Ys[1](t), {align: "left", baseline: "middle", kind: "tick", optional: true});
+    }
   }
   c.strokeStyle = "#999"; c.strokeRect(L, T, pw, ph);
-  c.textAlign = "center"; c.fillText(o.xlabel || "", L + pw / 2, H - 4);
-  c.save(); c.translate(11, T + ph / 2); c.rotate(-Math.PI / 2); c.fillText(o.ylabel || "", 0, 0); c.restore();
+  c.font = FONT;
   for (const h of o.hlines || []) {
+    const Yh = Ys[h.axis || 0];
     c.strokeStyle = h.color || "#000"; c.setLineDash(h.dash || []);
-    c.beginPath(); c.moveTo(L, Y(h.y)); c.lineTo(L + pw, Y(h.y)); c.stroke(); c.setLineDash([]);
+    c.beginPath(); c.moveTo(L, Yh(h.y)); c.lineTo(L + pw, Yh(h.y)); c.stroke(); c.setLineDash([]);
   }
   c.save(); c.beginPath(); c.rect(L, T, pw, ph); c.clip();
   series.forEach((s, j) => {
+    const Yj = Ys[s.axis || 0];
     c.strokeStyle = s.color || COLORS[j % COLORS.length]; c.lineWidth = s.width || 1.5;
     c.setLineDash(s.dash || []);
     c.beginPath();
     let up = false;
     for (let i = 0; i < s.x.length; i++) {
       if (s.x[i] === null || s.y[i] === null) { up = false; continue; }
-      if (up) c.lineTo(X(s.x[i]), Y(s.y[i])); else { c.moveTo(X(s.x[i]), Y(s.y[i])); up = true; }
+      if (up) c.lineTo(X(s.x[i]), Yj(s.y[i])); else { c.moveTo(X(s.x[i]), Yj(s.y[i])); up = true; }
     }
-    if (s.closed && s.x.length) c.lineTo(X(s.x[0]), Y(s.y[0]));
+    if (s.closed && s.x.length) c.lineTo(X(s.x[0]), Yj(s.y[0]));
     c.stroke(); c.setLineDash([]);
   });
   for (const v of o.vlines || []) {
@@ -362,15 +472,40 @@ function chart(canvas, series, o = {}) {
     c.fillStyle = m.color || "#000"; c.beginPath(); c.arc(X(m.x), Y(m.y), 3.5, 0, 2 * Math.PI); c.fill();
   }
   c.restore();
-  // legend
-  let lx = L + 6;
-  c.textAlign = "left";
-  series.forEach((s, j) => {
-    if (!s.label) return;
-    c.fillStyle = s.color || COLORS[j % COLORS.length];
-    c.fillRect(lx, T + 5, 10, 3); c.fillStyle = "#333"; c.fillText(s.label, lx + 13, T + 10);
-    lx += c.measureText(s.label).width + 24;
+  // the legend, above the plot
+  rows.forEach((row, i) => {
+    let lx = L;
+    const ly = 6 + i * lineH + lineH / 2;
+    for (const e of row) {
+      const col = e.s.color || COLORS[e.j % COLORS.length];
+      c.strokeStyle = col; c.lineWidth = 2; c.setLineDash(e.s.dash || []);
+      c.beginPath(); c.moveTo(lx, ly); c.lineTo(lx + 10, ly); c.stroke(); c.setLineDash([]);
+      c.fillStyle = "#333";
+      text(c, e.s.label, lx + 14, ly, {baseline: "middle", kind: "legend"});
+      lx += e.w + 12;
+    }
   });
+}
+
+// a text cut to fit `width` px (an ellipsis where it was cut), for a label that must fit; an
+// axis label's unit ("[mm]" at its end) is kept whole
+function fitText(c, s, width) {
+  if (c.measureText(s).width <= width) return s;
+  const unit = (s.match(/ \[[^\]]*\]$/) || [""])[0];
+  let name = s.slice(0, s.length - unit.length);
+  while (name.length > 1 && c.measureText(name + "…" + unit).width > width) name = name.slice(0, -1);
+  return name + "…" + unit;
+}
+
+function wrapText(c, s, width) {
+  const out = [];
+  let line = "";
+  for (const word of s.split(/\s+/)) {
+    const t = line ? line + " " + word : word;
+    if (line && c.measureText(t).width > width) { out.push(line); line = word; } else line = t;
+  }
+  if (line) out.push(line);
+  return out;
 }
 
 function closed(a) { return a.concat([a[0]]); }
@@ -383,19 +518,24 @@ function drawPlots() {
   const kind = +$("motion-kind").value, m = t.motion;
   const xt = [0, 90, 180, 270, 360];
   const series = [];
-  const label = ["position", "velocity", "acceleration"][kind];
-  const mm = [["y_mm", 1, "mm"], ["vy_mm_s", 1e-3, "m/s"], ["ay_mm_s2", 1e-3, "m/s²"]][kind];
-  const ang = [["theta_deg", 1, "deg"], ["omega_rad_s", 1, "rad/s"], ["epsilon_rad_s2", 1, "rad/s²"]][kind];
+  // heights of the needle point and the take-up eye on the left axis (mm, m/s, m/s²), the
+  // shuttle's angle on its own right-hand axis (deg, rad/s, rad/s²): two units, two axes
+  const mm = [["y_mm", 1, "mm", "height"], ["vy_mm_s", 1e-3, "m/s", "velocity"],
+              ["ay_mm_s2", 1e-3, "m/s²", "acceleration"]][kind];
+  const ang = [["theta_deg", 1, "deg", "angle"], ["omega_rad_s", 1, "rad/s", "velocity"],
+               ["epsilon_rad_s2", 1, "rad/s²", "accel."]][kind];
   const scaled = (a, f) => closed(a).map((v) => (v === null ? null : v * f));
   for (const key of ["needle_point", "take_up_eye"]) {
-    if (m[key]) series.push({x: phi, y: scaled(m[key][mm[0]], mm[1]), label: `${m[key].label} [${mm[2]}]`});
+    if (m[key]) series.push({x: phi, y: scaled(m[key][mm[0]], mm[1]), label: m[key].label});
   }
   if (m.shuttle) {
-    // the shuttle in its own unit on the same chart would hide the others: scale to fit, say so
-    const ys = scaled(m.shuttle[ang[0]], ang[1]);
-    series.push({x: phi, y: ys, label: `shuttle [${ang[2]}]`, dash: [5, 3]});
+    series.push({x: phi, y: scaled(m.shuttle[ang[0]], ang[1]), label: "shuttle (right axis)",
+                 dash: [5, 3], axis: 1, color: COLORS[2]});
   }
-  chart($("motion"), series, {xlabel: "shaft angle φ [deg]", ylabel: label, cursor: cur, xrange: [0, 360], xticks: xt});
+  const left = series.some((x) => !x.axis);
+  chart($("motion"), series, {xlabel: "shaft angle φ [deg]", cursor: cur, xrange: [0, 360], xticks: xt,
+    ylabel: left ? `${mm[3]} [${mm[2]}]` : "", y2label: `shuttle ${ang[3]} [${ang[2]}]`,
+    empty: "no needle, take-up or shuttle: this machine file has no [sewing] roles"});
   drawTiming(phi, cur);
   const f = t.feed;
   if (f && !f.error) {
@@ -412,7 +552,7 @@ function drawPlots() {
       {x: p, y: closed(th.supply_mm), label: "take-up supply"},
       {x: p, y: closed(th.demand_mm), label: "demand"},
       {x: p, y: closed(th.overfeed_mm), label: "overfeed", dash: [4, 2]}],
-    {xlabel: "shaft angle φ [deg]", ylabel: "mm", cursor: cur, xrange: [0, 360], xticks: xt,
+    {xlabel: "shaft angle φ [deg]", ylabel: "thread [mm]", cursor: cur, xrange: [0, 360], xticks: xt,
      hlines: [{y: 0, color: "#888"}]});
   } else chart($("thread"), [], {empty: th && th.error ? th.error.what : "no [thread] in this machine file"});
   if (t.dynamics) {
@@ -459,17 +599,33 @@ function drawTiming(phi, cur) {
     rows.push({label: "take-up eye rising", mask: v.map((x) => x !== null && x > 0), color: "#d62728"});
   }
   const [c, W, H] = ctxOf($("timing"));
-  const L = 120, R = 8, T = 4, B = 22, ph = H - T - B, rh = ph / Math.max(rows.length, 1);
+  c.font = LABEL_FONT;
+  if (!rows.length) {
+    c.fillStyle = "#888";
+    text(c, "no timing: this machine file has no [sewing] roles", 10, H / 2, {kind: "note"});
+    return;
+  }
+  // the row labels' column as wide as the widest label; the angle axis in steps whose labels
+  // do not run together (30 deg on a wide diagram, 60 or 90 on a narrow one)
+  const L = 10 + Math.max(40, ...rows.map((row) => c.measureText(row.label).width));
+  const R = 10, T = 4, B = 36, ph = H - T - B, rh = ph / Math.max(rows.length, 1);
   const X = (x) => L + x / 360 * (W - L - R);
-  c.font = "11px system-ui, sans-serif";
   rows.forEach((row, i) => {
-    c.fillStyle = "#333"; c.textAlign = "right"; c.fillText(row.label, L - 6, T + i * rh + rh / 2 + 4);
+    c.fillStyle = "#333";
+    text(c, row.label, L - 6, T + i * rh + rh / 2, {align: "right", baseline: "middle", kind: "row"});
     c.fillStyle = row.color;
     for (const [a, z] of spans(phi, row.mask)) c.fillRect(X(a), T + i * rh + 3, X(z) - X(a), rh - 6);
   });
   c.strokeStyle = "#999"; c.strokeRect(L, T, W - L - R, ph);
-  c.fillStyle = "#555"; c.textAlign = "center";
-  for (let a = 0; a <= 360; a += 30) { c.fillText(a, X(a), H - 8); }
+  c.font = FONT; c.fillStyle = "#555";
+  const wide = c.measureText("360").width + 8;
+  const step = [30, 45, 60, 90, 180].find((d) => (W - L - R) * d / 360 >= wide) || 360;
+  for (let a = 0; a <= 360; a += step) {
+    c.strokeStyle = "#999"; c.beginPath(); c.moveTo(X(a), T + ph); c.lineTo(X(a), T + ph + 3); c.stroke();
+    text(c, String(a), X(a), T + ph + 4, {align: "center", baseline: "top", kind: "tick", optional: true});
+  }
+  c.font = LABEL_FONT; c.fillStyle = "#333";
+  text(c, "shaft angle φ [deg]", L + (W - L - R) / 2, H - 3, {align: "center", baseline: "bottom", kind: "axis"});
   const ev = (S.checks && S.checks.events) || [];
   for (const e of ev) {
     if (e.unit !== "deg" || e.value === null || !/dead centre|meets/.test(e.event)) continue;
@@ -477,6 +633,16 @@ function drawTiming(phi, cur) {
     c.beginPath(); c.moveTo(X(e.value), T); c.lineTo(X(e.value), T + ph); c.stroke(); c.setLineDash([]);
   }
   c.strokeStyle = "#000"; c.beginPath(); c.moveTo(X(cur), T); c.lineTo(X(cur), T + ph); c.stroke();
+}
+
+// where a point's label may go: a direction (dx, dy) and a distance, px; beside the point
+// first, then farther out with a leader
+const CANDIDATES = [];
+for (const d of [5, 14, 26, 40]) {
+  for (const [dx, dy] of [[1, -1], [1, 1], [-1, -1], [-1, 1], [1, 0], [-1, 0], [0, -1], [0, 1]]) {
+    const f = dx && dy ? 0.7 : 1;
+    CANDIDATES.push([dx * f, dy * f, d]);
+  }
 }
 
 function viewOf(t) {  // the drawing's extent: every point over the turn
@@ -495,17 +661,24 @@ function drawFrame() {
   const t = S.turn;
   if (!t) return;
   const k = S.k, cv = $("mechanism");
-  const [c, W, H] = ctxOf(cv);
   const v = viewOf(t);
   // keep the scale while the machine stays inside it, so that a change shows as motion
   if (!S.view || v.x0 < S.view.x0 || v.x1 > S.view.x1 || v.y0 < S.view.y0 || v.y1 > S.view.y1 ||
       (v.x1 - v.x0) < 0.5 * (S.view.x1 - S.view.x0) && (v.y1 - v.y0) < 0.5 * (S.view.y1 - S.view.y0)) {
-    const m = 0.06 * Math.max(v.x1 - v.x0, v.y1 - v.y0, 1);
+    const m = 0.025 * Math.max(v.x1 - v.x0, v.y1 - v.y0, 1);
     S.view = {x0: v.x0 - m, x1: v.x1 + m, y0: v.y0 - m, y1: v.y1 + m};
   }
-  const w = S.view, s = Math.min(W / (w.x1 - w.x0), H / (w.y1 - w.y0));
+  const w = S.view;
+  // the canvas takes the drawing's shape (a tall machine a tall canvas), as tall as the window
+  // leaves room for beside the player and the numbers, and at least half as tall as wide
+  const cw = cv.clientWidth || cv.width;
+  const tallest = Math.max(0.5, (window.innerHeight - 160) / cw);
+  const aspect = Math.min(Math.max((w.y1 - w.y0) / (w.x1 - w.x0), 0.5), tallest, 2.0);
+  const [c, W, H] = ctxOf(cv, aspect);
+  const s = Math.min(W / (w.x1 - w.x0), H / (w.y1 - w.y0));
   const ox = (W - s * (w.x1 - w.x0)) / 2, oy = (H - s * (w.y1 - w.y0)) / 2;
   const X = (x) => ox + (x - w.x0) * s, Y = (y) => H - oy - (y - w.y0) * s;
+  cv.extent = {x0: X(v.x0), x1: X(v.x1), y0: Y(v.y1), y1: Y(v.y0)};  // the machine, px
   const P = t.points, r = S.machine.roles;
   const at = (n) => (P[n] && P[n].x[k] !== null ? [X(P[n].x[k]), Y(P[n].y[k])] : null);
   c.lineJoin = "round";
@@ -513,7 +686,8 @@ function drawFrame() {
   if (r.plate_y !== undefined) {
     c.strokeStyle = "#888"; c.lineWidth = 1; c.setLineDash([6, 4]);
     c.beginPath(); c.moveTo(0, Y(r.plate_y)); c.lineTo(W, Y(r.plate_y)); c.stroke(); c.setLineDash([]);
-    c.fillStyle = "#888"; c.font = "10px system-ui"; c.fillText("throat plate", 4, Y(r.plate_y) - 3);
+    c.fillStyle = "#888"; c.font = FONT;
+    text(c, "throat plate", 4, Y(r.plate_y) - 3, {kind: "plate"});
   }
   // paths over the turn: the thread eye, the dog, the needle point
   const paths = [[r.take_up_eye, "#d62728"], [r.feed_dog, "#9467bd"], [r.shuttle_point, "#2ca02c"]];
@@ -562,11 +736,37 @@ function drawFrame() {
     c.fillStyle = "#fff"; c.strokeStyle = "#222"; c.lineWidth = 1.2;
     c.beginPath(); c.arc(q[0], q[1], 2.8, 0, 2 * Math.PI); c.fill(); c.stroke();
   }
-  c.fillStyle = "#222"; c.font = "11px system-ui";
+  // the roles' labels, each beside its point where it touches no other label and stays inside
+  // the canvas (covering as few points as it can); a label keeps its place while it may
+  c.font = LABEL_FONT;
+  const dots = S.machine.points.map(at).filter((q) => q);
+  S.labelPlaces = S.labelPlaces || {};
   for (const [n, lab] of [[r.needle_point, "needle"], [r.take_up_eye, "take-up eye"], [r.feed_dog, "feed dog"], [r.shuttle_point, "shuttle point"]]) {
-    const q = n && at(n); if (q) c.fillText(lab, q[0] + 6, q[1] - 6);
+    const q = n && at(n);
+    if (!q) continue;
+    const box0 = textBox(c, lab, 0, 0, "left", "middle");
+    const bw = box0.x1 - box0.x0, bh = box0.y1 - box0.y0;
+    let best = null;
+    CANDIDATES.forEach(([dx, dy, d], i) => {
+      const cx = q[0] + dx * d + Math.sign(dx) * bw / 2, cy = q[1] + dy * d + Math.sign(dy) * bh / 2;
+      const box = {x0: cx - bw / 2, x1: cx + bw / 2, y0: cy - bh / 2, y1: cy + bh / 2};
+      if (box.x0 < 2 || box.x1 > W - 2 || box.y0 < 2 || box.y1 > H - 2) return;
+      if (cv.labels.some((b) => overlaps(box, b, 2))) return;
+      const covered = dots.filter(([x, y]) => x > box.x0 - 3 && x < box.x1 + 3 && y > box.y0 - 3 && y < box.y1 + 3).length;
+      const score = (i === S.labelPlaces[lab] ? -0.5 : 0) + covered * 4 + i / CANDIDATES.length + d / 10;
+      if (!best || score < best.score) best = {score, box, i, d};
+    });
+    if (!best) continue;  // (no room at all: a canvas too small to label)
+    S.labelPlaces[lab] = best.i;
+    const b = best.box;
+    if (best.d > 8) {  // a leader from the point to the label
+      c.strokeStyle = "#666"; c.lineWidth = 0.8;
+      c.beginPath(); c.moveTo(q[0], q[1]);
+      c.lineTo(Math.min(Math.max(q[0], b.x0), b.x1), Math.min(Math.max(q[1], b.y0), b.y1)); c.stroke();
+    }
+    c.fillStyle = "#222";
+    text(c, lab, b.x0, (b.y0 + b.y1) / 2, {baseline: "middle", kind: "point", halo: true});
   }
-  c.fillText(`${S.machine.name}   φ = ${fmt(t.phi_deg[k], 0)}°`, 6, 14);
   $("scrub").max = t.phi_deg.length - 1; $("scrub").value = k;
   $("phi").textContent = `φ = ${fmt(t.phi_deg[k], 0)}°`;
 }
