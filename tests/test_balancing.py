@@ -183,7 +183,10 @@ def test_peak_criteria_are_no_worse_than_a_search_on_the_whole_machine(criterion
     assert res.status == "optimal"
     # started near the answer and far from it, the search finds nothing better
     for start in (res.xy + 0.05, np.zeros((2, 2)) + 0.3):
-        assert res.after[key] <= nelder_mead_from(B, key, start) * (1.0 + 1e-7) + 1e-12
+        # (both may be round-off: a full balance leaves a peak force of ~1e-13 N, so the
+        # allowance is scaled to the forces that cancel)
+        assert res.after[key] <= (nelder_mead_from(B, key, start) * (1.0 + 1e-7)
+                                  + 1e-12 * res.before[key])
     assert res.after[key] <= res.before[key]
 
 

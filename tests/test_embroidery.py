@@ -47,7 +47,7 @@ def test_design_procedure_reproduces_the_paper(emb):
     # the paper prints BC 16.3, CD 10.9, AD 6.6 (its K's times AB = 17.5, rounded), EF 80
     for got, paper in ((d.bc, 16.3), (d.cd, 10.9), (d.ad, 6.6)):
         assert abs(got - paper) <= 0.051
-    assert d.de == 31.0 and d.ef == 80.0
+    assert d.de == 31.0 and d.ef == 80.0  # exact: 124 / 4 and the default 80 passed through
     assert 5.0 <= d.alpha_deg <= 30.0  # the paper's range for alpha
     # the procedure's own condition: DC turns half a turn from phi1 = 60 to 300 deg
     a = math.radians(d.alpha_deg)

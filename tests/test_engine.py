@@ -239,6 +239,8 @@ def test_vectorised_equals_per_design_loop(rng):
     assert batch.p.shape == (4, 5, PHI.size, len(m.point_names), 2)
     for idx in np.ndindex(4, 5):
         one = sewmech.kinematics(m, PHI, params=params[idx], on_failure="mask")
+        # exact: the kernel evaluates each design by itself (its own rows, the same compiled
+        # code), so a batch holds the very numbers of its designs alone
         for name in ("p", "v", "a", "theta", "omega", "epsilon", "feasible"):
             np.testing.assert_array_equal(getattr(batch, name)[idx], getattr(one, name))
 
@@ -250,6 +252,7 @@ def test_loop_vectorised_equals_per_design(rng):
     batch = sewmech.kinematics(m, PHI, params=params)
     for i in range(6):
         one = sewmech.kinematics(m, PHI, params=params[i])
+        # exact, as above: the loop solver marches each design by itself
         np.testing.assert_array_equal(batch.theta[i], one.theta)
         np.testing.assert_array_equal(batch.epsilon[i], one.epsilon)
 

@@ -284,6 +284,7 @@ def test_stitch_curve_monotonic_and_four_mm_both_ways(jb):
 
 def test_scale_marks(jb):
     marks = F.scale_marks(jb, 0.5)
+    # exact: a mark's stitch is its target, a whole multiple of 0.5 mm (a binary fraction)
     assert [m.stitch_mm for m in marks] == [k * 0.5 for k in range(-8, 9)]
     regs = [m.regulator_deg for m in marks]
     assert np.all(np.diff(regs) > 0)

@@ -390,7 +390,13 @@ def _cli() -> list[str]:
                                       (signal.SIGHUP, 129)], ids=["sigterm", "sigint", "sighup"])
 def test_2_interrupted_report_leaves_nothing(tmp_path, sig, code):
     d = tmp_path / "rep"
-    p = subprocess.Popen(_cli() + ["report", "jb1-3", "--out", str(d), "--step-deg", "0.5"],
+    # the command as a terminal starts it, SIGINT at its default: a test run started in the
+    # background (`&`, a CI runner without job control) would hand it SIGINT ignored, and a
+    # program that starts with SIGINT ignored rightly keeps ignoring it
+    terminal = [sys.executable, "-c", ("import os, signal, sys; signal.signal(signal.SIGINT,"
+                                       " signal.SIG_DFL); os.execv(sys.argv[1], sys.argv[1:])")]
+    p = subprocess.Popen(terminal + _cli() + ["report", "jb1-3", "--out", str(d),
+                                              "--step-deg", "0.5"],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
     deadline = time.time() + 60
     while time.time() < deadline and not (d.exists() and any(

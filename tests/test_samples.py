@@ -143,6 +143,7 @@ def test_a_checked_design_that_jams_sends_every_design_round_the_whole_turn(monk
     monkeypatch.setattr(samples, "whole_turn_values", jams)
     vals, how = samples.sample_feed_values(m, "stitch_length", 25.0, P, g)
     assert how["whole_turn"] == P.shape[0] and calls == [P.shape[0], P.shape[0]]
+    # exact: the values are the whole turn's, the same call on the same designs again
     np.testing.assert_allclose(vals, real(m, "stitch_length", 25.0, P), rtol=0, atol=0)
 
 
@@ -155,4 +156,5 @@ def test_a_failed_check_sends_every_design_to_its_whole_turn(monkeypatch):
     monkeypatch.setattr(samples, "CHECK_MM", -1.0)
     vals, how = samples.sample_feed_values(m, "feed_lift", 25.0, P, g)
     assert how["whole_turn"] == P.shape[0] and how["located"] == 0
+    # exact, as above
     np.testing.assert_array_equal(vals, samples.whole_turn_values(m, "feed_lift", 25.0, P))

@@ -67,6 +67,7 @@ def test_sensitivities_equal_central_differences_on_every_shipped_machine(name):
     fd = richardson(m, PHI, P0, keep)
     for d, ref, what in ((S.dp, fd[0], "p"), (S.dtheta, fd[1], "theta"), (S.dq, fd[2], "q")):
         assert worst_relative(d, ref, keep) < 1e-6, (name, what)
+    # exactly 0: no unit's support holds a counterweight, so nothing is written in its column
     assert np.abs(S.dp[..., ~keep]).max(initial=0.0) == 0.0
     # the rates: velocities, angular velocities and joint rates at the file's speed, and the
     # accelerations (their differences need a longer step: the loop solver's tolerance over
@@ -90,6 +91,8 @@ def test_sensitivities_equal_central_differences_on_every_shipped_machine(name):
             errs.append(np.where(np.isfinite(err), err, np.inf))
         worst = np.minimum(*errs)[dims]
         assert np.isfinite(worst).all() and worst.max() < 1e-6, (name, what, worst.max())
+    # exact: both kernels take the positions' tangents from the same compiled unit functions
+    # (the level is their argument), the same operations in the same order
     assert np.array_equal(R.dp, S.dp)
     fd = richardson(m, PHI, P0, keep, attrs=("v", "omega", "q_dot"))
     for d, ref, what in ((R.dv, fd[0], "v"), (R.domega, fd[1], "omega"), (R.dqd, fd[2], "qd")):
@@ -312,6 +315,7 @@ def test_a_batch_of_designs_equals_each_alone_and_a_huge_one_is_refused():
     assert S.dp.shape == (3, 3, len(m.point_names), 2, len(m.parameter_names))
     for k in range(3):
         alone = sensitivities(m, phi, params=P[k])
+        # exact: every position is a lane of its own, computed by the same instructions
         assert np.array_equal(S.dp[k], alone.dp) and np.array_equal(S.dtheta[k], alone.dtheta)
     with pytest.raises(AnalysisError, match="GiB"):
         sensitivities(m, np.radians(np.arange(0.0, 360.0, 0.1)),

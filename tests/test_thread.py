@@ -166,6 +166,7 @@ def test_balance_parts(jb):
     tp = thread_path(jb, phi)
     np.testing.assert_allclose(b.bar, tp.below, atol=1e-12)
     k = int(np.argmin(tp.supply))
+    # exactly 0: the demand is counted from its own value at the take-up's top
     assert b.demand[k] == 0.0 and b.take_up_top_deg == b.phi_deg[k]
     np.testing.assert_allclose(b.overfeed, tp.supply - b.demand, atol=1e-12)
     # the loop: none outside seizure .. cast-off; the size of the DOMAIN estimate (which is
@@ -174,7 +175,7 @@ def test_balance_parts(jb):
     estimate = math.pi * R + 2 * depth
     assert 0.8 * estimate < b.loop.max() < 1.2 * estimate
     outside = (b.phi_deg - b.seizure_deg) % 360 > (b.cast_off_deg - b.seizure_deg) % 360 + 1
-    assert np.all(b.loop[outside] == 0.0)
+    assert np.all(b.loop[outside] == 0.0)  # set to 0 there, not computed
     assert b.consumption_mm == pytest.approx(2.5 + 1.0 + 0.1 * math.pi)
     # events on the balance's own grid against the timing module's root finds (Brent)
     from sewmech import timing as T
