@@ -102,6 +102,8 @@ def test_cli_machines_check_kinematics(tmp_path):
     out = runner.invoke(app, ["kinematics", "jb1-3", "--json", "--step-deg", "10"])
     data = json.loads(out.stdout)
     assert len(data["phi_deg"]) == 36 and "p_take_up.eye_y" in data["channels"]
+    # the angles come back as given, not as their round trip through radians (29.999999999999996)
+    assert data["phi_deg"] == [10.0 * k for k in range(36)]
     out = runner.invoke(app, ["kinematics", "jb1-3", "--out", str(tmp_path), "--format", "json"])
     assert out.exit_code == 0 and (tmp_path / "jb1-3-kinematics.json").exists()
 

@@ -198,8 +198,9 @@ class KinematicsResult:
 
     @property
     def phi_deg(self) -> np.ndarray:
-        """Shaft angle in degrees (for display)."""
-        return np.degrees(self.phi)
+        """Shaft angle in degrees (for display), to 1e-9 deg: the angles people give in
+        degrees come back as they gave them (``degrees(radians(30))`` is 29.999999999999996)."""
+        return np.round(np.degrees(self.phi), 9) + 0.0  # (+ 0.0: no -0.0)
 
     @property
     def all_feasible(self) -> bool:
