@@ -282,11 +282,11 @@ def test_the_trade_off_front_is_what_no_other_set_beats():
     assert T["front"].any() and T["xy"].shape == (256, 2, 2)
 
 
-def slider_crank_cw_at(angle_deg, extra=""):
-    """The slider-crank of :func:`slider_crank_with_cw` with its counterweight turned to
-    ``angle_deg`` (no limit), and ``extra`` lines for its table."""
+def slider_crank_cw_text(angle_deg, extra=""):
+    """The text of the slider-crank of :func:`slider_crank_with_cw` with its counterweight
+    turned to ``angle_deg`` (no limit), and ``extra`` lines for its table."""
     text = SLIDER_CRANK.format(r=15.0, l=44.0, e=0.0, alpha=90.0, gx=0.0, gy=0.0, branch=1)
-    return machine_from_toml(text + f"""
+    return text + f"""
 [masses.block]
 mass = 0.05
 com = [0.0, 0.0]
@@ -296,7 +296,12 @@ link = "crank"
 static_moment_gcm = 0.0
 angle_deg = {angle_deg}
 radius_mm = 12.0
-{extra}""")
+{extra}"""
+
+
+def slider_crank_cw_at(angle_deg, extra=""):
+    """That slider-crank as a machine."""
+    return machine_from_toml(slider_crank_cw_text(angle_deg, extra))
 
 
 def test_an_infeasible_delta_q_proposes_nothing_and_says_what_is_achievable():

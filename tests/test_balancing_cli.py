@@ -181,20 +181,9 @@ def _one_error_line(text: str, where: str) -> None:
 def test_an_infeasible_delta_q_gives_no_counterweight_and_no_recipe(tmp_path):
     """A counterweight along 45 deg on a slider-crank: Delta-Q has no root. The answer is no
     counterweight (JSON: null), the least peak force as what is achievable, and no recipe."""
-    from test_balancing import SLIDER_CRANK
+    from test_balancing import slider_crank_cw_text
 
-    text = SLIDER_CRANK.format(r=15.0, l=44.0, e=0.0, alpha=90.0, gx=0.0, gy=0.0, branch=1)
-    f = write(tmp_path / "sc.toml", text + """
-[masses.block]
-mass = 0.05
-com = [0.0, 0.0]
-inertia_zz = 0.0
-[counterweights.cw]
-link = "crank"
-static_moment_gcm = 0.0
-angle_deg = 45.0
-radius_mm = 12.0
-""")
+    f = write(tmp_path / "sc.toml", slider_crank_cw_text(45.0))
     code, out = run("balance", f, "--criterion", "delta-q", "--json", "--step-deg", "2")
     assert code == 0, out
     data = json.loads(out)
@@ -255,28 +244,16 @@ def test_the_built_counterweight_of_the_shipped_machines_clears_their_shafts():
 
 
 def test_a_counterweight_without_a_known_bore_gets_no_recipe(tmp_path):
-    from test_balancing import SLIDER_CRANK
+    from test_balancing import slider_crank_cw_text
 
-    text = SLIDER_CRANK.format(r=15.0, l=44.0, e=0.0, alpha=90.0, gx=0.0, gy=0.0, branch=1)
-    cw = """
-[masses.block]
-mass = 0.05
-com = [0.0, 0.0]
-inertia_zz = 0.0
-[counterweights.cw]
-link = "crank"
-static_moment_gcm = 0.0
-angle_deg = 180.0
-radius_mm = 12.0
-"""
-    f = write(tmp_path / "sc.toml", text + cw)
+    f = write(tmp_path / "sc.toml", slider_crank_cw_text(180.0))
     code, out = run("balance", f, "--json", "--step-deg", "2")
     assert code == 0, out
     paper = json.loads(out)["paper"]
     assert paper["status"] == "optimal" and paper["build"] is None
     assert "[counterweights.cw]" in paper["build_refused"] and "bore_mm" in paper["build_refused"]
     # with its bore the recipe clears it
-    f = write(tmp_path / "sc2.toml", text + cw + "bore_mm = 6.0\n")
+    f = write(tmp_path / "sc2.toml", slider_crank_cw_text(180.0, "bore_mm = 6.0\n"))
     code, out = run("balance", f, "--json", "--step-deg", "2")
     assert code == 0, out
     b = json.loads(out)["paper"]["build"]
