@@ -514,6 +514,24 @@ def test_3_a_directory_named_like_a_shipped_machine_does_not_hide_it(tmp_path, m
     run(["check", "jb8-2"], code=0)
 
 
+@pytest.mark.parametrize("argv, where, what", [
+    (["tolerance", "jb1-3", "--input", "regulator=0"], "sewmech tolerance", "no such option"),
+    (["kinematics", "jb1-3", "--rpm", "abc"], "--rpm", "valid number"),
+    (["check"], "sewmech check", "missing argument"),
+    (["nosuch"], "sewmech", "no such command 'nosuch'"),
+    (["kinematics", "jb1-3", "--format", "xml"], "--format", "'xml' is not one of"),
+    (["kinematics", "jb1-3", "--step-deg"], "sewmech", "requires an argument"),
+    (["embroidery-take-up", "--points", "x"], "--points", "valid integer"),
+])
+def test_3_command_line_mistakes_are_one_error_line(argv, where, what):
+    """What click finds before a command runs (an unknown option or command, a missing or
+    mistyped value) is one `error:` line like every other mistake, not a usage box."""
+    out = run(argv, has=(what,))
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {where}: "), out.stderr
+    assert "--help" in lines[0] and "╭" not in out.stderr
+
+
 MISTAKES = [  # (case, argv, message part)
     ("input-twice", ["kinematics", "jb1-3", "--input", "regulator=10", "--input",
                      "regulator=-10"], "given twice"),

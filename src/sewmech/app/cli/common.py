@@ -30,7 +30,63 @@ from ...engine.machine import Machine, load_machine
 
 DEFAULT_MACHINE = "jb1-3"
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+def _click_exceptions():
+    """click's exceptions as typer raises them (typer 0.29 carries its own copy of click)."""
+    try:
+        from typer._click import exceptions
+    except ImportError:  # a typer that uses the click package
+        from click import exceptions
+    return exceptions
+
+
+class _Group(typer.core.TyperGroup):
+    """The command group, except that a mistake on the command line itself (an unknown option,
+    a missing argument, a value of the wrong type: what click finds before a command runs) is
+    one ``error:`` line like every other mistake (docs/errors.md), not a usage box."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True,
+             **extra):
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        E = _click_exceptions()
+        try:
+            rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        except E.NoArgsIsHelpError as exc:  # the help is shown already
+            sys.exit(exc.exit_code)
+        except E.UsageError as exc:
+            _print_error(_usage_error_text(exc))
+            sys.exit(EXIT_ERROR)
+        except E.ClickException as exc:
+            exc.show()
+            sys.exit(exc.exit_code)
+        except typer.Abort:
+            _print_error("interrupted; nothing half-written was left behind")
+            sys.exit(EXIT_SIGINT)
+        sys.exit(rv if isinstance(rv, int) else 0)
+
+
+def _usage_error_text(exc) -> str:
+    """``<where>: <what is wrong>. <what to do>`` for a usage error of click: where is the
+    option (else the command), and what to do is to read the command's help."""
+    E = _click_exceptions()
+    ctx = exc.ctx
+    path = ctx.command_path if ctx is not None else "sewmech"
+    where, what = path, exc.format_message()
+    param = getattr(exc, "param", None)
+    if isinstance(exc, E.BadParameter) and not isinstance(exc, E.MissingParameter) \
+            and param is not None:
+        opts = [o for o in getattr(param, "opts", []) if o.startswith("-")]
+        where = "/".join(opts) if opts else f"{path} {str(param.name).upper()}"
+        what = str(exc.message)
+        # typer checks values with pydantic: its wording, without the library's prefixes
+        what = what.replace("Value error, ", "").replace("Input should be ", "should be ")
+    what = " ".join(what.split()).rstrip(".")
+    what = what[0].lower() + what[1:] if what else "not understood"
+    return f"{where}: {what}. Run '{path} --help' for what it takes"
+
+
+app = typer.Typer(cls=_Group, name="sewmech", add_completion=False, no_args_is_help=True,
+                  pretty_exceptions_enable=False,
                   help="sewmech: kinematics and dynamics of sewing-machine mechanisms (mm, s,"
                        " rad inside; degrees at the edges).")
 
