@@ -5,6 +5,7 @@ paper's workflow on the shipped bar-tack machine), `sewmech trial-balance` and
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -45,6 +46,18 @@ def test_balance_json_has_the_issue_keys_and_the_library_numbers():
     build = paper["build"]
     assert build["s_built_gcm"] == pytest.approx(build["factor"] * paper["s_add_gcm"])
     assert 2.5 <= build["factor"] <= 3.0 and build["s_built_gcm"] <= 400.0  # the file's limit
+
+
+def test_the_balance_table_shows_a_cancelled_figure_as_0_not_its_round_off():
+    """Delta-Q = 0 by construction: after the counterweight it is round-off of the forces
+    (7e-15 N), which the table shows as 0, and the basis check says it agrees."""
+    code, text = run("balance", "bartack-1820", "--step-deg", "4")
+    assert code == 0, text
+    row = next(line for line in text.splitlines() if line.startswith("\u2502 Delta-Q"))
+    cells = [c.strip() for c in row.split("\u2502") if c.strip()]
+    assert cells[-2] == "0" and float(cells[-3]) > 10.0, cells
+    assert not re.search(r"\de-1\d", text), text
+    assert "agrees to round-off" in text
 
 
 def test_balance_writes_its_figures_and_refuses_bad_options(tmp_path):

@@ -16,6 +16,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from ...engine.errors import OptionError
+from ..display import is_round_off, number
 from .common import (DEFAULT_MACHINE, SET_HELP, _bounded, _choice, _load, _phi_grid, _rpm,
                      choices_metavar, command, console, print_json)
 
@@ -62,8 +63,10 @@ def _figure_rows(res, after: str = "after") -> Table:
         b, a = res.before[k], res.after[k]
         if b is None:
             continue
-        change = f"{100.0 * (a - b) / b:+.1f} %" if b > 1e-12 else ""
-        table.add_row(label, unit, f"{b:.4g}", f"{a:.4g}", change)
+        # a figure the counterweights cancel is round-off of what it was: shown as 0
+        change = f"{100.0 * (a - b) / b:+.1f} %" if not is_round_off(b, res.before[
+            "peak_force_N"] if unit == "N" else b) else ""
+        table.add_row(label, unit, number(b, scale=b), number(a, scale=b), change)
     return table
 
 
@@ -159,8 +162,10 @@ def balance_cmd(
     if "paper" in data:
         for line in paper_lines(data["paper"]):
             console.print(escape(line))
-    console.print(f"basis checked on the whole machine: largest difference"
-                  f" {res.basis_error:.2g} (N, N m)")
+    agree = ("it agrees to round-off" if is_round_off(res.basis_error,
+                                                        res.before["peak_force_N"])
+             else f"largest difference {res.basis_error:.2g} (N, N m)")
+    console.print(f"basis checked on the whole machine: {agree}")
     if out is not None:
         console.print(f"written: figures, {m.name}-balance.json and"
                       f" {m.name}-balance-criteria.csv in {out}")
