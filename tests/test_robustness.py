@@ -385,6 +385,28 @@ def _cli() -> list[str]:
                                             "from sewmech.cli import main; main()"]
 
 
+@pytest.mark.parametrize("signal_exc, code", [
+    (lambda: __import__("sewmech.app.cli.common", fromlist=["x"]).Terminated(signal.SIGHUP), 129),
+    (lambda: KeyboardInterrupt(), 130)])
+def test_2_a_signal_stays_the_reason_when_the_unwinding_fails(signal_exc, code, capsys):
+    """A signal raised inside drawing code whose own cleanup then fails (matplotlib's "Invalid
+    bounding box" on a half-drawn figure: seen once in CI after SIGHUP) ends the command as
+    the signal does, not as a user error with exit code 2."""
+    import typer
+
+    from sewmech.app.cli.common import _guard
+
+    with pytest.raises(typer.Exit) as info:
+        with _guard():
+            try:
+                raise signal_exc()
+            finally:
+                raise ValueError("Invalid bounding box")
+    assert info.value.exit_code == code
+    err = capsys.readouterr().err
+    assert "Invalid bounding box" not in err and "nothing half-written" in err
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("sig,code", [(signal.SIGTERM, 143), (signal.SIGINT, 130),
                                       (signal.SIGHUP, 129)], ids=["sigterm", "sigint", "sighup"])

@@ -158,7 +158,18 @@ def _guard():
         for sig in (signal.SIGTERM, signal.SIGHUP):
             old[sig] = signal.signal(sig, on_term)
     try:
-        yield
+        try:
+            yield
+        except (typer.Exit, typer.Abort, KeyboardInterrupt, Terminated):
+            raise
+        except BaseException as exc:
+            # a signal that arrived while code below was unwinding (a `finally` of matplotlib's
+            # that failed on the half-drawn figure: "Invalid bounding box") is still the reason
+            # the command stops, not the error raised on the way out
+            cause = _interruption(exc)
+            if cause is not None:
+                raise cause from None
+            raise
     except (typer.Exit, typer.Abort):
         raise
     except SewmechError as exc:
@@ -196,6 +207,19 @@ def _guard():
     finally:
         for sig, handler in old.items():
             signal.signal(sig, handler)
+
+
+def _interruption(exc: BaseException) -> BaseException | None:
+    """The Ctrl-C or termination signal in the chain of exceptions that ``exc`` was raised
+    while handling, if any."""
+    seen = set()
+    e = exc.__context__
+    while e is not None and id(e) not in seen:
+        if isinstance(e, (KeyboardInterrupt, Terminated)):
+            return e
+        seen.add(id(e))
+        e = e.__context__
+    return None
 
 
 def command(name: str):
