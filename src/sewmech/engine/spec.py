@@ -980,7 +980,183 @@ def toml_text(data: bytes, file: str, what: str = "machine file") -> str:
                                f" on line {line})", "Save the file as UTF-8") from None
 
 
+#: What any TOML file sewmech reads may hold (machine, load, problem, sweep and tolerance
+#: files, and uploads to ``sewmech serve``), checked by :func:`check_toml_bounds` before the
+#: text reaches Python's TOML parser (docs/machine-files.md). Each is far beyond the largest
+#: shipped file (jb1-3.toml: 40 kB, lines of at most 357 characters, 1,655 keys, tables and
+#: array items, table names of 2 parts, no dotted keys, arrays of 18 items) and together they
+#: bound the parser's time: tomllib's time and memory grow with the parts of a dotted key times
+#: the parts of its whole name (one 100 kB key of 50,000 parts took 51 s and 10 GB), it
+#: recurses once a level of nesting, and it converts integers of any length. Within them, the
+#: slowest text measured (3.8 MiB of escapes in strings) parses in about 2 s.
+TOML_LIMITS = {
+    "key_parts": 64,         # parts of one dotted key or table name (a.b.c: 3)
+    "depth": 32,             # arrays and inline tables inside one another
+    "array_items": 10_000,   # items of one array
+    "items": 50_000,         # keys, tables (a dotted name once a part), array items: the file
+    "line_chars": 10_000,    # characters of one line
+    "string_chars": 100_000,  # characters of one string (a multi-line note included)
+    "number_chars": 100,     # characters of one number (digits, sign, point, exponent, _)
+}
+#: TOML's integers: 64-bit signed (the TOML 1.0 specification refuses any other)
+TOML_INT_RANGE = (-2**63, 2**63 - 1)
+
+# The tokens of TOML text for :func:`check_toml_bounds`. Every pattern matches in time linear in
+# its length and never backtracks (possessive repeats, alternatives that start differently); a
+# character no token of valid TOML starts with ends the scan (the parser refuses the text there
+# or before). Bare runs take dots in, so a dotted key or a float is one token.
+_TOML_TOKEN = re.compile(r"""
+    [ \t]*+(?:\#[^\n]*+)?         # blanks and a comment before each token
+    (?:(?P<nl>\r?\n)
+     | (?P<mlstr>\"\"\"(?:[^"\\]++|\\[\s\S]|"{1,2}+(?!"))*+"{3,5}
+               |'''(?:[^']++|'{1,2}+(?!'))*+'{3,5})
+     | (?P<str>"(?:[^"\\\n]++|\\[^\n])*+"|'[^'\n]*+')
+     | (?P<bare>[A-Za-z0-9_+\-:.]++)
+     | (?P<punct>[\[\]{},=])
+     | (?P<other>[\s\S])
+     | \Z)
+""", re.VERBOSE)
+_TOML_INT = re.compile(r"[+-]?(?:0x[0-9A-Fa-f_]+|0o[0-7_]+|0b[01_]+|[0-9][0-9_]*)")
+
+
+def check_toml_bounds(text: str, file: str) -> dict[str, int]:
+    """Refuse TOML text beyond :data:`TOML_LIMITS`, or with an integer outside TOML's 64-bit
+    range, before it is parsed: a :class:`MachineFileError` naming the file and the line. One
+    pass over the tokens, in time linear in the text, that stops at the first excess.
+
+    Returns the text's shape: ``items`` (keys, tables and array items, a dotted name counted
+    once a part), ``dotted_keys`` (keys of more than one part), ``dotted_key_parts`` and
+    ``table_parts`` (the most parts of a key and of a table's name)."""
+    lim = TOML_LIMITS
+    max_parts, max_depth, max_items = lim["key_parts"], lim["depth"], lim["items"]
+    max_array, max_line = lim["array_items"], lim["line_chars"]
+    line, line_start = 1, 0
+    stack: list[list] = []      # open arrays ["a", items] and inline tables ["t", 0]
+    key_mode = True             # reading a key (or a table's name) rather than a value
+    value_next = False          # the next token starts a value
+    parts = 0                   # parts of the key being read (0: none yet)
+    items = 0                   # keys, tables and array items so far
+    dotted, most_key, most_table = 0, 1, 0
+
+    def refuse(what: str, hint: str) -> typing.NoReturn:
+        raise MachineFileError(f"{file}, line {line}", "", "", what, hint)
+
+    too_many = (f"holds more than {max_items:,} keys, tables and array items (a dotted name"
+                " counts once a part)", "A file sewmech reads is far smaller; check that this"
+                " is the file you meant")
+    too_long = (f"holds an array of more than {max_array:,} items", "A file sewmech reads has"
+                " far shorter arrays; check that this is the file you meant")
+    for m in _TOML_TOKEN.finditer(text):
+        kind = m.lastgroup
+        if kind is None:
+            continue  # the end of the text (after blanks or a comment)
+        tok = m.group(kind)
+        if kind == "nl":
+            n = m.start(kind) - line_start
+            if n > max_line:
+                refuse(f"is {n:,} characters long; a line is at most {max_line:,}",
+                       "Break it (arrays may span lines)")
+            line, line_start = line + 1, m.end()
+            if not stack:
+                key_mode, value_next, parts = True, False, 0
+            continue
+        if kind == "other":
+            break  # not TOML from here on: the parser says where
+        if kind == "mlstr" or kind == "str":
+            n = len(tok) - (6 if kind == "mlstr" else 2)  # without its quotes
+            if n > lim["string_chars"]:
+                refuse(f"holds a string of {n:,} characters; a string is at most"
+                       f" {lim['string_chars']:,}", "Shorten it")
+            if kind == "mlstr" and "\n" in tok:
+                for i, piece in enumerate(tok.split("\n")):
+                    if len(piece) > max_line:
+                        line += i
+                        refuse(f"is {len(piece):,} characters long (in a multi-line string);"
+                               f" a line is at most {max_line:,}", "Break the string's lines")
+                line += tok.count("\n")
+                line_start = m.start(kind) + tok.rindex("\n") + 1
+        if key_mode:  # a key (a = ...), a table's name ([a.b], [[a]]), or their end
+            if kind == "punct":
+                if tok == "=":
+                    items += parts or 1  # a key counts once a part: the parser's work
+                    if parts > 1:
+                        dotted, most_key = dotted + 1, max(most_key, parts)
+                    key_mode, value_next, parts = False, True, 0
+                elif tok == "]" and not stack:
+                    items += parts or 1  # a table's name, likewise
+                    most_table = max(most_table, parts)
+                    key_mode, parts = False, 0
+                elif tok == "}" and stack and stack[-1][0] == "t":
+                    stack.pop()  # an empty inline table
+                    key_mode = False
+                if items > max_items:
+                    refuse(*too_many)
+                continue
+            parts = (parts or 1) + (tok.count(".") if kind == "bare" else 0)
+            if parts > max_parts:
+                refuse(f"holds a dotted key or table name of more than {max_parts} parts",
+                       "Write the key with fewer dots (a name with dots is quoted:"
+                       " \"needle.eye\")")
+            continue
+        # a value, or what separates values
+        if kind == "punct":
+            if tok == "[" or tok == "{":
+                if value_next and stack and stack[-1][0] == "a":
+                    stack[-1][1] += 1
+                    items += 1
+                    if stack[-1][1] > max_array:
+                        refuse(*too_long)
+                stack.append(["a" if tok == "[" else "t", 0])
+                if len(stack) > max_depth:
+                    refuse(f"nests arrays or tables too deeply (more than {max_depth}"
+                           " levels)", "Check the file's brackets")
+                key_mode, parts, value_next = tok == "{", 0, tok == "["
+            elif tok == "]" or tok == "}":
+                if stack:
+                    stack.pop()
+                value_next = False
+            elif tok == ",":
+                in_table = bool(stack) and stack[-1][0] == "t"
+                key_mode, parts, value_next = in_table, 0, bool(stack) and not in_table
+        elif value_next:  # a value starts: a string, a number, a date, a flag
+            value_next = False
+            if stack and stack[-1][0] == "a":
+                stack[-1][1] += 1
+                items += 1
+            if kind == "bare" and _TOML_INT.fullmatch(tok):
+                digits = tok.lstrip("+-").replace("_", "")
+                try:  # at most 66 characters converted (a 64-bit integer in binary)
+                    value = (None if len(digits) > 66 else int(digits, 0)
+                             if digits[1:2] in ("x", "o", "b") else int(digits))
+                except ValueError:
+                    value = 0  # not an integer TOML has ("0x_"): the parser says so
+                if value is None or not TOML_INT_RANGE[0] <= (
+                        -value if tok[0] == "-" else value) <= TOML_INT_RANGE[1]:
+                    n = len(digits) - (2 if digits[1:2] in ("x", "o", "b") else 0)
+                    refuse(f"holds the integer {_short(tok, 30)} ({n:,} digits),"
+                           f" beyond the 64-bit integers TOML allows ({TOML_INT_RANGE[0]} .."
+                           f" {TOML_INT_RANGE[1]})", "Write the number sewmech should use")
+            elif kind == "bare" and len(tok) > lim["number_chars"]:
+                refuse(f"holds a value of {len(tok):,} characters; a number is at most"
+                       f" {lim['number_chars']}", "Write the number with fewer digits")
+        else:
+            continue  # the rest of a value (a date's time), or text the parser refuses
+        if stack and stack[-1][1] > max_array:
+            refuse(*too_long)
+        if items > max_items:
+            refuse(*too_many)
+    else:
+        if len(text) - line_start > max_line:
+            refuse(f"is {len(text) - line_start:,} characters long; a line is at most"
+                   f" {max_line:,}", "Break it (arrays may span lines)")
+    return {"items": items, "dotted_keys": dotted, "dotted_key_parts": most_key,
+            "table_parts": most_table}
+
+
 def _parse_toml(text: str, file: str) -> dict:
+    """TOML text as data: its bounds checked first (:func:`check_toml_bounds`), then parsed;
+    every problem a :class:`MachineFileError` naming the file (and the line, where known)."""
+    check_toml_bounds(text, file)
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -989,6 +1165,9 @@ def _parse_toml(text: str, file: str) -> dict:
     except RecursionError:
         raise MachineFileError(file, "", "", "nests arrays or tables too deeply to be a machine"
                                " file", "Check the file's brackets") from None
+    except ValueError as exc:  # a number the parser cannot convert (bounds missed it)
+        raise MachineFileError(file, "", "", f"not valid TOML: {exc}",
+                               "Write the numbers as TOML does (https://toml.io)") from None
 
 
 def validate_model(model: type[BaseModel], raw: dict, file: str,
