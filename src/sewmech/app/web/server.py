@@ -22,10 +22,11 @@ import threading
 import time
 from collections import OrderedDict
 from pathlib import Path, PurePath
+from urllib.parse import quote
 
 from starlette.applications import Starlette
 from starlette.concurrency import run_in_threadpool
-from starlette.requests import Request
+from starlette.requests import ClientDisconnect, Request
 from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
@@ -75,12 +76,18 @@ async def _body(request: Request, limit: int, what: str) -> bytes:
     return b"".join(chunks)
 
 
+def _no_constant(name: str):
+    """Python's JSON reader takes NaN, Infinity and -Infinity, which JSON has not."""
+    raise RequestError(400, "request", f"is not valid JSON: {name} is not a JSON number",
+                       "Send finite numbers")
+
+
 async def _json(request: Request) -> dict:
     raw = await _body(request, MAX_JSON_BYTES, "request")
     if not raw.strip():
         return {}
     try:
-        data = json.loads(raw)
+        data = json.loads(raw, parse_constant=_no_constant)
     except (ValueError, RecursionError):
         raise RequestError(400, "request", "is not valid JSON", "Send an object such as"
                            " {\"set\": {\"needle_bar.length\": 45}}") from None
@@ -131,7 +138,8 @@ class App:
         data = await _json(request)
         name = data.get("machine")
         if not isinstance(name, str) or name not in self.machines:
-            raise RequestError(404, "machine", f"{name!r} is not a machine this server offers",
+            shown = repr(name) if len(repr(name)) <= 60 else repr(name)[:57] + "..."
+            raise RequestError(404, "machine", f"{shown} is not a machine this server offers",
                                f"Choose one of {', '.join(self.machines)}, or upload a file")
         file, text = self.machines[name]
         return await self._open(text, file)
@@ -164,8 +172,11 @@ class App:
 
         def work():
             t0 = time.perf_counter()
-            body = json.dumps(getattr(s, what)(data.get("set")), separators=(",", ":"),
-                              allow_nan=False).encode()
+            answer = getattr(s, what)(data.get("set"))
+            try:
+                body = json.dumps(answer, separators=(",", ":"), allow_nan=False).encode()
+            except ValueError as exc:  # a NaN or infinity the session let through: a bug
+                raise RuntimeError(f"a non-finite number in the {what}: {exc}") from None
             return body, (time.perf_counter() - t0) * 1e3
 
         body, ms = await run_in_threadpool(work)
@@ -186,7 +197,18 @@ class App:
         text = await run_in_threadpool(getattr(s, method), data.get("set"))
         name = PurePath(s.file_name).stem + suffix
         return Response(text, media_type=f"{media}; charset=utf-8",
-                        headers={"Content-Disposition": f'attachment; filename="{name}"'})
+                        headers={"Content-Disposition": content_disposition(name)})
+
+
+def content_disposition(name: str) -> str:
+    """The download header of a file named ``name`` (RFC 6266): the name itself as UTF-8,
+    percent-encoded (``filename*``, RFC 8187), and an ASCII stand-in for clients that do not
+    read it (``filename``: every other character, a quote, a backslash, a control character
+    or a percent sign replaced by ``_``). A header is Latin-1 and one line: no name can break
+    it."""
+    ascii_name = "".join(c if " " <= c <= "~" and c not in '"\\%' else "_" for c in name)
+    return (f'attachment; filename="{ascii_name}"; '
+            f"filename*=UTF-8''{quote(name, safe='')}")
 
 
 def create_app(extra: dict[str, tuple[str, str]] | None = None,
@@ -201,6 +223,10 @@ def create_app(extra: dict[str, tuple[str, str]] | None = None,
                 return await fn(request)
             except RequestError as exc:
                 return _error(exc.status, exc.body)
+            except ClientDisconnect:  # the page closed or the client gave up: nobody to answer
+                log.info("%s %s: the client went away before its request was read",
+                         request.method, request.url.path)
+                return Response(status_code=400)
             except AssemblyError as exc:
                 body = error_dict(exc)
                 body.update(unit=exc.unit, phi_deg=exc.phi_deg, ranges_deg=exc.ranges_deg)
@@ -234,8 +260,10 @@ def create_app(extra: dict[str, tuple[str, str]] | None = None,
     ]
 
     async def not_found(request, exc):
+        path = request.url.path
         return _error(getattr(exc, "status_code", 404),
-                      {"kind": "RequestError", "where": request.url.path,
+                      {"kind": "RequestError",
+                       "where": path if len(path) <= 200 else path[:197] + "...",
                        "what": "no such page or API call", "hint": "See docs/serve.md"})
 
     app = Starlette(routes=routes, exception_handlers={404: not_found, 405: not_found})

@@ -32,6 +32,16 @@ FEED_STEP_DEG = 1.0
 #: decimals kept in the answers (mm, N: 1e-6 is far below anything drawn or printed)
 DECIMALS = 6
 
+#: the largest file the export edits in place, keeping its comments and layout (tomlkit):
+#: that editor's time grows with the square of a file's dotted keys and the parts of its names
+#: (measured: 64 keys of 64 parts 26 s, 2,000 points written `points.X.x = ...` 39 s, 128 keys
+#: of 4 parts in one table 2 s; within these limits at most about 1 s), so a file beyond any
+#: of them (its shape as :func:`~sewmech.engine.spec.check_toml_bounds` gives it) is written
+#: anew from its values. The shipped files: at most 1,655 items, no dotted keys, table names
+#: of 2 parts
+EXPORT_IN_PLACE = {"items": 10_000, "dotted_keys": 64, "dotted_key_parts": 3,
+                   "table_parts": 8}
+
 #: keys of a unit's table that are design dimensions a designer turns first
 _MAIN_KEYS = ("length", "lengths", "radius", "offset", "phase_deg", "guide_angle_deg",
               "eccentricity")
@@ -50,6 +60,12 @@ def _finite(a) -> list:
     if ok.all():
         return r.tolist()
     return np.where(ok, r, None).tolist()
+
+
+def _shown(value, limit: int = 60) -> str:
+    """A value from a request as a message shows it: its repr, cut to ``limit`` characters."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def _num(x) -> float | None:
@@ -161,6 +177,7 @@ class Session:
     #: the checks run on a second compiled copy of the machine under a lock of their own, so
     #: that a checks request (tens of ms) never holds up the next turn
     checks_lock: threading.Lock = field(default_factory=threading.Lock, init=False)
+    _in_place: bool | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self):
         from ...engine.dynamics import DynamicsPlan
@@ -181,6 +198,17 @@ class Session:
             self.dynamics_note = "the machine file has no [masses]: no forces"
         self._kin = None if self._dyn is not None else KinematicsPlan(m, self.phi)
         self._checks_machine = machine_from_toml(self.text, self.file_name)
+
+    @property
+    def in_place(self) -> bool:
+        """Whether the export edits the file's text in place (tomlkit): only a file within
+        :data:`EXPORT_IN_PLACE` (measured once)."""
+        if self._in_place is None:
+            from ...engine.spec import check_toml_bounds
+
+            shape = check_toml_bounds(self.text, self.file_name)
+            self._in_place = all(shape[k] <= v for k, v in EXPORT_IN_PLACE.items())
+        return self._in_place
 
     def warm(self) -> None:
         """Build the calls' plans now (the first turn and checks of a machine take a few hundred
@@ -239,11 +267,22 @@ class Session:
         for name, v in values.items():
             p = self.params.get(name)
             if p is None:
-                raise ParameterError(name, (), math.nan, "is not a parameter of machine"
+                shown = name if len(name) <= 60 else name[:57] + "..."
+                raise ParameterError(shown, (), math.nan, "is not a parameter of machine"
                                      f" '{self.machine.name}'", "The parameter list names"
                                      " them all")
-            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-                raise ParameterError(name, (), math.nan, f"must be a finite number, got {v!r}")
+            if isinstance(v, bool) or not isinstance(v, int | float):
+                raise ParameterError(name, (), math.nan, "must be a finite number, got"
+                                     f" {_shown(v)}", "Send a number, e.g. 45.0")
+            try:
+                v = float(v)
+            except OverflowError:  # an integer beyond every float (10**309)
+                raise ParameterError(name, (), math.nan, "must be a finite number, got an"
+                                     f" integer of {len(str(abs(v)))} digits", "Send a number"
+                                     " inside the parameter's range") from None
+            if not math.isfinite(v):
+                raise ParameterError(name, (), math.nan, f"must be a finite number, got {v!r}",
+                                     "Send a number inside the parameter's range")
             if (p.lo is not None and v < p.lo) or (p.hi is not None and v > p.hi):
                 lo = "-inf" if p.lo is None else f"{p.lo:g}"
                 hi = "inf" if p.hi is None else f"{p.hi:g}"
@@ -428,11 +467,21 @@ class Session:
     # ---- exports ---------------------------------------------------------------------------------
     def export_toml(self, values) -> str:
         """The machine file's own text with the page's values written in (comments and layout
-        kept), checked by loading it back: its parameters are the design's."""
+        kept), checked by loading it back: its parameters are the design's. A file beyond
+        :data:`EXPORT_IN_PLACE` is written anew from its values, with a note that says so."""
+        import tomllib
+
         import tomlkit
 
         P = self.design(values)
-        doc = tomlkit.parse(self.text)
+        if self.in_place:
+            doc = tomlkit.parse(self.text)
+        else:
+            doc = tomlkit.document()
+            doc.add(tomlkit.comment(f"{self.file_name} with the page's values, written anew from"
+                                    " its values: a file this large or with keys this dotted"
+                                    " is not edited in place, so its comments are not kept"))
+            doc.update(tomllib.loads(self.text))
         m = self.machine
         for name, v in (values or {}).items():
             cam, _, key = name.rpartition(".")

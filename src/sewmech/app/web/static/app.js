@@ -209,6 +209,15 @@ function scheduleChecks(values) {
   }, 120);
 }
 
+// the file name of a download header (RFC 6266): the UTF-8 name (filename*) where there is
+// one, else the ASCII stand-in (filename), else `fallback`
+function downloadName(header, fallback) {
+  const utf8 = header.match(/filename\*=UTF-8''([^;\s]+)/i);
+  if (utf8) { try { return decodeURIComponent(utf8[1]); } catch (e) { /* the stand-in */ } }
+  const plain = header.match(/filename="([^"]*)"/);
+  return plain && plain[1] ? plain[1] : fallback;
+}
+
 async function download(what) {
   try {
     const r = await fetch(`/api/sessions/${S.token}/${what}`, {
@@ -216,10 +225,9 @@ async function download(what) {
       body: JSON.stringify({set: S.turnValues || {}})});
     if (!r.ok) throw Object.assign(new Error("export"), {info: (await r.json()).error});
     const blob = await r.blob();
-    const name = (r.headers.get("content-disposition") || "").match(/filename="([^"]+)"/);
     const a = document.createElement("a");
     a.href = URL.createObjectURL(blob);
-    a.download = name ? name[1] : what;
+    a.download = downloadName(r.headers.get("content-disposition") || "", what);
     document.body.append(a); a.click(); a.remove();
     setTimeout(() => URL.revokeObjectURL(a.href), 5000);
   } catch (err) { showError(err); }
