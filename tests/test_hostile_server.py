@@ -429,6 +429,17 @@ def test_nan_and_infinity_are_not_json(url, jb, literal):
                                             " number")
 
 
+def test_a_lone_surrogate_in_a_request_is_a_located_422(url, jb):
+    """JSON may escape half of a UTF-16 pair ("\\ud800"), which Python reads into a string
+    UTF-8 cannot encode: before, the error that quoted it failed to encode, HTTP 500."""
+    with Records() as log:
+        status, body = call(f"{url}/api/sessions/{jb['session']}/turn",
+                            raw=b'{"set": {"\\ud800x": 1}}')
+    assert status == 422, body
+    assert _where_what(body) == ("parameter '\ud800x'", "is not a parameter of machine 'jb1-3'")
+    assert log.bad() == []
+
+
 def test_a_request_naming_a_huge_machine_or_parameter_is_answered_briefly(url, jb):
     status, body = call(f"{url}/api/sessions", {"machine": "x" * 200_000})
     assert status == 404 and len(json.dumps(body)) < 1000
@@ -562,10 +573,13 @@ def _no_nan(text: str):
     return json.loads(text, parse_constant=refuse)
 
 
+#: text as JSON may carry it: any characters, lone surrogates ("\\ud800") too
+TEXT = st.text(max_size=12) | st.text(st.characters(min_codepoint=0xD700,
+                                                    max_codepoint=0xE100,
+                                                    exclude_categories=()), max_size=4)
 JSON_VALUES = st.recursive(
-    st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=12),
-    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=12), inner,
-                                                                max_size=4),
+    st.none() | st.booleans() | st.integers() | st.floats() | TEXT,
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(TEXT, inner, max_size=4),
     max_leaves=12)
 HOSTILE_BODIES = st.sampled_from([
     b"", b"{", b"[]", b"null", b"3", b'"set"', b"\xff\xfe\x00", b"{}" * 3,
@@ -575,6 +589,7 @@ HOSTILE_BODIES = st.sampled_from([
     b'{"set": {"needle_bar.length": 45, "needle_bar.length": "x"}}', b'{"set": {"": 1}}',
     b'{"set": {"input.regulator": -0.0}}', b'{"set": {"needle_bar.length": 5e-324}}',
     b'{"set": {"feed_cam.dwell": 1e308, "feed_cam.width": -1e308}}',
+    b'{"set": {"\\ud800": 1}}', b'{"set": {"needle_bar.length\\udfff": 1}}',
 ]) | st.binary(max_size=64)
 
 
@@ -609,7 +624,7 @@ def api_request(draw, params: list[dict]) -> tuple[str, bytes]:
         p = draw(st.sampled_from(params))
         values[p["name"]] = draw(design_value(p))
     if draw(st.integers(0, 9)) == 0:
-        values["no.such.parameter"] = 1.0
+        values[draw(st.sampled_from(["no.such.parameter", "\ud800", "x\udfff"]))] = 1.0
     return what, json.dumps({"set": values}).encode()
 
 

@@ -55,8 +55,11 @@ class RequestError(Exception):
                                           "hint": hint}
 
 
-def _error(status: int, body: dict) -> JSONResponse:
-    return JSONResponse({"error": body}, status_code=status)
+def _error(status: int, body: dict) -> Response:
+    """An error as JSON. ASCII with escapes: a message may quote what a request sent, and
+    JSON text may carry a lone surrogate ("\\ud800") that UTF-8 cannot encode."""
+    return Response(json.dumps({"error": body}, separators=(",", ":"), allow_nan=False),
+                    status_code=status, media_type="application/json")
 
 
 async def _body(request: Request, limit: int, what: str) -> bytes:
