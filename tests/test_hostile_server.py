@@ -44,6 +44,7 @@ FOURBAR = Path(SHIPPED["fourbar-benchmark"]).read_text(encoding="utf-8")
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 LIM = spec.TOML_LIMITS
 BIG = "1" * 401  # the issue's 401-digit integer
+L = LIM["line_chars"]
 
 
 def _no_parser(monkeypatch, marker: str = ""):
@@ -86,17 +87,16 @@ BEYOND = [
      "".join(f"k{i} = 1\n" for i in range(50_000))),
     ("many-dotted-parts", "".join(f"k{i}.a.b.c.d = 1\n" for i in range(10_001)), 10_001,
      "a dotted name counts once a part", "".join(f"k{i}.a.b.c.d = 1\n" for i in range(10_000))),
-    ("long-line", "a = '" + "x" * 9995 + "'\n", 1, "is 10,001 characters long",
-     "a = '" + "x" * 9994 + "'\n"),
-    ("long-last-line", "b = 2\na = '" + "x" * 9995 + "'", 2, "is 10,001 characters long",
-     "b = 2\na = '" + "x" * 9994 + "'"),
-    ("long-comment", "# " + "x" * 20_000 + "\n", 1, "is 20,002 characters long",
-     "# " + "x" * 9998 + "\n"),
+    ("long-line", "a = '" + "x" * (L - 5) + "'\n", 1, f"is {L + 1:,} characters long",
+     "a = '" + "x" * (L - 6) + "'\n"),
+    ("long-last-line", "b = 2\na = '" + "x" * (L - 5) + "'", 2, f"is {L + 1:,} characters",
+     "b = 2\na = '" + "x" * (L - 6) + "'"),
+    ("long-comment", "# " + "x" * 2 * L + "\n", 1, f"is {2 * L + 2:,} characters long",
+     "# " + "x" * (L - 2) + "\n"),
     ("long-string", 'a = """\n' + ("x" * 999 + "\n") * 101 + '"""\n', 1,
      "a string of 101,001 characters", 'a = """\n' + ("x" * 999 + "\n") * 99 + '"""\n'),
-    ("long-line-in-string", "a = '''\nshort\n" + "x" * 10_001 + "\n'''\n", 3,
-     "is 10,001 characters long (in a multi-line string)",
-     "a = '''\nshort\n" + "x" * 10_000 + "\n'''\n"),
+    ("line-after-a-multi-line-string", "a = '''\nshort\n\n''' # " + "x" * L + "\n", 4,
+     f"is {L + 6:,} characters long", "a = '''\nshort\n\n''' # " + "x" * (L - 6) + "\n"),
     ("integer-401-digits", f"[speed]\nrpm = {BIG}\n", 2,
      "the integer '11111111111111111111111111... (401 digits), beyond the 64-bit integers",
      f"[speed]\nrpm = {2**63 - 1}\n"),
@@ -121,6 +121,7 @@ def test_toml_beyond_a_bound_is_refused_before_the_parser(monkeypatch, text, lin
         spec._parse_toml(text, "f.toml")
     msg = str(e.value)
     assert msg.startswith(f"f.toml, line {line}: "), msg[:300]
+    assert (e.value.file, e.value.where) == ("f.toml", f"f.toml, line {line}")
     assert says in msg, msg[:300]
     assert e.value.hint, msg[:300]  # and what to do
 
