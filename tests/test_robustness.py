@@ -453,6 +453,236 @@ def test_2_concurrent_reports_end_with_one_complete_result(tmp_path):
                                              if n.startswith(".sewmech-staging")]
 
 
+# ---- class 2b: nothing outside --out is touched, nothing of the user's inside it (issue 29) --
+
+
+def _damage_manifest(d: Path, files) -> None:
+    m = d / ".sewmech-manifest.json"
+    data = json.loads(m.read_text())
+    data["files"] = files(data["files"])
+    m.write_text(json.dumps(data))
+
+
+@pytest.mark.parametrize("name", ["../victim.txt", "{victim}", "sub/x.csv", "..", ".",
+                                  ".sewmech.lock", "a\\b", ""])
+def test_2b_a_manifest_naming_anything_but_its_own_files_is_refused(tmp_path, name):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("mine")
+    d = tmp_path / "o"
+    run(["kinematics", "jb1-3", "--out", d, "--step-deg", "30"], code=0)
+    (d / "sub").mkdir()
+    (d / "sub" / "x.csv").write_text("mine too")
+    _damage_manifest(d, lambda f: {**{k: {**v, "command": "kinematics"} for k, v in f.items()},
+                                   name.format(victim=victim): {"command": "kinematics",
+                                                                "size": 4, "mtime_ns": 0}})
+    before = snapshot(tmp_path)
+    run(["kinematics", "jb1-3", "--out", d, "--step-deg", "30"],
+        has=(f"--out {d}", "damaged", "choose another directory"))
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("text, why", [
+    ("{not json", "damaged"), ("[]", "not a record sewmech wrote"),
+    ('{"written_by": "sewmech", "files": {"a.csv": {"command": "kinematics", "size": -1,'
+     ' "mtime_ns": 0}}}', "entry for 'a.csv'"),
+    ('{"written_by": "sewmech", "files": {"a.csv": {"command": 1, "size": 1, "mtime_ns": 0}}}',
+     "entry for 'a.csv'"),
+    ('{"written_by": "someone", "files": {}}', "not a record sewmech wrote")])
+def test_2b_a_damaged_manifest_is_a_located_error(tmp_path, text, why):
+    d = tmp_path / "o"
+    d.mkdir()
+    (d / ".sewmech-manifest.json").write_text(text)
+    before = snapshot(tmp_path)
+    run(["kinematics", "jb1-3", "--out", d, "--step-deg", "30"], has=(str(d), why))
+    assert snapshot(tmp_path) == before
+
+
+def test_2b_a_manifest_that_is_a_symlink_is_refused(tmp_path):
+    d = tmp_path / "o"
+    run(["kinematics", "jb1-3", "--out", d, "--step-deg", "30"], code=0)
+    real = tmp_path / "elsewhere.json"
+    (d / ".sewmech-manifest.json").rename(real)
+    (d / ".sewmech-manifest.json").symlink_to(real)
+    before = snapshot(tmp_path)
+    run(["kinematics", "jb1-3", "--out", d, "--step-deg", "30"], has=("not a plain file",))
+    assert snapshot(tmp_path) == before
+
+
+def _run_writing(d: Path, during, command="kinematics"):
+    """output_dir with a result a.csv and b.csv, calling ``during(d)`` while the run works."""
+    from sewmech.app.files.outdir import output_dir
+
+    notes = []
+    with output_dir(d, command=command, notice=notes.append) as stage:
+        (stage / "a.csv").write_text("new a")
+        (stage / "b.csv").write_text("new b")
+        during(d)
+    return notes
+
+
+def test_2b_a_file_the_user_saves_during_the_run_is_never_replaced(tmp_path):
+    d = tmp_path / "o"
+    _run_writing(d, lambda d: None)
+
+    def user_saves(d):
+        (d / "b.csv").unlink()  # (a user's own file of the same name, saved meanwhile)
+        (d / "b.csv").write_text("the user's b")
+
+    with pytest.raises(OutputError) as info:
+        _run_writing(d, user_saves)
+    text = str(info.value)
+    assert "b.csv" in text and "none of them was replaced" in text
+    assert (d / "b.csv").read_text() == "the user's b"
+    kept = [p for p in d.iterdir() if p.name.startswith("sewmech-kept-kinematics-")]
+    assert len(kept) == 1 and str(kept[0]) in text
+    assert sorted(p.name for p in kept[0].iterdir()) == ["a.csv", "b.csv"]
+    assert (kept[0] / "b.csv").read_text() == "new b"
+    # the directory stays usable: the user's file is foreign now, so the next run refuses it
+    with pytest.raises(OutputError, match="did not write"):
+        _run_writing(d, lambda d: None)
+    (d / "b.csv").unlink()
+    _run_writing(d, lambda d: None)  # and a run goes through once it is moved away
+    assert (d / "b.csv").read_text() == "new b"
+
+
+def test_2b_a_new_name_taken_by_the_user_meanwhile_is_not_replaced(tmp_path):
+    d = tmp_path / "o"
+    with pytest.raises(OutputError, match="a.csv"):
+        _run_writing(d, lambda d: (d / "a.csv").write_text("the user's a"))
+    assert (d / "a.csv").read_text() == "the user's a"
+    assert not (d / "b.csv").exists()  # nothing moved in once one name was taken
+
+
+def test_2b_a_file_of_ours_the_user_edits_during_the_run_is_kept(tmp_path):
+    d = tmp_path / "o"
+    _run_writing(d, lambda d: None)
+    before = (d / "a.csv").stat().st_mtime_ns
+
+    def user_edits(d):
+        with open(d / "a.csv", "a") as fh:
+            fh.write(" + the user's note")
+        os.utime(d / "a.csv", ns=(before + 10**9, before + 10**9))
+
+    with pytest.raises(OutputError, match="a.csv"):
+        _run_writing(d, user_edits)
+    assert (d / "a.csv").read_text() == "new a + the user's note"
+
+
+def test_2b_a_stale_file_the_user_edits_during_the_run_is_left_and_said(tmp_path):
+    from sewmech.app.files.outdir import output_dir
+
+    d = tmp_path / "o"
+    _run_writing(d, lambda d: None)
+    notes = []
+    with output_dir(d, command="kinematics", notice=notes.append) as stage:
+        (stage / "a.csv").write_text("only a now")  # b.csv is not written again: stale
+        with open(d / "b.csv", "a") as fh:  # but the user edits it meanwhile
+            fh.write(" edited")
+    assert (d / "b.csv").read_text() == "new b edited"
+    assert (d / "a.csv").read_text() == "only a now"
+    assert any("b.csv changed since sewmech wrote it" in n for n in notes), notes
+    manifest = json.loads((d / ".sewmech-manifest.json").read_text())["files"]
+    assert sorted(manifest) == ["a.csv"]  # b.csv is the user's now
+
+
+def test_2b_the_no_replace_move_without_renameat2(tmp_path, monkeypatch):
+    from sewmech.app.files import outdir
+
+    for fn in (outdir._RENAMEAT2, None):
+        monkeypatch.setattr(outdir, "_RENAMEAT2", fn)
+        (tmp_path / "src").write_text("s")
+        (tmp_path / "dst").write_text("the user's")
+        with pytest.raises(FileExistsError):
+            outdir.move_no_replace(tmp_path / "src", tmp_path / "dst")
+        assert (tmp_path / "dst").read_text() == "the user's"
+        (tmp_path / "dst").unlink()
+        outdir.move_no_replace(tmp_path / "src", tmp_path / "dst")
+        assert (tmp_path / "dst").read_text() == "s" and not (tmp_path / "src").exists()
+        (tmp_path / "dst").unlink()
+
+
+def _gone(pgid: int, timeout: float = 10.0) -> bool:
+    """Whether every process of the group ``pgid`` has ended (within ``timeout`` s)."""
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        try:
+            os.killpg(pgid, 0)
+        except ProcessLookupError:
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def _children(pid: int) -> list[int]:
+    try:
+        with open(f"/proc/{pid}/task/{pid}/children") as fh:
+            return [int(x) for x in fh.read().split()]
+    except OSError:
+        return []
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="needs Linux's /proc")
+@pytest.mark.parametrize("command", [["report", "jb1-3"], ["dynamics", "jb1-3"]])
+def test_2b_a_killed_command_leaves_no_worker_and_no_lock(tmp_path, command):
+    """SIGKILL of the command while its figure workers draw: the workers end with it, the
+    kernel releases the lock, and the next run goes through, saying what it recovered."""
+    d = tmp_path / "o"
+    p = subprocess.Popen(_cli() + command + ["--out", str(d)], stdout=subprocess.DEVNULL,
+                         stderr=subprocess.PIPE, cwd=tmp_path, start_new_session=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and not (len(_children(p.pid)) >= 1 and d.exists() and any(
+            n.startswith(".sewmech-staging") for n in os.listdir(d))):
+        time.sleep(0.02)
+    assert _children(p.pid), "the command never started its workers"
+    time.sleep(0.3)
+    os.kill(p.pid, signal.SIGKILL)
+    p.wait(timeout=30)
+    assert _gone(p.pid), "a worker outlived the command"
+    out = subprocess.run(_cli() + command + ["--out", str(d), "--step-deg", "10"],
+                         capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert "was stopped before it finished" in out.stderr, out.stderr
+    assert not [n for n in os.listdir(d) if n.startswith(".sewmech-staging")]
+    assert (d / ".sewmech.lock").read_text() == ""  # released, and no run holds it
+
+
+def test_2b_a_forked_child_holds_no_lock_of_its_parent(tmp_path):
+    """The lock belongs to the process that took it: a child forked while it is held (a figure
+    worker) closes its copy, so the lock goes with its owner."""
+    import fcntl
+
+    from sewmech.app.files.outdir import output_dir
+
+    d = tmp_path / "o"
+    with output_dir(d, command="kinematics"):
+        r, w = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # the child: try the lock through a descriptor of its own
+            fd = os.open(d / ".sewmech.lock", os.O_RDWR)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                os.write(w, b"free")  # (it must not be: the parent holds it)
+            except BlockingIOError:
+                os.write(w, b"held")
+            inherited = [int(x) for x in os.listdir("/proc/self/fd")] \
+                if Path("/proc/self/fd").exists() else []
+            os.write(w, b" " + str(len([f for f in inherited if _is_lock(f, d)])).encode())
+            os._exit(0)
+        os.close(w)
+        os.waitpid(pid, 0)
+        said = os.read(r, 100).decode()
+        os.close(r)
+    assert said == "held 1", said  # the parent's lock holds; the child has only its own copy
+
+
+def _is_lock(fd: int, d: Path) -> bool:
+    try:
+        return os.readlink(f"/proc/self/fd/{fd}") == str(d / ".sewmech.lock")
+    except OSError:
+        return False
+
+
 # ---- class 3: ordinary mistakes (no traceback) ----------------------------------------------
 
 

@@ -97,7 +97,10 @@ def _render_pickled(payload: bytes, root: str, stem: str) -> bytes:
         close(fig)
 
 
-def _worker_start():
+def _worker_start(parent_pid: int, forked_from_main_thread: bool):
+    from ..processes import die_with_parent
+
+    die_with_parent(parent_pid, forked_from_main_thread=forked_from_main_thread)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -114,12 +117,18 @@ def figure_pool(workers: int | None = None) -> ProcessPoolExecutor | None:
 
     The workers are forked from this process (no script is imported again, so a report can be
     written from any script or notebook); they only unpickle and draw figures, and never touch
-    the compiled kernels or their threads."""
+    the compiled kernels or their threads. They end with this process, however it ends
+    (:mod:`sewmech.app.processes`), and hold none of its locks."""
+    import threading
+
     n = (os.cpu_count() or 1) if workers is None else int(workers)
     if n <= 0 or "fork" not in multiprocessing.get_all_start_methods():
         return None
     ctx = multiprocessing.get_context("fork")
-    return ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_worker_start)
+    # (with "fork", the executor starts every worker in the thread that first submits: this one)
+    main = threading.current_thread() is threading.main_thread()
+    return ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_worker_start,
+                               initargs=(os.getpid(), main))
 
 
 class _Pending:

@@ -6,14 +6,22 @@ Every command that writes files (``--out DIR``) goes through :func:`output_dir`:
   (``.sewmech-manifest.json``) records every file sewmech wrote with its size and modification
   time. A directory holding anything else (or a file sewmech wrote and the user changed since)
   is refused before any work is done, so nothing of the user's is ever replaced or deleted.
+  The manifest is read as input like any other: every entry must name a plain file directly
+  inside DIR (no ``..``, no path, no absolute name), or the directory is refused.
 - A lock (``.sewmech.lock``, ``flock``) keeps concurrent runs apart: a second run into the same
-  directory stops at once with an error instead of mixing its files with the first one's.
+  directory stops at once with an error instead of mixing its files with the first one's. The
+  lock belongs to the process that took it: processes forked from it (a report's figure
+  workers) close their copy at once, so the kernel releases the lock when the owner dies,
+  however it dies.
 - Files are written into a staging directory inside DIR and moved into place only when the
-  whole job has succeeded; files of the same command's previous run that this run did not
-  write again are removed (they are sewmech's own). On any error or interruption (Ctrl-C,
-  SIGTERM, SIGHUP) the staging directory is removed, and DIR too if this run created it.
-  The lock file stays (it is sewmech's own and harmless; removing it could let two runs
-  lock two different files).
+  whole job has succeeded, one file at a time, each move refusing to replace anything that is
+  not the unchanged file sewmech wrote there (a file the user saved into DIR during the run is
+  never replaced: the result is then kept aside in ``DIR/sewmech-kept-COMMAND-TIME/`` and the
+  command says so). Files of the same command's previous run that this run did not write again
+  are removed if unchanged (they are sewmech's own). On any error or interruption (Ctrl-C,
+  SIGTERM, SIGHUP) the staging directory is removed, and DIR too if this run created it. A run
+  killed outright (SIGKILL, power loss) leaves its staging directory and its process id in the
+  lock file: the next run removes the one, notices the other and says so.
 - Files and directories get the modes the umask gives (0644 and 0755 under umask 022).
 
 A sweep (:mod:`sewmech.app.sweep_run`) writes in place instead, chunk by chunk, each file by
@@ -24,14 +32,19 @@ rename, so that an interrupted run keeps its finished chunks; it holds the same 
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import errno
 import fcntl
 import json
 import os
+import re
 import shutil
 import signal
+import stat
+import sys
 import tempfile
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from ...engine.errors import OutputError
@@ -39,8 +52,26 @@ from ...engine.errors import OutputError
 MANIFEST = ".sewmech-manifest.json"
 LOCK = ".sewmech.lock"
 STAGING_PREFIX = ".sewmech-staging-"
+#: a run's result that could not be moved into place (a file of the user's was in the way)
+KEPT_PREFIX = "sewmech-kept-"
 
 _UMASK: int | None = None
+
+#: descriptors of the locks this process holds: a forked child closes its copies at once
+#: (an flock belongs to the open file, which a child would otherwise keep open, and with it
+#: the lock, after its parent died)
+_HELD_LOCKS: set[int] = set()
+
+
+def _close_inherited_locks() -> None:
+    for fd in list(_HELD_LOCKS):
+        with contextlib.suppress(OSError):
+            os.close(fd)
+    _HELD_LOCKS.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_close_inherited_locks)
 
 
 def umask() -> int:
@@ -63,17 +94,61 @@ def dir_mode() -> int:
 
 
 def _own(name: str) -> bool:
-    return name in (MANIFEST, LOCK) or name.startswith(STAGING_PREFIX)
+    return name in (MANIFEST, LOCK) or name.startswith((STAGING_PREFIX, KEPT_PREFIX))
 
 
-def _read_manifest(root: Path) -> dict:
+def _note(text: str) -> None:
+    """A notice for the person running the command (stderr; not an error)."""
+    with contextlib.suppress(OSError, ValueError):
+        print(f"note: {text}", file=sys.stderr, flush=True)
+
+
+# ---- the manifest: sewmech's record of the files it wrote ----------------------------------
+
+
+def _plain_name(name: object) -> bool:
+    """A name of a file directly inside a directory: no path, no ``..``, nothing sewmech keeps
+    for itself."""
+    return (isinstance(name, str) and name not in ("", ".", "..") and "/" not in name
+            and "\\" not in name and "\0" not in name and not _own(name))
+
+
+def _valid_record(rec: object) -> bool:
+    return (isinstance(rec, dict) and isinstance(rec.get("command"), str)
+            and all(isinstance(rec.get(k), int) and not isinstance(rec.get(k), bool)
+                    for k in ("size", "mtime_ns")) and rec["size"] >= 0)
+
+
+def _read_manifest(root: Path, option: str = "--out") -> dict:
+    """The manifest's entries (name -> record); {} if there is none. A manifest that cannot be
+    read, or that names anything but a plain file directly inside ``root``, is refused: it is
+    damaged or was not written by sewmech, and following it could delete a file elsewhere."""
+    path = root / MANIFEST
     try:
-        data = json.loads((root / MANIFEST).read_text(encoding="utf-8"))
-        files = data.get("files", {}) if isinstance(data, dict) else {}
-        return {k: v for k, v in files.items() if isinstance(v, dict)} \
-            if isinstance(files, dict) else {}
-    except (OSError, ValueError):
-        return {}
+        if not path.exists() and not path.is_symlink():
+            return {}
+        if path.is_symlink() or not path.is_file():
+            raise ValueError("it is not a plain file")
+        if path.stat().st_size > 64 * 2**20:
+            raise ValueError("it is larger than any record sewmech writes")
+        data = json.loads(path.read_text(encoding="utf-8"))
+        if not isinstance(data, dict) or data.get("written_by") != "sewmech" \
+                or not isinstance(data.get("files"), dict):
+            raise ValueError("it is not a record sewmech wrote")
+        files = data["files"]
+        for name, rec in files.items():
+            if not _plain_name(name):
+                raise ValueError(f"it names {name!r}, which is not a file directly inside the"
+                                 " directory")
+            if not _valid_record(rec):
+                raise ValueError(f"its entry for {name!r} is not one sewmech writes")
+        return dict(files)
+    except (ValueError, OSError, RecursionError) as exc:
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise OutputError(f"{option} {root}", f"its {MANIFEST} (sewmech's record of the files it"
+                          f" wrote there) is damaged: {why}", "sewmech changes nothing in a"
+                          " directory whose record it cannot trust; choose another directory"
+                          " (and remove this one yourself if you no longer need it)") from None
 
 
 def _stamp(path: Path) -> list[int]:
@@ -81,23 +156,22 @@ def _stamp(path: Path) -> list[int]:
     return [st.st_size, st.st_mtime_ns]
 
 
+def _is_ours(path: Path, rec: dict | None) -> bool:
+    """Whether ``path`` is the unchanged regular file that ``rec`` records."""
+    if rec is None:
+        return False
+    try:
+        st = os.lstat(path)
+    except OSError:
+        return False
+    return stat.S_ISREG(st.st_mode) and [st.st_size, st.st_mtime_ns] == [
+        rec.get("size"), rec.get("mtime_ns")]
+
+
 def _foreign(root: Path, manifest: dict) -> list[str]:
     """Entries of ``root`` that sewmech did not write, or wrote and someone changed since."""
-    out = []
-    for entry in sorted(os.listdir(root)):
-        if _own(entry):
-            continue
-        rec = manifest.get(entry)
-        path = root / entry
-        if rec is None or not path.is_file() or path.is_symlink():
-            out.append(entry)
-            continue
-        try:
-            if _stamp(path) != [rec.get("size"), rec.get("mtime_ns")]:
-                out.append(entry)
-        except OSError:
-            out.append(entry)
-    return out
+    return [entry for entry in sorted(os.listdir(root))
+            if not _own(entry) and not _is_ours(root / entry, manifest.get(entry))]
 
 
 def _refuse_foreign(root: Path, manifest: dict, command: str, option: str) -> None:
@@ -124,10 +198,43 @@ def _legacy_report(root: Path) -> bool:
         return False
 
 
+# ---- the lock -------------------------------------------------------------------------------
+
+
+def _locked_by_other(root: Path, fd: int, option: str) -> OutputError:
+    other = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "?"
+    return OutputError(f"{option} {root}", f"another sewmech run (pid {other}) is writing into"
+                       " this directory", "Wait for it to finish, or choose another directory")
+
+
+def _take_lock(root: Path, fd: int, option: str) -> str | None:
+    """Lock the open lock file ``fd`` for this process (or raise OutputError: another run holds
+    it). Returns the process id of a run that held it and never released it (killed
+    outright), else None."""
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        raise _locked_by_other(root, fd, option) from None
+    _HELD_LOCKS.add(fd)
+    before = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, str(os.getpid()).encode(), 0)
+    return before or None
+
+
+def _release_lock(fd: int) -> None:
+    """Say that the run ended (an empty lock file) and let go of the lock."""
+    _HELD_LOCKS.discard(fd)
+    with contextlib.suppress(OSError):
+        os.ftruncate(fd, 0)
+    os.close(fd)
+
+
 def preflight(path: str | Path, *, command: str, option: str = "--out") -> None:
     """The checks of :func:`output_dir` that need no writing, for a command to run before its
-    long work: ``path`` is a file, holds files sewmech did not write, or is locked by another
-    run. Nothing is created; :func:`output_dir` checks again under its lock."""
+    long work: ``path`` is a file, holds files sewmech did not write, has a damaged record, or
+    is locked by another run. Nothing is created; :func:`output_dir` checks again under its
+    lock."""
     root = Path(path).expanduser()
     try:
         if not root.exists():
@@ -135,17 +242,14 @@ def preflight(path: str | Path, *, command: str, option: str = "--out") -> None:
         if not root.is_dir():
             raise OutputError(f"{option} {root}", "is a file, not a directory",
                               "Give a directory for the output (it is created if missing)")
-        _refuse_foreign(root, _read_manifest(root), command, option)
+        _refuse_foreign(root, _read_manifest(root, option), command, option)
         lock = root / LOCK
         if lock.exists():
             fd = os.open(lock, os.O_RDONLY)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
-                other = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "?"
-                raise OutputError(f"{option} {root}", f"another sewmech run (pid {other}) is"
-                                  " writing into this directory", "Wait for it to finish, or"
-                                  " choose another directory") from None
+                raise _locked_by_other(root, fd, option) from None
             finally:
                 os.close(fd)
     except OutputError:
@@ -164,8 +268,10 @@ def _os_error(path: Path, exc: OSError, option: str) -> OutputError:
     if exc.errno == errno.ENOTDIR:
         return OutputError(f"{option} {path}", "a part of the path is a file, not a directory",
                            "Choose a path whose parents are directories")
-    if exc.errno == errno.ENOSPC:
-        return OutputError(f"{option} {path}", "the disk is full", "Free some space")
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return OutputError(f"{option} {path}", "the disk is full (or your quota is used up);"
+                           " nothing half-written was left behind",
+                           "Free some space, or choose a directory on another disk")
     return OutputError(f"{option} {path}", f"cannot write there ({exc.strerror or exc})",
                        "Choose another directory")
 
@@ -185,20 +291,79 @@ def _signals_held():
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
+# ---- moving a file without replacing anything ----------------------------------------------
+
+_RENAME_NOREPLACE = 1
+_AT_FDCWD = -100
+
+
+def _renameat2():
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        fn = libc.renameat2
+    except (OSError, AttributeError):
+        return None
+    fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    fn.restype = ctypes.c_int
+    return fn
+
+
+_RENAMEAT2 = _renameat2()
+
+
+def move_no_replace(src: Path, dst: Path) -> None:
+    """Move the file ``src`` to ``dst`` (same file system) in one step that fails with
+    FileExistsError if anything is at ``dst``, however recently it appeared: renameat2's
+    RENAME_NOREPLACE where the kernel and file system have it, else a hard link (which never
+    replaces) and the old name removed."""
+    if _RENAMEAT2 is not None:
+        rc = _RENAMEAT2(_AT_FDCWD, os.fsencode(src), _AT_FDCWD, os.fsencode(dst),
+                        _RENAME_NOREPLACE)
+        if rc == 0:
+            return
+        err = ctypes.get_errno()
+        if err == errno.EEXIST:
+            raise FileExistsError(err, os.strerror(err), str(dst))
+        if err not in (errno.ENOSYS, errno.EINVAL, errno.EOPNOTSUPP):
+            raise OSError(err, os.strerror(err), str(src))
+    try:
+        os.link(src, dst)
+    except FileExistsError:
+        raise
+    except OSError as exc:
+        if exc.errno not in (errno.EPERM, errno.EOPNOTSUPP, errno.EXDEV, errno.EMLINK):
+            raise
+        # a file system without hard links either: the narrowest check there is
+        if os.path.lexists(dst):
+            raise FileExistsError(errno.EEXIST, os.strerror(errno.EEXIST), str(dst)) from None
+        os.rename(src, dst)
+        return
+    os.unlink(src)
+
+
+# ---- the output directory ------------------------------------------------------------------
+
+
 @contextlib.contextmanager
-def output_dir(path: str | Path, *, command: str, option: str = "--out") -> Iterator[Path]:
+def output_dir(path: str | Path, *, command: str, option: str = "--out",
+               notice: Callable[[str], None] | None = None) -> Iterator[Path]:
     """Write a command's files safely into the directory ``path`` (see the module docstring).
 
     Yields the staging directory to write into (flat: files only). On normal exit its files
-    replace the directory's files of the same names (which sewmech wrote) and the files of
-    ``command``'s previous run that were not written again are removed.
+    replace the directory's files of the same names (which sewmech wrote, unchanged since) and
+    the files of ``command``'s previous run that were not written again are removed.
+    ``notice``: called with a sentence when something the person should know happened (a
+    killed run's leftovers recovered); default: ``note: ...`` on stderr.
 
     Raises
     ------
     OutputError
         ``path`` is a file, cannot be created or written, holds files that sewmech did not
-        write, or another sewmech run holds its lock.
+        write, has a damaged record, another sewmech run holds its lock, or a file of the
+        user's appeared in the way while the command ran (the result is then kept aside in
+        ``path`` and the error says where).
     """
+    notice = notice or _note
     root = Path(path).expanduser()
     created: list[Path] = []
     lock_fd = None
@@ -232,20 +397,19 @@ def output_dir(path: str | Path, *, command: str, option: str = "--out") -> Iter
         except OSError as exc:
             raise _os_error(root, exc, option) from None
         try:
-            fcntl.flock(lock_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            other = os.pread(lock_fd, 32, 0).decode("ascii", "replace").strip() or "?"
+            killed = _take_lock(root, lock_fd, option)
+        except OutputError:
             lock_created = False  # the other run's lock
-            raise OutputError(f"{option} {root}", f"another sewmech run (pid {other}) is"
-                              " writing into this directory", "Wait for it to finish, or"
-                              " choose another directory") from None
-        os.ftruncate(lock_fd, 0)
-        os.pwrite(lock_fd, str(os.getpid()).encode(), 0)
-        manifest = _read_manifest(root)
+            raise
+        manifest = _read_manifest(root, option)
         _refuse_foreign(root, manifest, command, option)
-        for entry in os.listdir(root):  # staging left by a run that was killed outright
-            if entry.startswith(STAGING_PREFIX):
-                shutil.rmtree(root / entry, ignore_errors=True)
+        left = [e for e in os.listdir(root) if e.startswith(STAGING_PREFIX)]
+        for entry in left:  # staging left by a run that was killed outright
+            shutil.rmtree(root / entry, ignore_errors=True)
+        if left:
+            notice(f"{option} {root}: a run (pid {killed or '?'}) was stopped before it"
+                   " finished; its unfinished files were removed and the directory is as"
+                   " that run found it")
         try:
             staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=root))
             os.chmod(staging, dir_mode())
@@ -253,7 +417,10 @@ def output_dir(path: str | Path, *, command: str, option: str = "--out") -> Iter
             raise _os_error(root, exc, option) from None
         yield staging
         with _signals_held():
-            _commit(root, staging, manifest, command)
+            try:
+                _commit(root, staging, manifest, command, option, notice)
+            except OSError as exc:
+                raise _os_error(root, exc, option) from None
         staging = None
     except BaseException:
         if staging is not None:
@@ -267,36 +434,96 @@ def output_dir(path: str | Path, *, command: str, option: str = "--out") -> Iter
         raise
     finally:
         if lock_fd is not None:
-            os.close(lock_fd)
+            _release_lock(lock_fd)
 
 
-def _commit(root: Path, staging: Path, manifest: dict, command: str) -> None:
-    """Move the staged files into place, drop the command's stale files, save the manifest."""
+def _kept_dir_name(command: str) -> str:
+    slug = re.sub(r"[^a-z0-9]+", "-", command.lower()).strip("-") or "run"
+    return f"{KEPT_PREFIX}{slug}-{time.strftime('%Y%m%d-%H%M%S')}"
+
+
+def _commit(root: Path, staging: Path, manifest: dict, command: str, option: str,
+            notice: Callable[[str], None]) -> None:
+    """Move the staged files into place, drop the command's stale files, save the manifest.
+
+    The directory was checked when the run started; it is checked again here, file by file,
+    each check and move one step: a name that holds anything but the unchanged file sewmech
+    wrote there is never replaced. If one does, nothing more is moved: what is left of the
+    result is kept in ``root/sewmech-kept-COMMAND-TIME/`` and an OutputError says so; what
+    was moved already stays, recorded in the manifest."""
     written = sorted(os.listdir(staging))
-    for name in written:
-        os.replace(staging / name, root / name)
+    aside = Path(tempfile.mkdtemp(prefix=".aside-", dir=staging))  # replaced files of ours
+    in_the_way = [n for n in written if os.path.lexists(root / n)
+                  and not _is_ours(root / n, manifest.get(n))]
+    moved: list[str] = []
+    conflict: list[str] = list(in_the_way)
+    if not conflict:
+        for name in written:
+            if os.path.lexists(root / name):
+                os.rename(root / name, aside / name)  # ours, checked once more where it is now
+                if not _is_ours(aside / name, manifest.get(name)):
+                    with contextlib.suppress(OSError):
+                        move_no_replace(aside / name, root / name)
+                    conflict.append(name)
+                    break
+            try:
+                move_no_replace(staging / name, root / name)
+            except FileExistsError:
+                conflict.append(name)
+                break
+            moved.append(name)
     for name, rec in list(manifest.items()):
-        if rec.get("command") == command and name not in written:
+        if rec.get("command") != command or name in written:
+            continue
+        if conflict:
+            continue  # the previous run's files stay while this run's are not all in place
+        path = root / name
+        if _is_ours(path, rec):
             with contextlib.suppress(OSError):
-                (root / name).unlink()
-            manifest.pop(name)
-    for name in written:
+                os.rename(path, aside / name)
+                if not _is_ours(aside / name, rec):  # changed in between: put it back
+                    move_no_replace(aside / name, path)
+        manifest.pop(name)
+        if os.path.lexists(path):
+            notice(f"{option} {root}: {name} changed since sewmech wrote it, so it is left as"
+                   " it is (no longer sewmech's)")
+    for name in conflict:  # a file of ours moved aside and not replaced: no longer recorded
+        if not _is_ours(root / name, manifest.get(name)):
+            manifest.pop(name, None)
+    for name in moved:
         manifest[name] = {"command": command, "size": None, "mtime_ns": None}
         manifest[name]["size"], manifest[name]["mtime_ns"] = _stamp(root / name)
-    tmp = staging / MANIFEST
+    tmp = Path(aside) / MANIFEST
     tmp.write_text(json.dumps({"written_by": "sewmech", "files": manifest}, indent=1,
                               sort_keys=True), encoding="utf-8")
     os.chmod(tmp, file_mode())
     os.replace(tmp, root / MANIFEST)
-    staging.rmdir()
+    shutil.rmtree(aside, ignore_errors=True)
+    if not conflict:
+        staging.rmdir()
+        return
+    kept = root / _kept_dir_name(command)
+    os.rename(staging, kept)
+    os.chmod(kept, dir_mode())
+    shown = ", ".join(conflict[:3]) + (f" and {len(conflict) - 3} more"
+                                        if len(conflict) > 3 else "")
+    raise OutputError(f"{option} {root}", f"while the command ran, file(s) appeared or changed"
+                      f" there that sewmech did not write ({shown}); none of them was"
+                      f" replaced" + (f", {len(moved)} of the {len(written)} result files were"
+                                      " moved in before" if moved else ""),
+                      f"The result is kept in {kept}; move your files elsewhere and run the"
+                      " command again, or take the result from there")
 
 
 @contextlib.contextmanager
-def dir_lock(root: Path, option: str = "--out") -> Iterator[None]:
+def dir_lock(root: Path, option: str = "--out",
+             notice: Callable[[str], None] | None = None) -> Iterator[None]:
     """Hold ``root``'s lock (``.sewmech.lock``; ``root`` must exist) for a command that writes
     into the directory in place rather than through a staging directory (a sweep, which keeps
     every finished chunk). Raises OutputError if another run holds it. A lock file this call
-    created is removed again if the body fails (e.g. refuses a directory of the user's)."""
+    created is removed again if the body fails (e.g. refuses a directory of the user's). A
+    run that held the lock and was killed outright is noticed (``notice``, default stderr)."""
+    notice = notice or _note
     lock = root / LOCK
     created = not lock.exists()
     try:
@@ -305,15 +532,13 @@ def dir_lock(root: Path, option: str = "--out") -> Iterator[None]:
         raise _os_error(root, exc, option) from None
     try:
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
+            killed = _take_lock(root, fd, option)
+        except OutputError:
             created = False  # the other run's lock
-            other = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "?"
-            raise OutputError(f"{option} {root}", f"another sewmech run (pid {other}) is"
-                              " writing into this directory", "Wait for it to finish, or"
-                              " choose another directory") from None
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, str(os.getpid()).encode(), 0)
+            raise
+        if killed is not None:
+            notice(f"{option} {root}: a run (pid {killed}) was stopped before it finished;"
+                   " its finished chunks are kept and the rest is computed now")
         yield
     except BaseException:
         if created:
@@ -321,4 +546,4 @@ def dir_lock(root: Path, option: str = "--out") -> Iterator[None]:
                 os.unlink(lock)
         raise
     finally:
-        os.close(fd)
+        _release_lock(fd)
