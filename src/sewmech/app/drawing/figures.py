@@ -98,7 +98,7 @@ def _render_pickled(payload: bytes, root: str, stem: str) -> bytes:
 
 
 def _worker_start(parent_pid: int, forked_from_main_thread: bool):
-    from ..processes import die_with_parent
+    from .workers import die_with_parent
 
     die_with_parent(parent_pid, forked_from_main_thread=forked_from_main_thread)
     import matplotlib
@@ -118,7 +118,7 @@ def figure_pool(workers: int | None = None) -> ProcessPoolExecutor | None:
     The workers are forked from this process (no script is imported again, so a report can be
     written from any script or notebook); they only unpickle and draw figures, and never touch
     the compiled kernels or their threads. They end with this process, however it ends
-    (:mod:`sewmech.app.processes`), and hold none of its locks."""
+    (:mod:`sewmech.app.drawing.workers`), and hold none of its locks."""
     import threading
 
     n = (os.cpu_count() or 1) if workers is None else int(workers)

@@ -1,4 +1,4 @@
-"""Processes sewmech starts die with the command that started them.
+"""Worker processes sewmech starts die with the command that started them.
 
 A report draws its figures in worker processes forked from the command's process. If the
 command is killed outright (SIGKILL, the out-of-memory killer, a closed terminal's SIGHUP
