@@ -1,0 +1,167 @@
+"""Fault injection: real `report`, `optimize --out` and `sweep` processes killed outright
+(SIGKILL: nothing of Python runs any more) at a dozen points of their work each.
+
+After every kill: no process of the command's group is left (the figure workers and Dask's
+worker processes end with it), and the output directory is as the killed run found it (apart
+from sewmech's own lock and staging, which the next run recovers; a sweep keeps the chunks it
+finished). The same command run again then succeeds and leaves a complete result: for the
+staged commands the same files as an uninterrupted run, for the sweep the same values, design
+by design, as a sweep that was never interrupted.
+
+Kill points are drawn from a seeded generator over each command's measured duration, so every
+run of the suite kills at points spread over the whole of the work (imports, computing,
+drawing, writing, moving into place).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+KILLS = 12
+#: every this many kills, the command is also run to the end and its result checked
+COMPLETE_EVERY = 4
+OWN = (".sewmech.lock", ".sewmech-staging-")
+
+pytestmark = [pytest.mark.slow,
+              pytest.mark.skipif(not hasattr(os, "killpg"), reason="needs process groups")]
+
+
+def _cli() -> list[str]:
+    exe = Path(sys.executable).with_name("sewmech")
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "sewmech"]
+
+
+def _state(root: Path) -> dict:
+    """The directory as a user sees it: every file (sewmech's lock and staging left out) with
+    its content hash."""
+    out = {}
+    if not root.exists():
+        return out
+    for p in sorted(root.rglob("*")):
+        rel = p.relative_to(root)
+        if rel.parts[0].startswith(OWN):
+            continue
+        out[str(rel)] = hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else "dir"
+    return out
+
+
+def _gone(pgid: int, timeout: float = 10.0) -> bool:
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        try:
+            os.killpg(pgid, 0)
+        except ProcessLookupError:
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def _run(args: list[str], cwd: Path) -> tuple[float, subprocess.CompletedProcess]:
+    t = time.perf_counter()
+    out = subprocess.run(_cli() + args, cwd=cwd, capture_output=True, text=True, timeout=600)
+    return time.perf_counter() - t, out
+
+
+def _kill_at(args: list[str], cwd: Path, after_s: float) -> int | None:
+    """Start the command in a group of its own, SIGKILL it after ``after_s``; returns its exit
+    code if it finished first, else None. Asserts that no process of the group is left."""
+    p = subprocess.Popen(_cli() + args, cwd=cwd, stdout=subprocess.DEVNULL,
+                         stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        rc = p.wait(timeout=after_s)
+    except subprocess.TimeoutExpired:
+        os.kill(p.pid, signal.SIGKILL)
+        p.wait(timeout=30)
+        rc = None
+    alive = not _gone(p.pid)
+    if alive:
+        os.killpg(p.pid, signal.SIGKILL)
+    assert not alive, f"a process of {args[0]} outlived it (killed after {after_s:.2f} s)"
+    return rc
+
+
+def _kill_points(duration: float, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return np.sort(rng.uniform(0.05, 1.05, KILLS)) * duration
+
+
+def _check_complete(d: Path, reference: dict) -> None:
+    manifest = json.loads((d / ".sewmech-manifest.json").read_text())["files"]
+    assert sorted(manifest) == sorted(reference), "the result is not complete"
+    for name, rec in manifest.items():
+        assert (d / name).stat().st_size == rec["size"], name
+    assert not [n for n in os.listdir(d) if n.startswith(".sewmech-staging-")]
+
+
+@pytest.mark.parametrize("name, args, seed", [
+    ("report", ["report", "jb1-3", "--step-deg", "5"], 29),
+    ("optimize", ["optimize", str(ROOT / "examples/problems/fourbar-swing.toml"),
+                  "--method", "slsqp"], 30),
+], ids=["report", "optimize"])
+def test_a_staged_command_killed_anywhere_leaves_its_directory_and_recovers(tmp_path, name,
+                                                                           args, seed):
+    d = tmp_path / "out"
+    cmd = args + ["--out", str(d)]
+    duration, first = _run(cmd, tmp_path)
+    assert first.returncode == 0, first.stderr
+    reference = {n: None for n in json.loads(
+        (d / ".sewmech-manifest.json").read_text())["files"]}
+    for i, t in enumerate(_kill_points(duration, seed)):
+        before = _state(d)
+        rc = _kill_at(cmd, tmp_path, t)
+        assert rc in (None, 0), (t, rc)
+        if rc is None:  # killed: the directory as it was (a finished run rewrites the same)
+            assert _state(d) == before, f"{name} killed after {t:.2f} s changed the result"
+        if (i + 1) % COMPLETE_EVERY == 0:
+            _, again = _run(cmd, tmp_path)
+            assert again.returncode == 0, (t, again.stderr)
+            assert "Traceback" not in again.stderr
+            _check_complete(d, reference)
+    _, last = _run(cmd, tmp_path)
+    assert last.returncode == 0, last.stderr
+    _check_complete(d, reference)
+
+
+def _sweep_values(d: Path):
+    import pandas as pd
+
+    parts = [pd.read_parquet(p) for p in sorted((d / "chunks").glob("*.parquet"))]
+    return pd.concat(parts, ignore_index=True) if parts else None
+
+
+def test_a_sweep_killed_anywhere_resumes_to_the_same_values(tmp_path):
+    sweep = str(ROOT / "examples/sweeps/jb-feed-small.toml")
+    common = ["sweep", sweep, "--workers", "0", "--chunk", "2"]
+    duration, ref = _run(common + ["--out", str(tmp_path / "ref")], tmp_path)
+    assert ref.returncode == 0, ref.stderr
+    d = tmp_path / "out"
+    cmd = common + ["--out", str(d)]
+    for t in _kill_points(duration, 31):
+        done = {p.name: p.read_bytes() for p in (d / "chunks").glob("*.parquet")} \
+            if (d / "chunks").exists() else {}
+        rc = _kill_at(cmd, tmp_path, t)
+        assert rc in (None, 0), (t, rc)
+        if d.exists():  # no reader sees a half-written chunk; a finished chunk stays as it was
+            for name, data in done.items():
+                assert (d / "chunks" / name).read_bytes() == data, name
+            _sweep_values(d)
+        if rc == 0:
+            break
+    _, last = _run(cmd, tmp_path)
+    assert last.returncode == 0, last.stderr
+    got, want = _sweep_values(d), _sweep_values(tmp_path / "ref")
+    assert list(got.columns) == list(want.columns) and len(got) == len(want)
+    import pandas as pd
+
+    pd.testing.assert_frame_equal(got, want)  # the same compiled code on the same designs
