@@ -23,17 +23,52 @@ import importlib.machinery
 import importlib.util
 import sys
 
-from .engine.errors import AssemblyError, ConvergenceError, MachineFileError, SewmechError
-from .engine.kinematics import KinematicsPlan, kinematics, rpm_to_rad_s
-from .engine.machine import (
+
+def _interrupts_while_starting() -> None:
+    """Ctrl-C while a sewmech process is still starting (its imports take about a second)
+    ends it with one line, not a traceback. The ``sewmech`` command stops with exit code 130
+    (its command line then handles Ctrl-C itself: :func:`sewmech.app.cli.common._guard`); a
+    worker process of a local Dask cluster that a sewmech command started
+    (``SEWMECH_LOCAL_WORKER=1``) ignores it: a terminal sends Ctrl-C to every process of its
+    foreground group, and the command that started the cluster stops it. Nothing changes for
+    a program that imports sewmech as a library."""
+    import os
+    import signal
+
+    if os.environ.get("SEWMECH_LOCAL_WORKER") == "1":
+        import multiprocessing
+
+        # (a process the cluster spawned: multiprocessing marks it while it imports the
+        # main script again, with the command's sys.argv, and names its parent afterwards)
+        if getattr(multiprocessing.current_process(), "_inheriting", False) or \
+                multiprocessing.parent_process() is not None:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+    elif (sys.argv and os.path.basename(sys.argv[0]) == "sewmech"
+          and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+        signal.signal(signal.SIGINT, _interrupted_while_starting)
+
+
+def _interrupted_while_starting(signum, frame) -> None:  # pragma: no cover (a real Ctrl-C)
+    import os
+
+    os.write(2, b"error: interrupted (Ctrl-C) while starting; nothing was written\n")
+    os._exit(130)
+
+
+_interrupts_while_starting()
+
+# (the imports after the handler: they are what takes the time)
+from .engine.errors import AssemblyError, ConvergenceError, MachineFileError, SewmechError  # noqa: E402,I001
+from .engine.kinematics import KinematicsPlan, kinematics, rpm_to_rad_s  # noqa: E402
+from .engine.machine import (  # noqa: E402
     Machine,
     compile_machine,
     load_machine,
     machine_from_toml,
     shipped_machines,
 )
-from .engine.results import KinematicsResult, LinkMotion, PointMotion, VariableMotion
-from .engine.spec import MachineSpec, load_machine_spec, parse_machine
+from .engine.results import KinematicsResult, LinkMotion, PointMotion, VariableMotion  # noqa: E402
+from .engine.spec import MachineSpec, load_machine_spec, parse_machine  # noqa: E402
 
 __version__ = "0.1.0"
 

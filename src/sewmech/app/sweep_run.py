@@ -34,6 +34,7 @@ cache once, when it starts (a worker plugin), and builds the sweep once from its
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import re
@@ -49,6 +50,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 from ..design.sweep import Chunk, chunk_bounds, column_units, curve_phi_deg, evaluate_chunk
 from ..design.sweep_file import Sweep
 from ..engine.errors import OptionError, OutputError, SewmechError
+from ..engine.paths import user_path
 from .files.io import atomic_write
 from .files.outdir import LOCK, dir_lock, dir_mode
 
@@ -285,7 +287,7 @@ def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
     ``client``, a ``distributed.Client`` already connected, is used instead of a new cluster.
     Raises SweepError (after finishing every other chunk) when some chunk failed.
     """
-    root = Path(out).expanduser()
+    root = user_path(out, "--out")
     if chunk is not None and not 1 <= chunk <= 10_000_000:
         raise OptionError("--chunk", f"must be in 1 .. 10000000 designs, got {chunk}",
                           "Give e.g. --chunk 250")
@@ -311,12 +313,21 @@ def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
                 from .files.outdir import _os_error
 
                 raise _os_error(root, exc, "--out") from None
+            # a run that made the directory and stops before its first chunk takes it away
+            # again (the lock's exit runs first: callbacks run last in, first out)
+            stack.enter_context(_removed_on_failure(root))
         stack.enter_context(dir_lock(root))
         chunk = prepare_dir(root, sweep, chunk)
-        _init_outputs(root, sweep, chunk)
+        try:
+            _init_outputs(root, sweep, chunk)
+        except OSError as exc:
+            from .files.outdir import _os_error
+
+            raise _os_error(root, exc, "--out") from None
         bounds = chunk_bounds(sweep.n_designs, chunk)
         have = done_chunks(root)
-        todo = [k for k in range(len(bounds)) if k not in have]
+        # the chunks to compute, in order, drawn as they are needed (never a list of them all)
+        todo = (k for k in range(len(bounds)) if k not in have)
         report = RunReport(len(bounds), len(have))
         t0 = time.perf_counter()
 
@@ -331,11 +342,21 @@ def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
                 return False
             return True
 
-        if todo:
-            if here:
-                _run_here(sweep, bounds, todo, retries, finished, report)
-            else:
-                _run_dask(sweep, bounds, todo, retries, finished, report, client)
+        if sum(1 for k in have if k < len(bounds)) < len(bounds):
+            try:
+                if here:
+                    _run_here(sweep, bounds, todo, retries, finished, report)
+                else:
+                    _run_dask(sweep, bounds, todo, retries, finished, report, client)
+            except OSError as exc:
+                if exc.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
+                    raise
+                raise OutputError(f"--out {root}", f"the disk is full (or your quota is used"
+                                  f" up) after {len(report.computed)} chunk(s) of this run;"
+                                  f" the {len(have) + len(report.computed)} finished chunks are"
+                                  " kept, nothing half-written", "Free some space (or move the"
+                                  " directory to a larger disk) and run the same command again:"
+                                  " it computes only the missing chunks") from None
         report.seconds = time.perf_counter() - t0
     if report.failed:
         shown = "; ".join(f"chunk {k} (designs {bounds[k][0]} .. {bounds[k][1] - 1}): {e}"
@@ -348,6 +369,22 @@ def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
                          "Fix the cause and run the same command again: it computes only the"
                          " missing chunks")
     return report
+
+
+@contextlib.contextmanager
+def _removed_on_failure(root: Path):
+    """Remove the sweep directory this run created if the run ends (an error, Ctrl-C) with no
+    chunk written: what is there is only the sweep's own record and empty stores."""
+    import shutil
+
+    try:
+        yield
+    except BaseException:
+        if not done_chunks(root) and all(
+                entry in (RECORD, LOCK, CHUNKS, CURVES) or ROOT_TMP_RE.fullmatch(entry)
+                for entry in os.listdir(root)):
+            shutil.rmtree(root, ignore_errors=True)
+        raise
 
 
 def _run_here(sweep, bounds, todo, retries, finished, report) -> None:
@@ -372,9 +409,50 @@ def local_cluster(workers: int):
     import dask
     from distributed import LocalCluster
 
-    with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENV}):
-        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                            dashboard_address=":0", silence_logs=50)
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENV}), \
+            _interrupt_after() as interrupted, _environment_kept():
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=":0", silence_logs=50)
+    if interrupted:  # Ctrl-C while it started: now that it can be closed in order
+        cluster.close()
+        raise KeyboardInterrupt
+    return cluster
+
+
+@contextlib.contextmanager
+def _environment_kept():
+    """This process's environment as it was: Dask's nanny writes the workers' variables
+    (:data:`WORKER_ENV`: one kernel thread, ...) into the environment of the process that
+    starts them, where they would stay and reach every process it starts later."""
+    before = {k: os.environ.get(k) for k in WORKER_ENV}
+    try:
+        yield
+    finally:
+        for k, v in before.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+@contextlib.contextmanager
+def _interrupt_after():
+    """Hold a Ctrl-C back while a local cluster starts, and say afterwards whether one came
+    (a list, true if so). A KeyboardInterrupt inside Dask's start left a cluster half made,
+    which Dask's exit handler then failed to close, with a traceback; a cluster starts in one
+    or two seconds, and the Ctrl-C takes effect right after."""
+    import signal
+    import threading
+
+    came: list[bool] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield came
+        return
+    old = signal.signal(signal.SIGINT, lambda signum, frame: came.append(True))
+    try:
+        yield came
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 @contextlib.contextmanager
@@ -384,7 +462,8 @@ def _client(scheduler: str | None, workers: int):
     from distributed import Client
 
     if scheduler is None:
-        with local_cluster(workers) as cluster, Client(cluster) as client:
+        with _environment_kept(), local_cluster(workers) as cluster, \
+                Client(cluster) as client:  # (a worker restarted meanwhile writes it again)
             yield client
         return
     try:
@@ -408,19 +487,21 @@ def _run_dask(sweep, bounds, todo, retries, finished, report, client) -> None:
     threads = max(1, sum(client.nthreads().values()))
     texts = client.scatter(texts_of(sweep), broadcast=True)
     window = 4 * threads
-    queue = list(todo)
+    queue = iter(todo)
     keys = {}
 
     def submit():
-        k = queue.pop(0)
+        k = next(queue, None)
+        if k is None:
+            return None
         f = client.submit(evaluate_texts, texts, *bounds[k], retries=retries, pure=False,
                           key=f"sewmech-sweep-{sweep.sweep_sha256[:8]}-chunk-{k}"
                               f"-{os.getpid()}-{time.monotonic_ns()}")
         keys[f.key] = k
         return f
 
-    running = as_completed([submit() for _ in range(min(window, len(queue)))],
-                           with_results=False)
+    first = [f for f in (submit() for _ in range(window)) if f is not None]
+    running = as_completed(first, with_results=False)
     for f in running:
         k = keys.pop(f.key)
         if f.status == "finished":
@@ -434,8 +515,9 @@ def _run_dask(sweep, bounds, todo, retries, finished, report, client) -> None:
             exc = f.exception()
             report.failed[k] = f"{type(exc).__name__}: {exc}"
             f.release()
-        if queue:
-            running.add(submit())
+        nxt = submit()
+        if nxt is not None:
+            running.add(nxt)
 
 
 class _Warm(WorkerPlugin):

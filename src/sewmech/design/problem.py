@@ -49,6 +49,7 @@ from pydantic import Field, model_validator
 
 from ..engine.errors import MachineFileError, SewmechError
 from ..engine.machine import Machine, load_machine
+from ..engine.paths import user_path
 from ..engine.spec import load_toml_model
 from ._models import Bounds, Header, MetricRef, Strict
 from .evaluate import (
@@ -117,7 +118,7 @@ class ProblemSpec(Strict):
 
 def load_problem(path: str | Path) -> tuple[ProblemSpec, Machine]:
     """Read and validate a problem file and load its machine; errors name the file and key."""
-    path = Path(path).expanduser()
+    path = user_path(path)
     where = str(path)
     spec = load_toml_model(path, ProblemSpec, "problem file", "docs/design.md")
     ref = spec.problem.machine

@@ -25,6 +25,7 @@ from __future__ import annotations
 import functools
 import math
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -224,9 +225,38 @@ def _curves(sweep: Sweep, P: np.ndarray) -> dict[str, np.ndarray]:
     return out
 
 
-def chunk_bounds(n_designs: int, chunk: int) -> list[tuple[int, int]]:
+class ChunkBounds(Sequence):
+    """(start, stop) of every chunk of ``chunk`` designs (the last one may be shorter), as a
+    sequence computed on demand: a sweep of 1e10 designs has 4e7 chunks of 250, whose list
+    alone would take 4 GB before any work."""
+
+    def __init__(self, n_designs: int, chunk: int):
+        if chunk < 1:
+            raise ValueError(f"a chunk holds at least one design, got {chunk}")
+        self.n_designs, self.chunk = int(n_designs), int(chunk)
+
+    def __len__(self) -> int:
+        return -(-self.n_designs // self.chunk)
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        n = len(self)
+        if k < 0:
+            k += n
+        if not 0 <= k < n:
+            raise IndexError(f"chunk {k} of {n}")
+        a = k * self.chunk
+        return (a, min(a + self.chunk, self.n_designs))
+
+    def designs_in(self, chunks) -> int:
+        """How many designs the chunks ``chunks`` (indices) hold."""
+        return sum(b - a for a, b in (self[k] for k in chunks if 0 <= k < len(self)))
+
+
+def chunk_bounds(n_designs: int, chunk: int) -> ChunkBounds:
     """(start, stop) of every chunk of ``chunk`` designs (the last one may be shorter)."""
-    return [(a, min(a + chunk, n_designs)) for a in range(0, n_designs, chunk)]
+    return ChunkBounds(n_designs, chunk)
 
 
 # ---- on workers ---------------------------------------------------------------------------------

@@ -44,6 +44,7 @@ from __future__ import annotations
 import difflib
 import hashlib
 import math
+import os
 from pathlib import Path
 from typing import Literal
 
@@ -51,6 +52,7 @@ from pydantic import Field, model_validator
 
 from ..engine.errors import MachineFileError
 from ..engine.machine import Machine, load_machine, machine_from_toml, shipped_machines
+from ..engine.paths import user_path
 from ..engine.spec import load_toml_model, read_toml_text
 from ._models import Bounds, Header, MetricRef, Strict
 
@@ -188,7 +190,7 @@ class Sweep:
 def load_sweep(path: str | Path) -> Sweep:
     """Read and validate a sweep file and load its machine; every problem a MachineFileError
     naming the file, the table and the key."""
-    path = Path(path).expanduser()
+    path = user_path(path)
     where = str(path)
     spec = load_toml_model(path, SweepSpec, "sweep file", DOC)
     text = read_toml_text(path, "sweep file")
@@ -221,6 +223,44 @@ def _regulator_in_range(where: str, k: int, o, machine: Machine) -> None:
     if not lo <= o.regulator_deg <= hi:
         raise MachineFileError(where, "outputs", f"{k}.regulator_deg", f"{o.regulator_deg:g}"
                                f" deg is outside the regulator's range {lo:g} .. {hi:g} deg")
+
+
+def available_memory() -> int:
+    """Bytes of memory this machine can give a process now (Linux's MemAvailable; else the
+    free physical pages)."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return 2**62  # unknown: no bound from here
+
+
+#: the most designs of a Sobol sample (scipy's 30-bit sequence; its 64-bit one cannot be
+#: fast-forwarded to a chunk's first design)
+SOBOL_MAX = 2**30
+
+#: a Latin hypercube is drawn whole (every design's stratum depends on all the others): its
+#: n x d numbers and scipy's temporaries, about this many times their size
+LHS_MEMORY_FACTOR = 4
+
+
+def _check_lhs_memory(n: int, d: int, where: str) -> None:
+    need = LHS_MEMORY_FACTOR * 8 * n * d
+    have = available_memory()
+    if need > have:
+        most = have // (LHS_MEMORY_FACTOR * 8 * max(d, 1))
+        raise MachineFileError(where, "sampling", "designs", f"a Latin hypercube is drawn"
+                               f" whole: {n:,} designs of {d} parameters need about"
+                               f" {need / 2**30:.1f} GiB, more than the {have / 2**30:.1f} GiB"
+                               f" this machine has free (at most about {most:,} designs)",
+                               "Use method = \"sobol\" or \"random\" (drawn chunk by chunk,"
+                               " any number of designs), or fewer designs")
 
 
 def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
@@ -258,6 +298,14 @@ def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
             raise MachineFileError(where, "parameters", "points", f"the grid has {n:.3g}"
                                    f" designs, more than {MAX_DESIGNS:.0e}",
                                    "Use fewer points, or a sobol sample")
+    if spec.sampling.method == "lhs":
+        _check_lhs_memory(spec.sampling.designs, len(spec.parameters), where)
+    if spec.sampling.method == "sobol" and spec.sampling.designs > SOBOL_MAX:
+        raise MachineFileError(where, "sampling", "designs", f"a Sobol sample has at most"
+                               f" 2**30 = {SOBOL_MAX:,} designs (its 30-bit direction"
+                               f" numbers), got {spec.sampling.designs:,}",
+                               "Use method = \"random\" for more designs, or several Sobol"
+                               " sweeps with different seeds")
     probe = kinematics(machine, [0.0])
     channels = probe.channel_names()
     columns = {p.parameter for p in spec.parameters}

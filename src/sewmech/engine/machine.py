@@ -26,6 +26,7 @@ from .counterweights import PARAMETERS as CW_PARAMETERS
 from .counterweights import Counterweight
 from .errors import MachineFileError, ParameterError, name_index
 from .mass import from_spec as mass_from_spec
+from .paths import user_path
 from .spec import (
     FRAME,
     SHAFT,
@@ -1377,7 +1378,7 @@ def load_machine(name_or_path: str | Path) -> Machine:
     The argument is a path first: a file of that name in the working directory (even without
     ``.toml``) is read instead of the shipped machine of the same name; a directory of that
     name (an output directory ``jb8-2/``, say) is not a machine file and does not hide it."""
-    path = Path(name_or_path).expanduser()
+    path = user_path(name_or_path)
     shipped = shipped_machines()
     if str(name_or_path) in shipped and not path.is_file():
         path = shipped[str(name_or_path)]

@@ -31,6 +31,7 @@ from pydantic import (
 )
 
 from .errors import MachineFileError
+from .paths import not_regular, user_path
 
 NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_.\-]*$")
 FRAME = "frame"
@@ -942,11 +943,12 @@ MAX_FILE_BYTES = 4 * 1024 * 1024
 def read_toml_text(path: str | Path, what: str = "machine file") -> str:
     """The text of a TOML file, or a :class:`MachineFileError` that says why it cannot be read:
     missing, a directory, too large, binary, not UTF-8."""
-    path = Path(path)
+    path = user_path(path)
     file = str(path)
     try:
-        if path.is_dir():
-            raise MachineFileError(file, "", "", f"is a directory, not a {what}",
+        why = not_regular(path)
+        if why is not None:
+            raise MachineFileError(file, "", "", f"{why}; a {what} is a TOML text file",
                                    "Give the path of a .toml file")
         size = path.stat().st_size
         if size > MAX_FILE_BYTES:
@@ -1201,7 +1203,7 @@ def load_toml_model(path: str | Path, model: type[BaseModel], what: str,
     """A TOML file read (its size, encoding and nesting checked) and validated as ``model``;
     every problem a :class:`MachineFileError` naming the file, the table and the key. For the
     files a user edits besides machine files: loads, tolerances, design problems."""
-    path = Path(path).expanduser()
+    path = user_path(path)
     return validate_model(model, _parse_toml(read_toml_text(path, what), str(path)), str(path),
                           doc)
 

@@ -304,6 +304,9 @@ def dynamics_cmd(
     settings = _settings(m, inputs)
     phi = _phi(step_deg, phi_deg)
     rpm = _rpm(rpm)
+    if no_loads and loads is not None:
+        raise OptionError("--no-loads", f"and --loads {loads} contradict each other (no process"
+                          " loads, and the loads of a file)", "Give one of them")
     load_specs = [] if no_loads else (load_load_file(loads) if loads is not None else None)
     if load_specs:
         m.check_loads(load_specs, str(loads))

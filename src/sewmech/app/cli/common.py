@@ -187,7 +187,7 @@ def _guard():
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         raise typer.Exit(141) from None
     except MemoryError:
-        _print_error("out of memory. Use a coarser --step-deg, or fewer designs at a time")
+        _print_error(_out_of_memory_text())
         raise typer.Exit(EXIT_ERROR) from None
     except (ValueError, KeyError) as exc:  # the library's argument checks
         text = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
@@ -207,6 +207,27 @@ def _guard():
     finally:
         for sig, handler in old.items():
             signal.signal(sig, handler)
+
+
+#: what to do when a command runs out of memory: the options it has that size its work
+_MEMORY_HINTS = {
+    "sweep": "Give a smaller --chunk (designs per batch call and per worker), or fewer"
+             " --workers",
+    "tolerance": "Give fewer --samples",
+}
+
+
+def _out_of_memory_text() -> str:
+    """The out-of-memory line, with what to change for the command that ran out."""
+    try:
+        from typer._click.globals import get_current_context
+    except ImportError:  # a typer that uses the click package
+        from click import get_current_context
+    ctx = get_current_context(silent=True)
+    name = ctx.info_name if ctx is not None else None
+    hint = _MEMORY_HINTS.get(name, "Use a coarser --step-deg, or fewer designs at a time")
+    return f"{'sewmech ' + name if name else 'sewmech'}: out of memory; nothing half-written" \
+        f" was left behind. {hint}"
 
 
 def _interruption(exc: BaseException) -> BaseException | None:
@@ -398,6 +419,10 @@ def run_as_process() -> None:
     """Run the command line as the ``sewmech`` process (the entry point's body)."""
     global _PROCESS_ENDS
     _PROCESS_ENDS = True
+    import sewmech
+
+    if signal.getsignal(signal.SIGINT) is sewmech._interrupted_while_starting:
+        signal.signal(signal.SIGINT, signal.default_int_handler)  # started: _guard's turn
     try:
         app()
     finally:

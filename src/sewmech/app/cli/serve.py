@@ -10,6 +10,7 @@ import socket
 import typer
 
 from ...engine.errors import OptionError
+from ...engine.paths import user_path
 from .common import DEFAULT_MACHINE, Terminated, command, console
 
 
@@ -38,7 +39,7 @@ def serve_cmd(
                           " or --port 0 for any free port")
     extra, initial = {}, machine
     if machine not in shipped_machines() or Path(machine).exists():
-        path = Path(machine).expanduser()
+        path = user_path(machine, "MACHINE")
         text = read_toml_text(path)
         spec = parse_machine(text, str(path))  # a bad file stops here, with its location
         initial = f"{spec.machine.name} ({path.name})"

@@ -16,6 +16,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from ...engine.errors import OptionError
+from ...engine.paths import user_path
 from .common import command, console, err_console, print_json
 
 
@@ -56,7 +57,7 @@ def sweep_cmd(
         raise OptionError("--retries", f"must be in 0 .. 10, got {retries}", "Give e.g."
                           " --retries 2")
     sweep = load_sweep(file)
-    root = out.expanduser()
+    root = user_path(out, "--out")
 
     class Rate(ProgressColumn):
         def render(self, task):
@@ -68,7 +69,8 @@ def sweep_cmd(
     t0 = [time.perf_counter(), 0]
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                   TextColumn("designs"), Rate(), TimeElapsedColumn(), TimeRemainingColumn(),
-                  console=err_console, transient=True, disable=as_json) as progress:
+                  console=err_console, transient=True,
+                  disable=as_json or not err_console.is_terminal) as progress:
         task = progress.add_task(escape(sweep.spec.sweep.name), total=sweep.n_designs)
         started = [False]
 
@@ -86,15 +88,15 @@ def sweep_cmd(
                 rec = read_record(root, "--out")
                 bounds = chunk_bounds(sweep.n_designs, int(rec["chunk"]))
                 have = done_chunks(root)
-                progress.update(task, completed=sum(b - a for k, (a, b) in enumerate(bounds)
-                                                    if k in have))
+                progress.update(task, completed=bounds.designs_in(have))
         try:
             r = run_sweep(sweep, root, scheduler=scheduler, workers=workers, chunk=chunk,
                           retries=retries, on_chunk=on_chunk)
         except KeyboardInterrupt:
             n = len(done_chunks(root)) if root.is_dir() else 0
-            err_console.print(f"{n} chunks are written in {escape(str(root))}; run the same"
-                              " command again to compute the rest", highlight=False)
+            if n:
+                err_console.print(f"{n} chunks are written in {escape(str(root))}; run the"
+                                  " same command again to compute the rest", highlight=False)
             raise
     feasible, total = _count_feasible(root)
     rate = r.designs_computed / r.seconds if r.seconds > 0 else math.nan
@@ -163,7 +165,7 @@ def sweep_summary_cmd(
     """The feasible region of a sweep and the distributions of its outputs: feasible fraction,
     each output's range, the best feasible designs; with --out a scatter matrix of the
     parameters coloured by an output and histograms."""
-    root = directory.expanduser()
+    root = user_path(directory, "DIR")
     if not 1 <= best <= 10_000:
         raise OptionError("--best", f"must be in 1 .. 10000, got {best}", "Give e.g. --best 10")
     record, cols, n_written = load_results(root)

@@ -188,6 +188,10 @@ def pair_forces_frame(res):
     return pd.DataFrame(cols)
 
 
+#: the largest CSV file of measurements sewmech reads, bytes (a few hundred lines are usual)
+MAX_CSV_BYTES = 64 * 2**20
+
+
 def read_csv_columns(path: str | Path, numbers: Sequence[str], texts: Sequence[str] = (),
                      *, what: str = "measurements",
                      nonnegative: Mapping[str, str] | None = None) -> dict[str, np.ndarray]:
@@ -202,14 +206,31 @@ def read_csv_columns(path: str | Path, numbers: Sequence[str], texts: Sequence[s
     import csv
 
     from ...engine.errors import AnalysisError
+    from ...engine.paths import not_regular, user_path
 
-    path = Path(path).expanduser()
+    path = user_path(path)
     where = str(path)
-    if path.is_dir():
-        raise AnalysisError(where, "is a directory", f"Give the CSV file of the {what}")
-    with open(path, encoding="utf-8-sig", newline="") as fh:
-        lines = [(k, row) for k, row in enumerate(csv.reader(fh), start=1)
-                 if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")]
+    try:
+        why = not_regular(path)
+        if why is not None:
+            raise AnalysisError(where, why, f"Give the CSV file of the {what}")
+        if path.stat().st_size > MAX_CSV_BYTES:
+            raise AnalysisError(where, f"is {path.stat().st_size / 2**20:.0f} MiB; a file of"
+                                f" {what} is at most {MAX_CSV_BYTES // 2**20} MiB of text",
+                                f"Check that this is the CSV file of the {what}")
+        with open(path, encoding="utf-8-sig", newline="") as fh:
+            lines = [(k, row) for k, row in enumerate(csv.reader(fh), start=1)
+                     if row and any(c.strip() for c in row)
+                     and not row[0].lstrip().startswith("#")]
+    except UnicodeDecodeError as exc:
+        raise AnalysisError(where, f"is not UTF-8 text ({exc.reason})", "Save it as UTF-8"
+                            " (a spreadsheet's 'CSV UTF-8')") from None
+    except csv.Error as exc:
+        raise AnalysisError(where, f"is not a CSV file sewmech can read ({exc})",
+                            "Save it as plain comma-separated text") from None
+    except OSError as exc:
+        raise AnalysisError(where, f"cannot be read ({exc.strerror or exc})",
+                            "Check the path and its permissions") from None
     if not lines:
         raise AnalysisError(where, "is empty", f"Write a header line ({', '.join(numbers)})"
                             f" and one line per measurement")

@@ -48,6 +48,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from ...engine.errors import OutputError
+from ...engine.paths import user_path
 
 MANIFEST = ".sewmech-manifest.json"
 LOCK = ".sewmech.lock"
@@ -235,7 +236,7 @@ def preflight(path: str | Path, *, command: str, option: str = "--out") -> None:
     long work: ``path`` is a file, holds files sewmech did not write, has a damaged record, or
     is locked by another run. Nothing is created; :func:`output_dir` checks again under its
     lock."""
-    root = Path(path).expanduser()
+    root = user_path(path, option)
     try:
         if not root.exists():
             return
@@ -258,6 +259,10 @@ def preflight(path: str | Path, *, command: str, option: str = "--out") -> None:
         raise _os_error(root, exc, option) from None
 
 
+#: what a write into a full file system raises (the disk, the user's quota, a file size limit)
+_DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+
+
 def _os_error(path: Path, exc: OSError, option: str) -> OutputError:
     if exc.errno == errno.ENAMETOOLONG:
         return OutputError(f"{option} {path}", "the path is too long for the file system",
@@ -268,8 +273,8 @@ def _os_error(path: Path, exc: OSError, option: str) -> OutputError:
     if exc.errno == errno.ENOTDIR:
         return OutputError(f"{option} {path}", "a part of the path is a file, not a directory",
                            "Choose a path whose parents are directories")
-    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
-        return OutputError(f"{option} {path}", "the disk is full (or your quota is used up);"
+    if exc.errno in _DISK_FULL:
+        return OutputError(f"{option} {path}", "the disk is full (or a quota or file-size limit is reached);"
                            " nothing half-written was left behind",
                            "Free some space, or choose a directory on another disk")
     return OutputError(f"{option} {path}", f"cannot write there ({exc.strerror or exc})",
@@ -364,7 +369,7 @@ def output_dir(path: str | Path, *, command: str, option: str = "--out",
         ``path`` and the error says where).
     """
     notice = notice or _note
-    root = Path(path).expanduser()
+    root = user_path(path, option)
     created: list[Path] = []
     lock_fd = None
     lock_created = False
@@ -415,7 +420,12 @@ def output_dir(path: str | Path, *, command: str, option: str = "--out",
             os.chmod(staging, dir_mode())
         except OSError as exc:
             raise _os_error(root, exc, option) from None
-        yield staging
+        try:
+            yield staging
+        except OSError as exc:
+            if exc.errno in _DISK_FULL:  # (a write deep inside a writer says only that)
+                raise _os_error(root, exc, option) from None
+            raise
         with _signals_held():
             try:
                 _commit(root, staging, manifest, command, option, notice)
