@@ -508,6 +508,21 @@ def test_2b_a_manifest_that_is_a_symlink_is_refused(tmp_path):
     assert snapshot(tmp_path) == before
 
 
+@pytest.mark.parametrize("command", [["kinematics", "jb1-3", "--step-deg", "30"],
+                                     ["sweep", str(Path(__file__).resolve().parents[1] /
+                                                   "examples/sweeps/jb-feed-small.toml"),
+                                      "--workers", "0"]], ids=["staged", "sweep"])
+def test_2b_a_lock_that_is_a_symlink_never_truncates_its_target(tmp_path, command):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious")
+    d = tmp_path / "o"
+    d.mkdir()
+    (d / ".sewmech.lock").symlink_to(victim)
+    before = snapshot(tmp_path)
+    run(command + ["--out", d], has=(".sewmech.lock",))  # (a sweep: not a sweep's file)
+    assert snapshot(tmp_path) == before and victim.read_text() == "precious"
+
+
 def _run_writing(d: Path, during, command="kinematics"):
     """output_dir with a result a.csv and b.csv, calling ``during(d)`` while the run works."""
     from sewmech.app.files.outdir import output_dir

@@ -202,6 +202,24 @@ def _legacy_report(root: Path) -> bool:
 # ---- the lock -------------------------------------------------------------------------------
 
 
+def _open_lock(root: Path, path: Path, flags: int, option: str) -> int:
+    """Open the lock file, which must be sewmech's own regular file: never through a symbolic
+    link (a link to a file of the user's would have that file truncated)."""
+    try:
+        fd = os.open(path, flags | getattr(os, "O_NOFOLLOW", 0), file_mode())
+    except OSError as exc:
+        if exc.errno != errno.ELOOP:
+            raise
+        fd = None
+    if fd is None or not stat.S_ISREG(os.fstat(fd).st_mode):
+        if fd is not None:
+            os.close(fd)
+        raise OutputError(f"{option} {root}", f"its {LOCK} (sewmech's lock) is not a plain"
+                          " file (a symbolic link, a directory, ...)", "sewmech leaves what is"
+                          " not its own alone; choose another directory")
+    return fd
+
+
 def _locked_by_other(root: Path, fd: int, option: str) -> OutputError:
     other = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "?"
     return OutputError(f"{option} {root}", f"another sewmech run (pid {other}) is writing into"
@@ -246,7 +264,7 @@ def preflight(path: str | Path, *, command: str, option: str = "--out") -> None:
         _refuse_foreign(root, _read_manifest(root, option), command, option)
         lock = root / LOCK
         if lock.exists():
-            fd = os.open(lock, os.O_RDONLY)
+            fd = _open_lock(root, lock, os.O_RDONLY, option)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -396,7 +414,7 @@ def output_dir(path: str | Path, *, command: str, option: str = "--out",
                 created.append(d)
             lock_path = root / LOCK
             lock_created = not lock_path.exists()
-            lock_fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, file_mode())
+            lock_fd = _open_lock(root, lock_path, os.O_RDWR | os.O_CREAT, option)
         except OutputError:
             raise
         except OSError as exc:
@@ -537,7 +555,7 @@ def dir_lock(root: Path, option: str = "--out",
     lock = root / LOCK
     created = not lock.exists()
     try:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT, file_mode())
+        fd = _open_lock(root, lock, os.O_RDWR | os.O_CREAT, option)
     except OSError as exc:
         raise _os_error(root, exc, option) from None
     try:
