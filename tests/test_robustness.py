@@ -4,7 +4,9 @@ design reported feasible that is not, and never a file of the user's touched.
 
 The cases are grouped in the six classes of the robustness issue:
 1 non-finite numbers, 2 output paths and user data, 3 ordinary mistakes that used to give
-tracebacks, 4 impossible physics, 5 declared ranges, 6 newcomer frictions.
+tracebacks, 4 impossible physics, 5 declared ranges, 6 newcomer frictions; and 7 (issue 29)
+every number of the design files, measurements and options in a physically meaningful range,
+and no NaN or infinity in any output.
 """
 
 from __future__ import annotations
@@ -935,3 +937,48 @@ def test_library_errors_are_sewmech_errors():
         assert issubclass(cls, SewmechError)
     e = OutputError("--out x", "is a file", "Give a directory")
     assert str(e) == "--out x: is a file. Give a directory" and e.hint == "Give a directory"
+
+
+# ---- class 7 (issue 29, item 4): every number that enters in range; none leaves as NaN --------
+#
+# Problem, sweep, tolerance and measurement files and the options once took NaN, infinity and
+# numbers no machine has, and gave NaN or Infinity back (`optimize --json` printed bare NaN,
+# `level-change` minus infinity, `trial-balance` +nan dB). Each case asserts exit code 2, the
+# located message, no traceback and the user's files byte for byte unchanged; the cases that
+# run (exit 0) assert that no NaN or Infinity leaves, and that an undefined figure says why.
+
+
+def no_nan(text: str) -> None:
+    """No NaN or infinity in a command's output, in any spelling Python or JSON gives them."""
+    for token in ("NaN", "Infinity", "nan", "inf dB", "+inf", "-inf"):
+        assert token not in text, (token, text[-2000:])
+
+
+def test_7_machine_speed_range(tmp_path):
+    path = tmp_path / "m.toml"
+    path.write_text(mutated("rpm = 1000.0 ", "rpm = 1e-200 "))
+    run(["check", path], has=(str(path), "[speed] rpm", "0.001"))
+    with pytest.raises(OptionError, match="rpm"):
+        sewmech.kinematics(sewmech.load_machine("jb1-3"), [0.0], rpm=1e-170)
+
+
+def test_7_the_slowest_speed_computes_finite_figures():
+    """At --rpm 0.001 every figure is a number: the reduced inertia is J(phi) of the motion's
+    ratios, not 2 T / omega^2 of squares that leave the range of floats; and in Python, a
+    prescribed speed so slow that omega^2 underflows (1e-170 rad/s) still assembles (the loop
+    units' predictor no longer divides by omega^2 = 0) and gives the same J(phi)."""
+    from sewmech.dynamics import inverse_dynamics
+
+    out = run(["dynamics", "jb1-3", "--rpm", "0.001", "--step-deg", "30", "--json"], code=0)
+    no_nan(out.stdout)
+    rows = json.loads(out.stdout)["positions"]
+    assert all(r["reduced_inertia_kgm2"] is not None for r in rows)
+    m = sewmech.load_machine("jb1-3")
+    phi = np.radians(np.arange(0.0, 360.0, 30.0))
+    J = inverse_dynamics(m, phi).reduced_inertia
+    assert [r["reduced_inertia_kgm2"] * 1e6 for r in rows] == pytest.approx(J, rel=1e-9)
+    slow = inverse_dynamics(m, phi, omega=1e-170)
+    np.testing.assert_allclose(slow.reduced_inertia, J, rtol=1e-12)
+    np.testing.assert_allclose(slow.kin.p, inverse_dynamics(m, phi).kin.p, atol=1e-8)
+    rest = inverse_dynamics(m, phi, omega=0.0)
+    assert np.isnan(rest.reduced_inertia).all()  # at rest: no ratios, said so in the JSON

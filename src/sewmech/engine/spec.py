@@ -156,7 +156,7 @@ class Convention(_Spec):
 class Speed(_Spec):
     """``[speed]``: working speed of the upper shaft."""
 
-    rpm: Annotated[Float, Field(gt=0.0, le=1e5)] = 1000.0
+    rpm: Annotated[Float, Field(ge=1e-3, le=1e5)] = 1000.0  # (kinematics.MIN_RPM, MAX_RPM)
     note: str = ""
 
 

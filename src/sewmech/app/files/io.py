@@ -132,6 +132,8 @@ def dynamics_to_dict(res) -> dict:
                                 " it is in potential_energy_J)",
             "shaking_force_N": "-sum m a_G of the moving links: what the frame feels",
             "shaking_moment_Nm": "-sum (I alpha + r_G x m a_G) about the frame origin",
+            "reduced_inertia_kgm2": "J(phi) = 2 T / omega^2; null where the shaft is at rest"
+                                    " (omega = 0: a motion at rest has no velocity ratios)",
             "bearing_front_N": "force of the front bearing on the upper shaft (x, y)",
             "bearing_rear_N": "force of the rear bearing on the upper shaft (x, y)"
                               + (f"; null here: {why}" if why else ""),
