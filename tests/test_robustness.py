@@ -947,11 +947,192 @@ def test_library_errors_are_sewmech_errors():
 # located message, no traceback and the user's files byte for byte unchanged; the cases that
 # run (exit 0) assert that no NaN or Infinity leaves, and that an undefined figure says why.
 
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+SWING = (EXAMPLES / "problems" / "fourbar-swing.toml").read_text(encoding="utf-8")
+LIFT = (EXAMPLES / "problems" / "feed-lift.toml").read_text(encoding="utf-8")
+SMALL_SWEEP = (EXAMPLES / "sweeps" / "jb-feed-small.toml").read_text(encoding="utf-8")
+TOLERANCES = (EXAMPLES / "tolerances" / "jb1-3-feed.toml").read_text(encoding="utf-8")
+VIBRATION = (EXAMPLES / "measurements" / "bartack-1820-vibration.csv").read_text(
+    encoding="utf-8")
+TRIALS = (EXAMPLES / "measurements" / "trial-runs.csv").read_text(encoding="utf-8")
+
 
 def no_nan(text: str) -> None:
     """No NaN or infinity in a command's output, in any spelling Python or JSON gives them."""
     for token in ("NaN", "Infinity", "nan", "inf dB", "+inf", "-inf"):
         assert token not in text, (token, text[-2000:])
+
+
+def run_file(tmp_path, name, text, argv, has):
+    """Write a user's file, run the command on it: exit 2 with the file and ``has`` in the
+    message, no traceback, the user's files unchanged, nothing written."""
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    before = snapshot(tmp_path)
+    out = run([a if a != "FILE" else path for a in argv], has=(str(path), *has), cwd=tmp_path)
+    assert snapshot(tmp_path) == before
+    no_nan(out.stdout)
+    return out
+
+
+PROBLEM_NUMBERS = [  # (case, base text, old, new, message parts)
+    ("target-nan", SWING, "target = 0.9 ", "target = nan ",
+     ("[objective.parts[0]] target", "finite")),
+    ("target-inf", SWING, "target = 0.9 ", "target = -inf ", ("target", "finite")),
+    ("target-huge", SWING, "target = 0.9 ", "target = 1e300 ", ("target", "1e+06")),
+    ("weight-nan", SWING, "target = 0.9 ", "target = 0.9\nweight = nan\n", ("weight",)),
+    ("weight-negative", SWING, "target = 0.9 ", "target = 0.9\nweight = -1.0\n",
+     ("weight", "0 .. 1e+06")),
+    ("weight-huge", SWING, "target = 0.9 ", "target = 0.9\nweight = 1e9\n", ("weight",)),
+    ("weights-all-zero", SWING, "target = 0.9 ", "target = 0.9\nweight = 0.0\n",
+     ("[objective]", "weight 0")),
+    ("scale-zero", SWING, "target = 0.9 ", "target = 0.9\nscale = 0.0\n",
+     ("scale", "1e-06 .. 1e+06")),
+    ("scale-inf", SWING, "target = 0.9 ", "target = 0.9\nscale = inf\n", ("scale", "finite")),
+    ("lower-nan", SWING, "lower = 8.0", "lower = nan", ("[variables[0]] lower", "finite")),
+    ("upper-inf", SWING, "upper = 18.0", "upper = inf", ("[variables[0]] upper", "finite")),
+    ("upper-huge", SWING, "upper = 18.0", "upper = 1e7", ("upper", "1e+06")),
+    ("start-nan", SWING, "upper = 18.0", "upper = 18.0\nstart = nan", ("start", "finite")),
+    ("length-below-domain", LIFT, "lower = 7.0", "lower = -7.0",
+     ("[variables] 1.lower", "lift_cam.arc0.radius", "a length must be positive")),
+    ("min-nan", LIFT, "min = 1.3", "min = nan", ("[constraints[0]] min", "finite")),
+    ("max-inf", LIFT, "max = 1.4", "max = inf", ("[constraints[0]] max", "finite")),
+    ("max-huge", LIFT, "max = -0.3", "max = -1e300", ("[constraints[2]] max", "1e+06")),
+    ("min-above-max", LIFT, "min = 1.3", "min = 1.5", ("[constraints[0]]", "min <= max")),
+    ("regulator-nan", LIFT, "regulator_deg = 0.0", "regulator_deg = nan",
+     ("regulator_deg", "finite")),
+    ("regulator-huge", LIFT, "regulator_deg = 0.0", "regulator_deg = 1e300",
+     ("regulator_deg", "-360 .. 360")),
+    ("phi-inf", SWING, 'metric = "range:theta_rocker"',
+     'metric = "range:theta_rocker"\nphi_deg = inf', ("phi_deg", "finite")),
+    ("unknown-metric", SWING, "range:theta_rocker", "theta_rockr",
+     ("[objective.parts] 0.metric", "unknown metric", "theta_rocker")),
+]
+
+
+@pytest.mark.parametrize("case,base,old,new,has", PROBLEM_NUMBERS,
+                         ids=[c[0] for c in PROBLEM_NUMBERS])
+def test_7_problem_file_numbers(tmp_path, case, base, old, new, has):
+    run_file(tmp_path, "p.toml", mutated(old, new, base),
+             ["optimize", "FILE", "--method", "slsqp", "--json"], has)
+
+
+SWEEP_NUMBERS = [  # (case, old, new, message parts)
+    ("lower-nan", "lower = 1.0", "lower = nan", ("[parameters[0]] lower", "finite")),
+    ("upper-inf", "upper = 1.6", "upper = inf", ("[parameters[0]] upper", "finite")),
+    ("lower-huge", "lower = 7.8", "lower = -1e300", ("[parameters[1]] lower", "1e+06")),
+    ("radius-below-domain", "lower = 7.8", "lower = -7.8",
+     ("[parameters] 1.lower", "a length must be positive")),
+    ("min-nan", "min = 3.6", "min = nan", ("[outputs[0]] min", "finite")),
+    ("max-inf", "max = 4.2", "max = inf", ("[outputs[0]] max", "finite")),
+    ("min-above-max", "min = 1.2", "min = 1.6", ("[outputs[1]]", "min <= max")),
+    ("regulator-inf", "regulator_deg = 30.0", "regulator_deg = inf", ("regulator_deg",)),
+    ("rpm-zero", "step_deg = 5.0", "step_deg = 5.0\nrpm = 0.0", ("[dynamics] rpm",)),
+    ("rpm-tiny", "step_deg = 5.0", "step_deg = 5.0\nrpm = 1e-300", ("[dynamics] rpm", "0.001")),
+    ("rpm-nan", "step_deg = 5.0", "step_deg = 5.0\nrpm = nan", ("[dynamics] rpm", "finite")),
+    ("curve-input-nan", "inputs = { regulator = 30.0 }", "inputs = { regulator = nan }",
+     ("[curves] inputs.regulator", "finite")),
+    ("seed-huge", 'method = "grid"', 'method = "grid"\nseed = 99999999999',
+     ("[sampling] seed",)),
+]
+
+
+@pytest.mark.parametrize("case,old,new,has", SWEEP_NUMBERS, ids=[c[0] for c in SWEEP_NUMBERS])
+def test_7_sweep_file_numbers(tmp_path, case, old, new, has):
+    run_file(tmp_path, "s.toml", mutated(old, new, SMALL_SWEEP),
+             ["sweep", "FILE", "--out", tmp_path / "out", "--workers", "0"], has)
+    assert not (tmp_path / "out").exists()
+
+
+TOLERANCE_NUMBERS = [  # (case, old, new, message parts)
+    ("tolerance-nan", '"feed_cam.arc0.radius" = 0.01', '"feed_cam.arc0.radius" = nan',
+     ("[parameters] feed_cam.arc0.radius", "finite")),
+    ("tolerance-inf", '"feed_cam.arc0.cx" = 0.01', '"feed_cam.arc0.cx" = inf',
+     ("feed_cam.arc0.cx", "finite")),
+    ("tolerance-huge", '"feed_cam.arc0.cx" = 0.01', '"feed_cam.arc0.cx" = 1e300',
+     ("[parameters]", "at most 10")),
+    ("tolerance-negative", '"feed_cam.arc0.cx" = 0.01', '"feed_cam.arc0.cx" = -0.01',
+     ("[parameters]", "finite number >= 0")),
+    ("cost-nan", '"feed_cam.arc3.cx" = 2.0', '"feed_cam.arc3.cx" = nan',
+     ("[cost] feed_cam.arc3.cx", "finite")),
+    ("cost-huge", '"feed_cam.arc3.cx" = 2.0', '"feed_cam.arc3.cx" = 1e300',
+     ("[cost]", "cost weight")),
+    ("angle-inf", "angle_deg = 0.05", "angle_deg = inf", ("[defaults] angle_deg", "finite")),
+    ("angle-huge", "angle_deg = 0.05", "angle_deg = 45.0",
+     ("[defaults] angle_deg", "at most 10 deg")),
+]
+
+
+@pytest.mark.parametrize("case,old,new,has", TOLERANCE_NUMBERS,
+                         ids=[c[0] for c in TOLERANCE_NUMBERS])
+def test_7_tolerance_file_numbers(tmp_path, case, old, new, has):
+    text = mutated(old, new, TOLERANCES)
+    run_file(tmp_path, "tol.toml", text, ["tolerance", "jb1-3", "--output", "stitch_length",
+                                          "--tolerances", "FILE", "--samples", "100", "--json"],
+             has)
+    run_file(tmp_path, "tol.toml", text, ["sensitivity", "jb1-3", "--output", "stitch_length",
+                                          "--tolerances", "FILE", "--json"], has)
+
+
+MEASUREMENT_NUMBERS = [  # (case, base, command, old, new, message parts)
+    ("velocity-huge", VIBRATION, "trial-balance", "205.6,4.735,7.468", "205.6,1e300,7.468",
+     (":8", "column vx_mm_s", "0 .. 1e+06 mm/s")),
+    ("velocity-inf", VIBRATION, "trial-balance", "205.6,4.735,7.468", "205.6,4.735,inf",
+     (":8", "column vy_mm_s", "not a number")),
+    ("velocity-nan", VIBRATION, "trial-balance", "185,5.304,6.967", "185,nan,6.967",
+     (":11", "column vx_mm_s")),
+    ("static-moment-negative", VIBRATION, "trial-balance", "85,7.489,5.206", "-85,7.489,5.206",
+     ("column s_add_gcm", "0 .. 1e+06 g cm")),
+    ("static-moment-huge", VIBRATION, "trial-balance", "85,7.489,5.206", "8.5e9,7.489,5.206",
+     ("column s_add_gcm",)),
+    ("amplitude-huge", TRIALS, "influence-balance", "0,front-x@2000,1.9805,",
+     "0,front-x@2000,1e7,", (":8", "column amplitude_mm_s", "0 .. 1e+06 mm/s")),
+    ("phase-huge", TRIALS, "influence-balance", "1.9805,-144.79,", "1.9805,-1e300,",
+     ("column phase_deg", "-360 .. 360 deg")),
+    ("trial-mass-huge", TRIALS, "influence-balance", "1,front-x@2000,1.0923,-134.29,30,0",
+     "1,front-x@2000,1.0923,-134.29,3e9,0", ("column trial_gcm",)),
+    ("trial-angle-nan", TRIALS, "influence-balance", "1.0923,-134.29,30,0",
+     "1.0923,-134.29,30,nan", ("column trial_angle_deg", "not a number")),
+]
+
+
+@pytest.mark.parametrize("case,base,command,old,new,has", MEASUREMENT_NUMBERS,
+                         ids=[c[0] for c in MEASUREMENT_NUMBERS])
+def test_7_measurement_numbers(tmp_path, case, base, command, old, new, has):
+    run_file(tmp_path, "m.csv", mutated(old, new, base), [command, "FILE", "--json"], has)
+
+
+OPTION_RANGES = [  # (case, argv, message parts)
+    ("level-tiny-huge", ["level-change", "1e-300", "1e300"], ("BEFORE", "1e-06 .. 1e+06 mm/s")),
+    ("level-subnormal", ["level-change", "5e-324", "1"], ("BEFORE",)),
+    ("level-zero", ["level-change", "1", "0"], ("AFTER", "needs a velocity > 0")),
+    ("level-huge", ["level-change", "1", "1e7", "--json"], ("AFTER",)),
+    ("rpm-subnormal", ["dynamics", "jb1-3", "--rpm", "5e-324", "--json"],
+     ("--rpm", "0.001 .. 100000 rev/min")),
+    ("rpm-tiny", ["dynamics", "jb1-3", "--rpm", "1e-170"], ("--rpm",)),
+    ("rpm-below", ["kinematics", "jb1-3", "--rpm", "1e-4"], ("--rpm",)),
+    ("band-zero", ["tolerance", "jb1-3", "--output", "stitch_length", "--band", "0"],
+     ("--band", "1e-06 .. 1000")),
+    ("band-nan", ["tolerance", "jb1-3", "--output", "stitch_length", "--band", "nan"],
+     ("--band",)),
+    ("band-huge", ["tolerance", "jb1-3", "--output", "stitch_length", "--band", "1e300"],
+     ("--band",)),
+    ("seed-negative", ["tolerance", "jb1-3", "--output", "stitch_length", "--seed", "-1"],
+     ("--seed", "0 .. 4294967295")),
+    ("seed-huge", ["optimize", EXAMPLES / "problems" / "fourbar-swing.toml", "--seed",
+                   "99999999999"], ("--seed",)),
+    ("weight-nan", ["balance", "jb1-3", "--criterion", "weighted", "--weight",
+                    "peak_force_N=nan"], ("--weight", "0 .. 1e+06")),
+    ("weight-huge", ["balance", "jb1-3", "--criterion", "weighted", "--weight",
+                     "peak_force_N=1e300"], ("--weight",)),
+]
+
+
+@pytest.mark.parametrize("case,argv,has", OPTION_RANGES, ids=[c[0] for c in OPTION_RANGES])
+def test_7_option_ranges(tmp_path, case, argv, has):
+    out = run(argv, has=has, cwd=tmp_path)
+    no_nan(out.stdout)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_7_machine_speed_range(tmp_path):
@@ -982,3 +1163,17 @@ def test_7_the_slowest_speed_computes_finite_figures():
     np.testing.assert_allclose(slow.kin.p, inverse_dynamics(m, phi).kin.p, atol=1e-8)
     rest = inverse_dynamics(m, phi, omega=0.0)
     assert np.isnan(rest.reduced_inertia).all()  # at rest: no ratios, said so in the JSON
+
+
+def test_7_a_rate_channel_is_a_metric_not_an_infinite_objective(tmp_path):
+    """A rate channel in an objective was accepted and gave the objective Infinity (its
+    derivative was asked of the positions' sensitivities); it is now evaluated, with its exact
+    derivative."""
+    path = tmp_path / "p.toml"
+    path.write_text(mutated('metric = "range:theta_rocker"\ntarget = 0.9',
+                            'metric = "omega_rocker"\nphi_deg = 30.0\ntarget = 10.0', SWING))
+    out = run(["optimize", path, "--method", "slsqp", "--json"], code=0)
+    no_nan(out.stdout)
+    data = json.loads(out.stdout)
+    assert data["objective"] is not None and data["objective_start"] is not None
+    assert data["objective_parts"][0]["unit"] == "rad/s"

@@ -16,6 +16,17 @@ from .evaluate import ASSEMBLY_CLEARANCE_MM
 from .problem import Problem, batch_values
 
 METHODS = ("golden", "cyclic", "powell", "slsqp", "de", "nsga2")
+#: the largest random seed (numpy's and scipy's generators take 0 .. 2**32 - 1 everywhere)
+MAX_SEED = 2**32 - 1
+
+
+def check_seed(seed, option: str = "--seed") -> int:
+    """``seed`` if it is a whole number in 0 .. :data:`MAX_SEED`, else an OptionError."""
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) \
+            or not 0 <= seed <= MAX_SEED:
+        raise OptionError(option, f"must be a whole number in 0 .. {MAX_SEED}, got {seed!r}",
+                          f"Give e.g. {option} 0")
+    return int(seed)
 
 
 def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, seed: int = 0):
@@ -35,6 +46,7 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
     if method not in METHODS:
         raise OptionError("--method", f"unknown method {method!r}",
                           f"Choose one of {', '.join(METHODS)}")
+    check_seed(seed)
     lo, hi = problem.lower, problem.upper
     span = hi - lo
 
@@ -78,7 +90,7 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
 
         u0 = (problem.start - lo) / span
         if not np.all(g_all(u0) > 0):
-            raise OptionError("problem", "the start is not strictly inside every constraint"
+            raise OptionError(problem.where, "the start is not strictly inside every constraint"
                               " and bound, which the interior penalty needs",
                               "Give a start (variables' start) that meets every constraint")
         r = interior_penalty(lambda u: fv_of(to_x(u)), g_all, u0, method=method, tol=tol)

@@ -82,6 +82,10 @@ class ToleranceResult:
                 "allocation_rule": self.allocation_rule}
 
 
+#: the half-width of an allocation band, in the output's unit (mm, deg or rad): a nanometre
+#: (or 1e-6 deg) to a metre, beyond which no dimension of a sewing machine is allocated
+BAND_RANGE = (1e-6, 1e3)
+
 #: the metrics read off the feed (they need a regulator setting)
 FEED = ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
 
@@ -171,8 +175,14 @@ def tolerance_analysis(machine: Machine, metric: str, spec: ToleranceSpec | None
     if not (isinstance(samples, int) and 100 <= samples <= 1_000_000):
         raise OptionError("--samples", f"must be a whole number in 100 .. 1000000, got"
                           f" {samples!r}", "Give e.g. --samples 10000")
-    if band is not None and not (math.isfinite(band) and band > 0):
-        raise OptionError("--band", f"must be a number > 0, got {band!r}")
+    if band is not None and not BAND_RANGE[0] <= band <= BAND_RANGE[1]:  # (a NaN fails too)
+        raise OptionError("--band", f"must be in {BAND_RANGE[0]:g} .. {BAND_RANGE[1]:g} (the"
+                          f" output's unit: mm, deg or rad), got {band!r}",
+                          "Give the half-width of the band the output must stay in, e.g."
+                          " --band 0.05")
+    from .optimize import check_seed
+
+    check_seed(seed)
     tol = tolerances_of(machine, spec, where)
     dist = (spec or ToleranceSpec()).defaults.distribution
     value, d, unit, nominal = _gradient(machine, metric, regulator_deg, phi_deg, option, give)

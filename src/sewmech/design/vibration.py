@@ -33,6 +33,20 @@ from ..engine.errors import AnalysisError
 #: a level change does not depend on it)
 V_REF_MM_S = 5e-5
 
+#: the ranges of measured numbers (CSV files and arguments), checked where they enter:
+#: a vibration velocity or amplitude, mm/s (a magnitude; 1 m/s is far beyond any machine
+#: that still stands, and 0 is a reading at the instrument's floor)
+VELOCITY_RANGE_MM_S = (0.0, 1e6)
+#: a velocity whose level in dB is taken (``sewmech level-change``), mm/s: one nanometre per
+#: second, far below any vibration meter's floor, to a metre per second (a level needs a
+#: velocity > 0: the level of 0 is minus infinity)
+LEVEL_RANGE_MM_S = (1e-6, 1e6)
+#: a static moment (an extra counterweight, a trial mass), g cm: a magnitude (its sign belongs
+#: to its angle), up to 10 kg m
+STATIC_MOMENT_RANGE_GCM = (0.0, 1e6)
+#: a phase or a trial mass's angle, deg: within a turn either way
+ANGLE_RANGE_DEG = (-360.0, 360.0)
+
 
 @dataclass(frozen=True)
 class Crossing:
@@ -108,6 +122,14 @@ def crossing(s_add_gcm: ArrayLike, vx_mm_s: ArrayLike, vy_mm_s: ArrayLike,
     if np.any(vx < 0) or np.any(vy < 0):
         raise AnalysisError(where, "a vibration velocity is negative",
                             "Give the velocities' magnitudes (RMS or peak), mm/s")
+    for name, a, (lo, hi), unit in (("s_add_gcm", s, STATIC_MOMENT_RANGE_GCM, "g cm"),
+                                    ("vx_mm_s", vx, VELOCITY_RANGE_MM_S, "mm/s"),
+                                    ("vy_mm_s", vy, VELOCITY_RANGE_MM_S, "mm/s")):
+        bad = np.nonzero(~((a >= lo) & (a <= hi)))[0]
+        if bad.size:
+            raise AnalysisError(where, f"{name} is {a[bad[0]]:g} {unit} in measurement"
+                                f" {bad[0] + 1}, outside {lo:g} .. {hi:g} {unit}",
+                                "Check the value and its unit")
     if np.unique(s).size < 3:
         raise AnalysisError(where, f"{np.unique(s).size} different static moments measured",
                             "Measure at least three (two on each side of the crossing)")
@@ -231,6 +253,13 @@ def influence_balance(baseline: ArrayLike, trials: ArrayLike, trial_gcm: ArrayLi
     V0 = np.asarray(baseline, dtype=complex)
     Vt = np.atleast_2d(np.asarray(trials, dtype=complex))
     Ut = phasor(trial_gcm, trial_angle_deg).reshape(-1)
+    for name, a, hi, unit in (("a baseline reading", np.abs(V0), VELOCITY_RANGE_MM_S[1], "mm/s"),
+                              ("a trial run's reading", np.abs(Vt), VELOCITY_RANGE_MM_S[1],
+                               "mm/s"),
+                              ("a trial mass", np.abs(Ut), STATIC_MOMENT_RANGE_GCM[1], "g cm")):
+        if not np.all(a <= hi):  # (a NaN fails too)
+            raise AnalysisError("influence", f"{name} is not a finite number within"
+                                f" {hi:g} {unit}", "Check the value and its unit")
     if V0.ndim != 1 or Vt.shape != (len(Ut), len(V0)):
         raise AnalysisError("influence", f"{len(Ut)} trial masses and {len(V0)} baseline"
                             f" readings need trials of shape ({len(Ut)}, {len(V0)}), got"

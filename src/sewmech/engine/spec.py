@@ -53,6 +53,15 @@ Vec2 = tuple[Float, Float]
 NUMBER_LIMIT = 1e9
 
 
+class ValueHint(ValueError):
+    """A validator's ValueError that also says what to do: the :class:`MachineFileError` made
+    from it carries ``hint`` (every file sewmech reads, :func:`validate_model`)."""
+
+    def __init__(self, message: str, hint: str = ""):
+        super().__init__(message)
+        self.hint = hint
+
+
 def _too_large(value, path: str):
     """The first number in ``value`` (a number or nested tuples/lists/dicts of them) beyond
     NUMBER_LIMIT, as (path, value); None if there is none."""
@@ -874,8 +883,10 @@ def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpe
     if model is not None and n_model == len(path) and not rest:
         table, key = ".".join(path), ""  # the table as a whole (a model validator)
     else:
-        table = ".".join(path[:n_model])
-        key = ".".join(path[n_model:])
+        # a top-level table of plain values (a tolerance file's [parameters]) is the table
+        k = 1 if n_model == 0 and path and isinstance(raw.get(path[0]), dict) else n_model
+        table = ".".join(path[:k])
+        key = ".".join(path[k:])
         for part in rest:
             key += f"[{part}]" if isinstance(part, int) else (f".{part}" if key else str(part))
     got = err.get("input")
@@ -928,6 +939,9 @@ def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpe
         msg = err["msg"].removeprefix("Value error, ")
         if not isinstance(got, dict | list):
             msg += f" (got {_short(got)})"
+        cause = (err.get("ctx") or {}).get("error")
+        if isinstance(cause, ValueHint):
+            hint = cause.hint
     elif etype in ("dict_type", "model_type", "model_attributes_type"):
         msg = f"must be a table ({{ key = value, ... }} or [{'.'.join(path)}]), got {_short(got)}"
     else:

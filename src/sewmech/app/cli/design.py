@@ -40,7 +40,7 @@ def optimize_cmd(
     from ...design.problem import OBJECTIVE_FORMS, Problem, load_problem, metric_unit
 
     spec, machine = load_problem(problem)
-    p = Problem(spec, machine)
+    p = Problem(spec, machine, str(problem))
     if out is not None:
         from ..files.outdir import preflight
 

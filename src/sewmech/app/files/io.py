@@ -192,15 +192,18 @@ def pair_forces_frame(res):
 
 def read_csv_columns(path: str | Path, numbers: Sequence[str], texts: Sequence[str] = (),
                      *, what: str = "measurements",
-                     nonnegative: Mapping[str, str] | None = None) -> dict[str, np.ndarray]:
+                     nonnegative: Mapping[str, str] | None = None,
+                     ranges: Mapping[str, tuple[float, float, str]] | None = None
+                     ) -> dict[str, np.ndarray]:
     """The columns ``numbers`` (as floats) and ``texts`` (as strings) of a CSV file with a
     header line; other columns are ignored, blank lines and lines starting with ``#`` skipped.
     ``nonnegative``: number columns that must be >= 0, each with what to do instead (a
-    magnitude's sign belongs to an angle).
+    magnitude's sign belongs to an angle); ``ranges``: number columns that must lie in
+    (lo, hi, unit), a range a measurement can have.
 
     Raises AnalysisError naming the file, and the line and column of a bad value, when a column
-    is missing, a number is not a finite number (or negative where it may not be), or there
-    are no data lines."""
+    is missing, a number is not a finite number (or negative where it may not be, or outside
+    its range), or there are no data lines."""
     import csv
 
     from ...engine.errors import AnalysisError
@@ -242,5 +245,10 @@ def read_csv_columns(path: str | Path, numbers: Sequence[str], texts: Sequence[s
             if nonnegative and c in nonnegative and v < 0.0:
                 raise AnalysisError(f"{where}:{k}", f"column {c}: {cell} is negative",
                                     nonnegative[c])
+            if ranges and c in ranges and not ranges[c][0] <= v <= ranges[c][1]:
+                lo, hi, unit = ranges[c]
+                raise AnalysisError(f"{where}:{k}", f"column {c}: {cell} is outside {lo:g} .."
+                                    f" {hi:g} {unit}, the range a measurement of it can have",
+                                    "Check the value and its unit (docs/balancing.md)")
             out[c].append(v)
     return {c: np.array(v, dtype=float if c in numbers else object) for c, v in out.items()}
