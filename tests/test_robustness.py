@@ -15,6 +15,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -1177,3 +1178,103 @@ def test_7_a_rate_channel_is_a_metric_not_an_infinite_objective(tmp_path):
     data = json.loads(out.stdout)
     assert data["objective"] is not None and data["objective_start"] is not None
     assert data["objective_parts"][0]["unit"] == "rad/s"
+
+
+def test_7_an_undefined_objective_is_null_with_its_reason(tmp_path):
+    """A start that does not assemble: the objective is not defined there. JSON: null and a
+    note; the table: "undefined" and why; the page: the same words."""
+    path = tmp_path / "p.toml"
+    path.write_text(mutated("upper = 18.0", "upper = 40.0\nstart = 39.0", SWING))
+    out = run(["optimize", path, "--method", "slsqp", "--json"], code=0)
+    no_nan(out.stdout)
+    data = json.loads(out.stdout)
+    assert data["objective_start"] is None and "does not assemble" in \
+        data["objective_start_note"]
+    assert data["status"] == "failed"
+    part = data["objective_parts"][0]
+    assert part["start"] is None and "not defined" in part["start_note"]
+    assert "value" not in part  # (start and answer; the part's value was given twice)
+    if None in data["history"]:
+        assert "history_note" in data
+    out = run(["optimize", path, "--method", "slsqp", "--out", tmp_path / "rep"], code=0)
+    no_nan(out.stdout)
+    assert "objective undefined (the design does not assemble" in " ".join(out.stdout.split())
+    page = (tmp_path / "rep" / "index.html").read_text(encoding="utf-8")
+    assert "undefined (the design does not assemble" in " ".join(page.split())
+    no_nan(re.sub(r"data:image/[a-z+]+;base64,[A-Za-z0-9+/=]+", "", page))  # (the figures)
+    no_nan((tmp_path / "rep" / "optimize.json").read_text(encoding="utf-8"))
+
+
+def test_7_lines_crossing_at_zero_velocity_say_the_level_is_undefined(tmp_path):
+    """trial-balance printed "+nan dB" (and JSON NaN) when the fitted lines cross at 0 mm/s."""
+    path = tmp_path / "zero.csv"
+    path.write_text("s_add_gcm,vx_mm_s,vy_mm_s\n0,0,2\n0,0,2.1\n1,0,0\n1,0,0.1\n2,0,0\n2,0,0\n")
+    before = snapshot(tmp_path)
+    out = run(["trial-balance", path, "--json"], code=0)
+    no_nan(out.stdout)
+    data = json.loads(out.stdout)
+    assert data["s_add_gcm"] == pytest.approx(1.6829268, abs=1e-6)  # g cm, the crossing
+    assert data["level_change_db"] is None
+    assert "velocity of 0 mm/s at the crossing" in data["level_change_note"]
+    out = run(["trial-balance", path, "--out", tmp_path / "fit"], code=0)
+    no_nan(out.stdout)
+    assert "level change against S_add = 0 g cm: undefined (the fitted lines give a velocity" \
+        in " ".join(out.stdout.split())
+    no_nan((tmp_path / "fit" / "trial-balance.json").read_text(encoding="utf-8"))
+    assert {k: v for k, v in snapshot(tmp_path).items() if not k.startswith("fit")} == before
+
+
+def test_7_the_feed_at_the_zero_mark_says_why_it_has_no_mid_feed():
+    out = run(["feed", "jb1-3"], code=0)
+    no_nan(out.stdout)
+    assert "undefined" in out.stdout
+    assert "mid_feed_deg undefined at regulator 0 deg: the dog does not pass the middle" in \
+        " ".join(out.stdout.split())
+    out = run(["feed", "jb1-3", "--json"], code=0)
+    zero = next(r for r in json.loads(out.stdout)["settings"] if r["regulator_deg"] == 0.0)
+    assert zero["mid_feed_deg"] is None and "no feed" in zero["mid_feed_deg_note"]
+
+
+def test_7_a_monte_carlo_without_a_design_says_why(monkeypatch):
+    """Tolerances wider than the mechanism can be made within: no design drawn assembles, and
+    the Monte Carlo's figures (mean, std, ...) are null with a note, not NaN (std of one design
+    was NaN, of none an error of numpy's)."""
+    from sewmech.design import tolerances as T
+
+    real = T.sample_values
+
+    def none_assemble(machine, metric, P, **kw):
+        vals, how = real(machine, metric, P, **kw)
+        vals = np.array(vals, dtype=float)
+        vals[1:] = np.nan
+        return vals, how
+
+    monkeypatch.setattr(T, "sample_values", none_assemble)
+    out = run(["tolerance", "jb1-3", "--output", "stitch_length", "--samples", "100", "--json"],
+              code=0)
+    no_nan(out.stdout)
+    mc = json.loads(out.stdout)["monte_carlo"]
+    assert mc["assembled"] == 0 and mc["std"] is None and mc["mean"] is None
+    assert "no design of the 100 drawn assembles" in mc["note"]
+    out = run(["tolerance", "jb1-3", "--output", "stitch_length", "--samples", "100"], code=0)
+    no_nan(out.stdout)
+    assert "Monte Carlo (100 designs): undefined (no design" in " ".join(out.stdout.split())
+
+
+def test_7_json_is_strict_and_a_stray_nan_is_an_internal_error(monkeypatch, tmp_path):
+    """Every command's JSON is strict: a NaN that ever reached it would stop the command as the
+    bug it is (exit 70, naming where), never print the bare NaN JSON readers refuse."""
+    import io
+
+    from sewmech.app.files.io import dump_json
+    from sewmech.design import vibration
+
+    fh = io.StringIO()
+    dump_json({"a": [1.0, {"b": 2.0}]}, fh)
+    assert json.loads(fh.getvalue()) == {"a": [1.0, {"b": 2.0}]}
+    with pytest.raises(RuntimeError, match=r"a non-finite number at a\[1\]\.b"):
+        dump_json({"a": [1.0, {"b": float("nan")}]}, io.StringIO())
+    monkeypatch.setattr(vibration, "level_db", lambda v, ref=vibration.V_REF_MM_S: np.inf)
+    out = run(["level-change", "1", "2", "--json"], code=70, cwd=tmp_path)
+    assert "internal error" in out.stderr and "before_db" in out.stderr
+    no_nan(out.stdout)

@@ -38,7 +38,10 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
     batch call; the compromise nearest the ideal point is the answer, the front in ``front``).
     Returns an OptimizeResult with x (file units), fun, objective_start, constraints (name ->
     value, satisfied), status ("success" when converged with every constraint met, else
-    "failed"), n_evaluations, history."""
+    "failed"), n_evaluations, history; ``fun`` and ``objective_start`` are infinite where the
+    objective is not defined (the design does not assemble over the whole turn, or a metric
+    cannot be formed on it), and ``fun_note`` and ``objective_start_note`` then say why in
+    words (else None)."""
     from scipy.optimize import OptimizeResult
 
     from .methods import golden_section, interior_penalty
@@ -114,10 +117,26 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
     ok = converged and math.isfinite(fx) and all(c["satisfied"] for c in report.values())
     res = OptimizeResult(x=x, fun=fx, objective_start=f0, constraints=report,
                          status="success" if ok else "failed", success=ok, message=message,
-                         n_evaluations=problem.evaluations, history=history, method=method)
+                         n_evaluations=problem.evaluations, history=history, method=method,
+                         fun_note=None if math.isfinite(fx) else undefined_objective(problem, x),
+                         objective_start_note=None if math.isfinite(f0) else
+                         undefined_objective(problem, problem.start))
     if method == "nsga2":
         res.front = front
     return res
+
+
+def undefined_objective(problem: Problem, x: np.ndarray) -> str:
+    """Why the objective is not defined at the design x (file units), in words."""
+    try:
+        if not problem.design_ok(x):
+            return ("not defined: the design does not assemble over the whole turn (every"
+                    f" closed-form unit {ASSEMBLY_CLEARANCE_MM:g} mm from failing, on a 1 deg"
+                    " grid at both ends of every setting input)")
+        problem.objective(x)
+    except SewmechError as exc:
+        return f"not defined: a metric cannot be formed on the design ({exc.message})"
+    return "not defined: a metric of the objective is not a finite number on the design"
 
 
 def _slsqp(problem: Problem, x0, lo, hi, tol: float, history: list) -> tuple[np.ndarray, bool]:

@@ -510,6 +510,9 @@ class Problem:
         out = {"assembles over the whole turn": {
             "value": float(ok), "satisfied": ok, "min": 1.0, "max": None,
             "smallest_margin_mm": min(smallest) if smallest else None,
+            **({} if smallest else {"smallest_margin_note": "none: no closed-form unit's"
+                                    " margin was located (the machine has no such unit, or"
+                                    " it fails to assemble)"}),
             "failures": [f"{f.unit}: {f.from_deg:.6g}..{f.to_deg:.6g} deg, {f.reason}"
                          for p in proofs for f in p.failures]}}
         for c in self.spec.constraints:
@@ -522,6 +525,9 @@ class Problem:
             name = c.metric if c.metric not in out else f"{c.metric} ({len(out)})"
             out[name] = {"value": v if math.isfinite(v) else None, "satisfied": bool(ok),
                          "min": c.min, "max": c.max}
+            if not math.isfinite(v):  # JSON has no NaN: null, and why beside it
+                out[name]["note"] = ("not defined: the metric cannot be formed on the design"
+                                     " (it does not assemble where the metric is read)")
         return out
 
 

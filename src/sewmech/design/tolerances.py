@@ -214,10 +214,21 @@ def tolerance_analysis(machine: Machine, metric: str, spec: ToleranceSpec | None
                               phi_deg=phi_deg, nominal=nominal)
     ok = np.isfinite(vals[1:])
     dv = vals[1:][ok] - vals[0]
-    mc = {"n": int(samples), "assembled": int(ok.sum()), "mean": float(np.mean(dv)),
-          "std": float(np.std(dv, ddof=1)), "p99": float(np.quantile(np.abs(dv), 0.99)),
-          "min": float(dv.min()), "max": float(dv.max()), "seed": int(seed),
+    n_ok = int(ok.sum())
+
+    def stat(f, need: int) -> float | None:  # None where too few designs give the metric
+        return float(f(dv)) if n_ok >= need else None
+
+    mc = {"n": int(samples), "assembled": n_ok, "mean": stat(np.mean, 1),
+          "std": stat(lambda a: np.std(a, ddof=1), 2),
+          "p99": stat(lambda a: np.quantile(np.abs(a), 0.99), 1),
+          "min": stat(np.min, 1), "max": stat(np.max, 1), "seed": int(seed),
           "evaluation": how}
+    if n_ok < 2:  # JSON has no NaN: null, and why beside it
+        mc["note"] = (f"{'no design' if n_ok == 0 else 'only one design'} of the {samples}"
+                      " drawn assembles and gives the metric, so the figures that need"
+                      f" {'one' if n_ok == 0 else 'two'} are not defined (the tolerances are"
+                      " wider than the mechanism can be made within)")
     alloc = rule = None
     if band is not None:
         alloc, rule = allocate(machine, d, costs_of(machine, spec), on, band, dist)

@@ -58,7 +58,9 @@ class Crossing:
     of the difference vx - vy about its line, mm/s; v_at_crossing_mm_s : the fitted velocity
     on either axis there; level_change_db : the level of the fitted velocity vector
     sqrt(vx^2 + vy^2) at the crossing against the lowest static moment measured (negative: the
-    machine is quieter)."""
+    machine is quieter), None where it is not defined (a fitted velocity vector of zero, or
+    of round-off of the velocities measured, at either end: the level of 0 is minus infinity),
+    and ``level_change_note`` then says why."""
 
     s_add_gcm: float
     ci95_gcm: tuple[float, float]
@@ -68,16 +70,20 @@ class Crossing:
     residual_mm_s: float
     v_at_crossing_mm_s: float
     s_lowest_gcm: float
-    level_change_db: float
+    level_change_db: float | None
+    level_change_note: str | None = None
 
     def to_json(self) -> dict:
-        return {"s_add_gcm": self.s_add_gcm, "ci95_gcm": list(self.ci95_gcm),
-                "n_points": self.n_points,
-                "fit_x": {"intercept_mm_s": self.fit_x[0], "slope_mm_s_per_gcm": self.fit_x[1]},
-                "fit_y": {"intercept_mm_s": self.fit_y[0], "slope_mm_s_per_gcm": self.fit_y[1]},
-                "residual_mm_s": self.residual_mm_s,
-                "v_at_crossing_mm_s": self.v_at_crossing_mm_s,
-                "s_lowest_gcm": self.s_lowest_gcm, "level_change_db": self.level_change_db}
+        out = {"s_add_gcm": self.s_add_gcm, "ci95_gcm": list(self.ci95_gcm),
+               "n_points": self.n_points,
+               "fit_x": {"intercept_mm_s": self.fit_x[0], "slope_mm_s_per_gcm": self.fit_x[1]},
+               "fit_y": {"intercept_mm_s": self.fit_y[0], "slope_mm_s_per_gcm": self.fit_y[1]},
+               "residual_mm_s": self.residual_mm_s,
+               "v_at_crossing_mm_s": self.v_at_crossing_mm_s,
+               "s_lowest_gcm": self.s_lowest_gcm, "level_change_db": self.level_change_db}
+        if self.level_change_db is None:
+            out["level_change_note"] = self.level_change_note
+        return out
 
 
 def _line(s: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
@@ -170,9 +176,19 @@ def crossing(s_add_gcm: ArrayLike, vx_mm_s: ArrayLike, vy_mm_s: ArrayLike,
     s0 = lo_s
     v0 = math.hypot(cx[0] + cx[1] * s0, cy[0] + cy[1] * s0)
     v1 = math.hypot(v_cross, float(cy[0] + cy[1] * root))
-    change = level_change_db(v0, v1) if v0 > 0 and v1 > 0 else float("nan")
+    # a level in dB needs a velocity > 0: a fitted velocity vector of zero (or of round-off of
+    # the velocities measured) at either end has none, and the change is said to be undefined
+    floor = 1e-9 * max(float(np.max(vx)), float(np.max(vy)))
+    change, note = None, None
+    if v1 <= floor or v0 <= floor:
+        at = (f"at the crossing ({root:.4g} g cm)" if v1 <= floor
+              else f"at the lowest static moment measured ({s0:g} g cm)")
+        note = (f"not defined: the fitted lines give a velocity of 0 mm/s {at}, and a level in"
+                " dB needs a velocity > 0 (the level of 0 is minus infinity)")
+    else:
+        change = level_change_db(v0, v1)
     return Crossing(float(root), (float(lo), float(hi)), n, (float(cx[0]), float(cx[1])),
-                    (float(cy[0]), float(cy[1])), math.sqrt(var), v_cross, s0, change)
+                    (float(cy[0]), float(cy[1])), math.sqrt(var), v_cross, s0, change, note)
 
 
 def level_db(v_mm_s: ArrayLike, ref_mm_s: float = V_REF_MM_S) -> np.ndarray:

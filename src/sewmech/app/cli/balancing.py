@@ -5,7 +5,6 @@ on a machine), ``trial-balance`` (the crossing of measured vibration velocities)
 
 from __future__ import annotations
 
-import json
 import math
 from enum import Enum
 from pathlib import Path
@@ -239,7 +238,7 @@ def _write_balance(m, out: Path, res, data: dict, names, rpm, point) -> None:
 
     matplotlib.use("Agg")
     from ..drawing.figures import Figures
-    from ..files.io import atomic_write
+    from ..files.io import atomic_write, dump_json
     from ..files.outdir import output_dir
     from ..report.balancing import balancing_section, results_frame
 
@@ -251,7 +250,7 @@ def _write_balance(m, out: Path, res, data: dict, names, rpm, point) -> None:
         with atomic_write(root / f"{m.name}-balance-criteria.csv") as fh:
             results_frame(sec["results"]).to_csv(fh, index=False, float_format="%.10g")
         with atomic_write(root / f"{m.name}-balance.json") as fh:
-            json.dump(data, fh, indent=1)
+            dump_json(data, fh, indent=1)
 
 
 @command("trial-balance")
@@ -282,8 +281,11 @@ def trial_balance_cmd(
     lo, hi = c.ci95_gcm
     console.print(f"crossing: S_add = [bold]{c.s_add_gcm:.4g} g cm[/] (95 % interval {lo:.4g}"
                   f" .. {hi:.4g} g cm) from {c.n_points} measurements")
-    console.print(f"velocity there {c.v_at_crossing_mm_s:.4g} mm/s on each axis; level change"
-                  f" against S_add = {c.s_lowest_gcm:g} g cm: {c.level_change_db:+.2f} dB")
+    change = (f"{c.level_change_db:+.2f} dB" if c.level_change_db is not None else
+              f"undefined ({c.level_change_note.removeprefix('not defined: ')})")
+    console.print(escape(f"velocity there {c.v_at_crossing_mm_s:.4g} mm/s on each axis; level"
+                         f" change against S_add = {c.s_lowest_gcm:g} g cm: {change}"),
+                  highlight=False)
     if out is not None:
         console.print(f"written: plot and fit in {out}")
 
@@ -296,7 +298,7 @@ def _write_trial(out: Path, file: Path, cols: dict, c) -> None:
     import pandas as pd
 
     from ..drawing.figures import save_figure
-    from ..files.io import atomic_write
+    from ..files.io import atomic_write, dump_json
     from ..files.outdir import output_dir
 
     s = cols["s_add_gcm"]
@@ -321,7 +323,7 @@ def _write_trial(out: Path, file: Path, cols: dict, c) -> None:
                           "vy_fit_mm_s": c.fit_y[0] + c.fit_y[1] * grid}).to_csv(
                 fh, index=False, float_format="%.10g")
         with atomic_write(root / "trial-balance.json") as fh:
-            json.dump(c.to_json(), fh, indent=1)
+            dump_json(c.to_json(), fh, indent=1)
 
 
 @command("influence-balance")

@@ -45,6 +45,37 @@ def atomic_write(path: str | Path, mode: str = "w", encoding: str | None = "utf-
         raise
 
 
+def dump_json(data, fh, *, indent: int | None = None) -> None:
+    """``data`` as JSON into the open text file ``fh``: strict JSON, which has no NaN or
+    infinity. Every command gives an undefined figure as null with a note that says why, at
+    its source; a NaN or an infinity that still reaches this point is a bug in sewmech, and
+    is raised as one (a RuntimeError naming where it is) rather than written as the bare
+    ``NaN`` that JSON readers refuse."""
+    try:
+        text = json.dumps(data, indent=indent, allow_nan=False)
+    except ValueError:
+        raise RuntimeError(f"a non-finite number at {_non_finite_path(data)} was about to be"
+                           " written as JSON") from None
+    fh.write(text)
+
+
+def _non_finite_path(data, path: str = "") -> str:
+    """Where the first NaN or infinity in ``data`` is (``objective_parts[0].start``), or ""."""
+    if isinstance(data, float):
+        return "" if math.isfinite(data) else (path or "the top level")
+    if isinstance(data, dict):
+        items = ((f"{path}.{k}" if path else str(k), v) for k, v in data.items())
+    elif isinstance(data, list | tuple):
+        items = ((f"{path}[{k}]", v) for k, v in enumerate(data))
+    else:
+        return ""
+    for where, v in items:
+        hit = _non_finite_path(v, where)
+        if hit:
+            return hit
+    return ""
+
+
 def _clean(x):
     """JSON has no NaN: write null for infeasible entries."""
     if isinstance(x, float) and not math.isfinite(x):
@@ -74,7 +105,7 @@ def write_kinematics_json(result: KinematicsResult, path: str | Path) -> Path:
     """Write :func:`kinematics_to_dict` as JSON, atomically."""
     path = Path(path)
     with atomic_write(path) as fh:
-        json.dump(kinematics_to_dict(result), fh, indent=1)
+        dump_json(kinematics_to_dict(result), fh, indent=1)
     return path
 
 
