@@ -875,6 +875,11 @@ def _counterweight_domain(key: str, got) -> tuple[str, str]:
     return f"is {shown}: {what}", hint
 
 
+#: pydantic's errors of a number beyond a bound: the comparison and the bound's key in ctx
+_BOUND_ERRORS = {"greater_than": (">", "gt"), "greater_than_equal": (">=", "ge"),
+                 "less_than": ("<", "lt"), "less_than_equal": ("<=", "le")}
+
+
 def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpec,
              doc: str = "docs/machine-files.md") -> MachineFileError:
     loc = tuple(err["loc"])
@@ -917,6 +922,12 @@ def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpe
         msg, hint = _counterweight_domain(key, got)
     elif etype in ("greater_than", "greater_than_equal") and "length" in key:
         msg = f"must be a positive length in mm, got {_short(got)}"
+    elif etype in _BOUND_ERRORS:  # a number beyond a bound of its key (Field(ge=...))
+        op, ctx_key = _BOUND_ERRORS[etype]
+        limit = (err.get("ctx") or {}).get(ctx_key)
+        shown = f"{limit:g}" if isinstance(limit, int | float) else str(limit)
+        msg = f"must be {op} {shown}, got {_short(got)}"
+        hint = f"Check the value and its unit ({doc}; docs/errors.md gives every range)"
     elif etype == "union_tag_not_found":
         msg = "missing key 'type'"
         hint = "Every unit says its type: crank, point, rrr, rrp, rpr or loop"
