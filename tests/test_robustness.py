@@ -1136,6 +1136,19 @@ def test_7_option_ranges(tmp_path, case, argv, has):
     assert list(tmp_path.iterdir()) == []
 
 
+LOADS = JB[JB.index("[[loads]]"):JB.index("\n# the upper shaft in 3-D")]
+
+
+@pytest.mark.parametrize("old,new,part", [
+    ("force_N = 2.94", "force_N = nan", "finite"),
+    ("force_N = 14.7", "force_N = 1e300", "within +-100000 N"),
+    ("force_N = 7.35", "force_N = -2e5", "within +-100000 N"),
+], ids=["nan", "huge", "ten-tonnes"])
+def test_7_load_file_forces(tmp_path, old, new, part):
+    run_file(tmp_path, "loads.toml", mutated(old, new, LOADS),
+             ["dynamics", "jb1-3", "--loads", "FILE", "--json"], ("force_N", part))
+
+
 def test_7_machine_speed_range(tmp_path):
     path = tmp_path / "m.toml"
     path.write_text(mutated("rpm = 1000.0 ", "rpm = 1e-200 "))

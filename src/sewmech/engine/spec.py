@@ -673,6 +673,11 @@ class CounterweightSpec(_Spec):
         return self.static_moment_gcm is not None
 
 
+#: the largest process load, N: ten tonnes, far beyond any force a sewing machine's process
+#: puts on it (its presser foot about 15 N, the needle through thick material a few hundred)
+MAX_LOAD_N = 1e5
+
+
 class LoadSpec(_Spec):
     """``[[loads]]``: a process force on a point of a link while the shaft angle is inside one
     of its windows (degrees in the machine's convention; a window may wrap through 360).
@@ -691,6 +696,15 @@ class LoadSpec(_Spec):
     windows_deg: list[tuple[Float, Float]] = Field(default_factory=lambda: [(0.0, 360.0)],
                                                    min_length=1)
     note: str = ""
+
+    @field_validator("force_N")
+    @classmethod
+    def _force(cls, v):
+        if not abs(v) <= MAX_LOAD_N:  # (a NaN is refused before: allow_inf_nan)
+            raise ValueHint(f"a process load must be within +-{MAX_LOAD_N:g} N",
+                            "Give the force in N (a presser foot's is about 15 N, the needle's"
+                            " through thick material a few hundred)")
+        return v
 
     @model_validator(mode="after")
     def _direction(self):
