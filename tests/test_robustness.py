@@ -4,7 +4,9 @@ design reported feasible that is not, and never a file of the user's touched.
 
 The cases are grouped in the six classes of the robustness issue:
 1 non-finite numbers, 2 output paths and user data, 3 ordinary mistakes that used to give
-tracebacks, 4 impossible physics, 5 declared ranges, 6 newcomer frictions.
+tracebacks, 4 impossible physics, 5 declared ranges, 6 newcomer frictions; and 7 (issue 29)
+every number of the design files, measurements and options in a physically meaningful range,
+and no NaN or infinity in any output.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -1180,3 +1183,356 @@ def test_library_errors_are_sewmech_errors():
         assert issubclass(cls, SewmechError)
     e = OutputError("--out x", "is a file", "Give a directory")
     assert str(e) == "--out x: is a file. Give a directory" and e.hint == "Give a directory"
+
+
+# ---- class 7 (issue 29, item 4): every number that enters in range; none leaves as NaN --------
+#
+# Problem, sweep, tolerance and measurement files and the options once took NaN, infinity and
+# numbers no machine has, and gave NaN or Infinity back (`optimize --json` printed bare NaN,
+# `level-change` minus infinity, `trial-balance` +nan dB). Each case asserts exit code 2, the
+# located message, no traceback and the user's files byte for byte unchanged; the cases that
+# run (exit 0) assert that no NaN or Infinity leaves, and that an undefined figure says why.
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+SWING = (EXAMPLES / "problems" / "fourbar-swing.toml").read_text(encoding="utf-8")
+LIFT = (EXAMPLES / "problems" / "feed-lift.toml").read_text(encoding="utf-8")
+SMALL_SWEEP = (EXAMPLES / "sweeps" / "jb-feed-small.toml").read_text(encoding="utf-8")
+TOLERANCES = (EXAMPLES / "tolerances" / "jb1-3-feed.toml").read_text(encoding="utf-8")
+VIBRATION = (EXAMPLES / "measurements" / "bartack-1820-vibration.csv").read_text(
+    encoding="utf-8")
+TRIALS = (EXAMPLES / "measurements" / "trial-runs.csv").read_text(encoding="utf-8")
+
+
+def no_nan(text: str) -> None:
+    """No NaN or infinity in a command's output, in any spelling Python or JSON gives them."""
+    for token in ("NaN", "Infinity", "nan", "inf dB", "+inf", "-inf"):
+        assert token not in text, (token, text[-2000:])
+
+
+def run_file(tmp_path, name, text, argv, has):
+    """Write a user's file, run the command on it: exit 2 with the file and ``has`` in the
+    message, no traceback, the user's files unchanged, nothing written."""
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    before = snapshot(tmp_path)
+    out = run([a if a != "FILE" else path for a in argv], has=(str(path), *has), cwd=tmp_path)
+    assert snapshot(tmp_path) == before
+    no_nan(out.stdout)
+    return out
+
+
+PROBLEM_NUMBERS = [  # (case, base text, old, new, message parts)
+    ("target-nan", SWING, "target = 0.9 ", "target = nan ",
+     ("[objective.parts[0]] target", "finite")),
+    ("target-inf", SWING, "target = 0.9 ", "target = -inf ", ("target", "finite")),
+    ("target-huge", SWING, "target = 0.9 ", "target = 1e300 ", ("target", "1e+06")),
+    ("weight-nan", SWING, "target = 0.9 ", "target = 0.9\nweight = nan\n", ("weight",)),
+    ("weight-negative", SWING, "target = 0.9 ", "target = 0.9\nweight = -1.0\n",
+     ("weight", "0 .. 1e+06")),
+    ("weight-huge", SWING, "target = 0.9 ", "target = 0.9\nweight = 1e9\n", ("weight",)),
+    ("weights-all-zero", SWING, "target = 0.9 ", "target = 0.9\nweight = 0.0\n",
+     ("[objective]", "weight 0")),
+    ("scale-zero", SWING, "target = 0.9 ", "target = 0.9\nscale = 0.0\n",
+     ("scale", "1e-06 .. 1e+06")),
+    ("scale-inf", SWING, "target = 0.9 ", "target = 0.9\nscale = inf\n", ("scale", "finite")),
+    ("lower-nan", SWING, "lower = 8.0", "lower = nan", ("[variables[0]] lower", "finite")),
+    ("upper-inf", SWING, "upper = 18.0", "upper = inf", ("[variables[0]] upper", "finite")),
+    ("upper-huge", SWING, "upper = 18.0", "upper = 1e7", ("upper", "1e+06")),
+    ("start-nan", SWING, "upper = 18.0", "upper = 18.0\nstart = nan", ("start", "finite")),
+    ("length-below-domain", LIFT, "lower = 7.0", "lower = -7.0",
+     ("[variables] 1.lower", "lift_cam.arc0.radius", "a length must be positive")),
+    ("min-nan", LIFT, "min = 1.3", "min = nan", ("[constraints[0]] min", "finite")),
+    ("max-inf", LIFT, "max = 1.4", "max = inf", ("[constraints[0]] max", "finite")),
+    ("max-huge", LIFT, "max = -0.3", "max = -1e300", ("[constraints[2]] max", "1e+06")),
+    ("min-above-max", LIFT, "min = 1.3", "min = 1.5", ("[constraints[0]]", "min <= max")),
+    ("regulator-nan", LIFT, "regulator_deg = 0.0", "regulator_deg = nan",
+     ("regulator_deg", "finite")),
+    ("regulator-huge", LIFT, "regulator_deg = 0.0", "regulator_deg = 1e300",
+     ("regulator_deg", "-360 .. 360")),
+    ("phi-inf", SWING, 'metric = "range:theta_rocker"',
+     'metric = "range:theta_rocker"\nphi_deg = inf', ("phi_deg", "finite")),
+    ("unknown-metric", SWING, "range:theta_rocker", "theta_rockr",
+     ("[objective.parts] 0.metric", "unknown metric", "theta_rocker")),
+]
+
+
+@pytest.mark.parametrize("case,base,old,new,has", PROBLEM_NUMBERS,
+                         ids=[c[0] for c in PROBLEM_NUMBERS])
+def test_7_problem_file_numbers(tmp_path, case, base, old, new, has):
+    run_file(tmp_path, "p.toml", mutated(old, new, base),
+             ["optimize", "FILE", "--method", "slsqp", "--json"], has)
+
+
+SWEEP_NUMBERS = [  # (case, old, new, message parts)
+    ("lower-nan", "lower = 1.0", "lower = nan", ("[parameters[0]] lower", "finite")),
+    ("upper-inf", "upper = 1.6", "upper = inf", ("[parameters[0]] upper", "finite")),
+    ("lower-huge", "lower = 7.8", "lower = -1e300", ("[parameters[1]] lower", "1e+06")),
+    ("radius-below-domain", "lower = 7.8", "lower = -7.8",
+     ("[parameters] 1.lower", "a length must be positive")),
+    ("min-nan", "min = 3.6", "min = nan", ("[outputs[0]] min", "finite")),
+    ("max-inf", "max = 4.2", "max = inf", ("[outputs[0]] max", "finite")),
+    ("min-above-max", "min = 1.2", "min = 1.6", ("[outputs[1]]", "min <= max")),
+    ("regulator-inf", "regulator_deg = 30.0", "regulator_deg = inf", ("regulator_deg",)),
+    ("rpm-zero", "step_deg = 5.0", "step_deg = 5.0\nrpm = 0.0", ("[dynamics] rpm",)),
+    ("rpm-tiny", "step_deg = 5.0", "step_deg = 5.0\nrpm = 1e-300", ("[dynamics] rpm", "0.001")),
+    ("rpm-nan", "step_deg = 5.0", "step_deg = 5.0\nrpm = nan", ("[dynamics] rpm", "finite")),
+    ("curve-input-nan", "inputs = { regulator = 30.0 }", "inputs = { regulator = nan }",
+     ("[curves] inputs.regulator", "finite")),
+    ("seed-huge", 'method = "grid"', 'method = "grid"\nseed = 99999999999',
+     ("[sampling] seed",)),
+]
+
+
+@pytest.mark.parametrize("case,old,new,has", SWEEP_NUMBERS, ids=[c[0] for c in SWEEP_NUMBERS])
+def test_7_sweep_file_numbers(tmp_path, case, old, new, has):
+    run_file(tmp_path, "s.toml", mutated(old, new, SMALL_SWEEP),
+             ["sweep", "FILE", "--out", tmp_path / "out", "--workers", "0"], has)
+    assert not (tmp_path / "out").exists()
+
+
+TOLERANCE_NUMBERS = [  # (case, old, new, message parts)
+    ("tolerance-nan", '"feed_cam.arc0.radius" = 0.01', '"feed_cam.arc0.radius" = nan',
+     ("[parameters] feed_cam.arc0.radius", "finite")),
+    ("tolerance-inf", '"feed_cam.arc0.cx" = 0.01', '"feed_cam.arc0.cx" = inf',
+     ("feed_cam.arc0.cx", "finite")),
+    ("tolerance-huge", '"feed_cam.arc0.cx" = 0.01', '"feed_cam.arc0.cx" = 1e300',
+     ("[parameters]", "at most 10")),
+    ("tolerance-negative", '"feed_cam.arc0.cx" = 0.01', '"feed_cam.arc0.cx" = -0.01',
+     ("[parameters]", "finite number >= 0")),
+    ("cost-nan", '"feed_cam.arc3.cx" = 2.0', '"feed_cam.arc3.cx" = nan',
+     ("[cost] feed_cam.arc3.cx", "finite")),
+    ("cost-huge", '"feed_cam.arc3.cx" = 2.0', '"feed_cam.arc3.cx" = 1e300',
+     ("[cost]", "cost weight")),
+    ("angle-inf", "angle_deg = 0.05", "angle_deg = inf", ("[defaults] angle_deg", "finite")),
+    ("angle-huge", "angle_deg = 0.05", "angle_deg = 45.0",
+     ("[defaults] angle_deg", "at most 10 deg")),
+]
+
+
+@pytest.mark.parametrize("case,old,new,has", TOLERANCE_NUMBERS,
+                         ids=[c[0] for c in TOLERANCE_NUMBERS])
+def test_7_tolerance_file_numbers(tmp_path, case, old, new, has):
+    text = mutated(old, new, TOLERANCES)
+    run_file(tmp_path, "tol.toml", text, ["tolerance", "jb1-3", "--output", "stitch_length",
+                                          "--tolerances", "FILE", "--samples", "100", "--json"],
+             has)
+    run_file(tmp_path, "tol.toml", text, ["sensitivity", "jb1-3", "--output", "stitch_length",
+                                          "--tolerances", "FILE", "--json"], has)
+
+
+MEASUREMENT_NUMBERS = [  # (case, base, command, old, new, message parts)
+    ("velocity-huge", VIBRATION, "trial-balance", "205.6,4.735,7.468", "205.6,1e300,7.468",
+     (":8", "column vx_mm_s", "0 .. 1e+06 mm/s")),
+    ("velocity-inf", VIBRATION, "trial-balance", "205.6,4.735,7.468", "205.6,4.735,inf",
+     (":8", "column vy_mm_s", "not a number")),
+    ("velocity-nan", VIBRATION, "trial-balance", "185,5.304,6.967", "185,nan,6.967",
+     (":11", "column vx_mm_s")),
+    ("static-moment-negative", VIBRATION, "trial-balance", "85,7.489,5.206", "-85,7.489,5.206",
+     ("column s_add_gcm", "0 .. 1e+06 g cm")),
+    ("static-moment-huge", VIBRATION, "trial-balance", "85,7.489,5.206", "8.5e9,7.489,5.206",
+     ("column s_add_gcm",)),
+    ("amplitude-huge", TRIALS, "influence-balance", "0,front-x@2000,1.9805,",
+     "0,front-x@2000,1e7,", (":8", "column amplitude_mm_s", "0 .. 1e+06 mm/s")),
+    ("phase-huge", TRIALS, "influence-balance", "1.9805,-144.79,", "1.9805,-1e300,",
+     ("column phase_deg", "-360 .. 360 deg")),
+    ("trial-mass-huge", TRIALS, "influence-balance", "1,front-x@2000,1.0923,-134.29,30,0",
+     "1,front-x@2000,1.0923,-134.29,3e9,0", ("column trial_gcm",)),
+    ("trial-angle-nan", TRIALS, "influence-balance", "1.0923,-134.29,30,0",
+     "1.0923,-134.29,30,nan", ("column trial_angle_deg", "not a number")),
+]
+
+
+@pytest.mark.parametrize("case,base,command,old,new,has", MEASUREMENT_NUMBERS,
+                         ids=[c[0] for c in MEASUREMENT_NUMBERS])
+def test_7_measurement_numbers(tmp_path, case, base, command, old, new, has):
+    run_file(tmp_path, "m.csv", mutated(old, new, base), [command, "FILE", "--json"], has)
+
+
+OPTION_RANGES = [  # (case, argv, message parts)
+    ("level-tiny-huge", ["level-change", "1e-300", "1e300"], ("BEFORE", "1e-06 .. 1e+06 mm/s")),
+    ("level-subnormal", ["level-change", "5e-324", "1"], ("BEFORE",)),
+    ("level-zero", ["level-change", "1", "0"], ("AFTER", "needs a velocity > 0")),
+    ("level-huge", ["level-change", "1", "1e7", "--json"], ("AFTER",)),
+    ("rpm-subnormal", ["dynamics", "jb1-3", "--rpm", "5e-324", "--json"],
+     ("--rpm", "0.001 .. 100000 rev/min")),
+    ("rpm-tiny", ["dynamics", "jb1-3", "--rpm", "1e-170"], ("--rpm",)),
+    ("rpm-below", ["kinematics", "jb1-3", "--rpm", "1e-4"], ("--rpm",)),
+    ("band-zero", ["tolerance", "jb1-3", "--output", "stitch_length", "--band", "0"],
+     ("--band", "1e-06 .. 1000")),
+    ("band-nan", ["tolerance", "jb1-3", "--output", "stitch_length", "--band", "nan"],
+     ("--band",)),
+    ("band-huge", ["tolerance", "jb1-3", "--output", "stitch_length", "--band", "1e300"],
+     ("--band",)),
+    ("seed-negative", ["tolerance", "jb1-3", "--output", "stitch_length", "--seed", "-1"],
+     ("--seed", "0 .. 4294967295")),
+    ("seed-huge", ["optimize", EXAMPLES / "problems" / "fourbar-swing.toml", "--seed",
+                   "99999999999"], ("--seed",)),
+    ("weight-nan", ["balance", "jb1-3", "--criterion", "weighted", "--weight",
+                    "peak_force_N=nan"], ("--weight", "0 .. 1e+06")),
+    ("weight-huge", ["balance", "jb1-3", "--criterion", "weighted", "--weight",
+                     "peak_force_N=1e300"], ("--weight",)),
+]
+
+
+@pytest.mark.parametrize("case,argv,has", OPTION_RANGES, ids=[c[0] for c in OPTION_RANGES])
+def test_7_option_ranges(tmp_path, case, argv, has):
+    out = run(argv, has=has, cwd=tmp_path)
+    no_nan(out.stdout)
+    assert list(tmp_path.iterdir()) == []
+
+
+LOADS = JB[JB.index("[[loads]]"):JB.index("\n# the upper shaft in 3-D")]
+
+
+@pytest.mark.parametrize("old,new,part", [
+    ("force_N = 2.94", "force_N = nan", "finite"),
+    ("force_N = 14.7", "force_N = 1e300", "within +-100000 N"),
+    ("force_N = 7.35", "force_N = -2e5", "within +-100000 N"),
+], ids=["nan", "huge", "ten-tonnes"])
+def test_7_load_file_forces(tmp_path, old, new, part):
+    run_file(tmp_path, "loads.toml", mutated(old, new, LOADS),
+             ["dynamics", "jb1-3", "--loads", "FILE", "--json"], ("force_N", part))
+
+
+def test_7_machine_speed_range(tmp_path):
+    path = tmp_path / "m.toml"
+    path.write_text(mutated("rpm = 1000.0 ", "rpm = 1e-200 "))
+    run(["check", path], has=(str(path), "[speed] rpm", "0.001"))
+    with pytest.raises(OptionError, match="rpm"):
+        sewmech.kinematics(sewmech.load_machine("jb1-3"), [0.0], rpm=1e-170)
+
+
+def test_7_the_slowest_speed_computes_finite_figures():
+    """At --rpm 0.001 every figure is a number: the reduced inertia is J(phi) of the motion's
+    ratios, not 2 T / omega^2 of squares that leave the range of floats; and in Python, a
+    prescribed speed so slow that omega^2 underflows (1e-170 rad/s) still assembles (the loop
+    units' predictor no longer divides by omega^2 = 0) and gives the same J(phi)."""
+    from sewmech.dynamics import inverse_dynamics
+
+    out = run(["dynamics", "jb1-3", "--rpm", "0.001", "--step-deg", "30", "--json"], code=0)
+    no_nan(out.stdout)
+    rows = json.loads(out.stdout)["positions"]
+    assert all(r["reduced_inertia_kgm2"] is not None for r in rows)
+    m = sewmech.load_machine("jb1-3")
+    phi = np.radians(np.arange(0.0, 360.0, 30.0))
+    J = inverse_dynamics(m, phi).reduced_inertia
+    assert [r["reduced_inertia_kgm2"] * 1e6 for r in rows] == pytest.approx(J, rel=1e-9)
+    slow = inverse_dynamics(m, phi, omega=1e-170)
+    np.testing.assert_allclose(slow.reduced_inertia, J, rtol=1e-12)
+    np.testing.assert_allclose(slow.kin.p, inverse_dynamics(m, phi).kin.p, atol=1e-8)
+    rest = inverse_dynamics(m, phi, omega=0.0)
+    assert np.isnan(rest.reduced_inertia).all()  # at rest: no ratios, said so in the JSON
+
+
+def test_7_a_rate_channel_is_a_metric_not_an_infinite_objective(tmp_path):
+    """A rate channel in an objective was accepted and gave the objective Infinity (its
+    derivative was asked of the positions' sensitivities); it is now evaluated, with its exact
+    derivative."""
+    path = tmp_path / "p.toml"
+    path.write_text(mutated('metric = "range:theta_rocker"\ntarget = 0.9',
+                            'metric = "omega_rocker"\nphi_deg = 30.0\ntarget = 10.0', SWING))
+    out = run(["optimize", path, "--method", "slsqp", "--json"], code=0)
+    no_nan(out.stdout)
+    data = json.loads(out.stdout)
+    assert data["objective"] is not None and data["objective_start"] is not None
+    assert data["objective_parts"][0]["unit"] == "rad/s"
+
+
+def test_7_an_undefined_objective_is_null_with_its_reason(tmp_path):
+    """A start that does not assemble: the objective is not defined there. JSON: null and a
+    note; the table: "undefined" and why; the page: the same words."""
+    path = tmp_path / "p.toml"
+    path.write_text(mutated("upper = 18.0", "upper = 40.0\nstart = 39.0", SWING))
+    out = run(["optimize", path, "--method", "slsqp", "--json"], code=0)
+    no_nan(out.stdout)
+    data = json.loads(out.stdout)
+    assert data["objective_start"] is None and "does not assemble" in \
+        data["objective_start_note"]
+    assert data["status"] == "failed"
+    part = data["objective_parts"][0]
+    assert part["start"] is None and "not defined" in part["start_note"]
+    assert "value" not in part  # (start and answer; the part's value was given twice)
+    if None in data["history"]:
+        assert "history_note" in data
+    out = run(["optimize", path, "--method", "slsqp", "--out", tmp_path / "rep"], code=0)
+    no_nan(out.stdout)
+    assert "objective undefined (the design does not assemble" in " ".join(out.stdout.split())
+    page = (tmp_path / "rep" / "index.html").read_text(encoding="utf-8")
+    assert "undefined (the design does not assemble" in " ".join(page.split())
+    no_nan(re.sub(r"data:image/[a-z+]+;base64,[A-Za-z0-9+/=]+", "", page))  # (the figures)
+    no_nan((tmp_path / "rep" / "optimize.json").read_text(encoding="utf-8"))
+
+
+def test_7_lines_crossing_at_zero_velocity_say_the_level_is_undefined(tmp_path):
+    """trial-balance printed "+nan dB" (and JSON NaN) when the fitted lines cross at 0 mm/s."""
+    path = tmp_path / "zero.csv"
+    path.write_text("s_add_gcm,vx_mm_s,vy_mm_s\n0,0,2\n0,0,2.1\n1,0,0\n1,0,0.1\n2,0,0\n2,0,0\n")
+    before = snapshot(tmp_path)
+    out = run(["trial-balance", path, "--json"], code=0)
+    no_nan(out.stdout)
+    data = json.loads(out.stdout)
+    assert data["s_add_gcm"] == pytest.approx(1.6829268, abs=1e-6)  # g cm, the crossing
+    assert data["level_change_db"] is None
+    assert "velocity of 0 mm/s at the crossing" in data["level_change_note"]
+    out = run(["trial-balance", path, "--out", tmp_path / "fit"], code=0)
+    no_nan(out.stdout)
+    assert "level change against S_add = 0 g cm: undefined (the fitted lines give a velocity" \
+        in " ".join(out.stdout.split())
+    no_nan((tmp_path / "fit" / "trial-balance.json").read_text(encoding="utf-8"))
+    assert {k: v for k, v in snapshot(tmp_path).items() if not k.startswith("fit")} == before
+
+
+def test_7_the_feed_at_the_zero_mark_says_why_it_has_no_mid_feed():
+    out = run(["feed", "jb1-3"], code=0)
+    no_nan(out.stdout)
+    assert "undefined" in out.stdout
+    assert "mid_feed_deg undefined at regulator 0 deg: the dog does not pass the middle" in \
+        " ".join(out.stdout.split())
+    out = run(["feed", "jb1-3", "--json"], code=0)
+    zero = next(r for r in json.loads(out.stdout)["settings"] if r["regulator_deg"] == 0.0)
+    assert zero["mid_feed_deg"] is None and "no feed" in zero["mid_feed_deg_note"]
+
+
+def test_7_a_monte_carlo_without_a_design_says_why(monkeypatch):
+    """Tolerances wider than the mechanism can be made within: no design drawn assembles, and
+    the Monte Carlo's figures (mean, std, ...) are null with a note, not NaN (std of one design
+    was NaN, of none an error of numpy's)."""
+    from sewmech.design import tolerances as T
+
+    real = T.sample_values
+
+    def none_assemble(machine, metric, P, **kw):
+        vals, how = real(machine, metric, P, **kw)
+        vals = np.array(vals, dtype=float)
+        vals[1:] = np.nan
+        return vals, how
+
+    monkeypatch.setattr(T, "sample_values", none_assemble)
+    out = run(["tolerance", "jb1-3", "--output", "stitch_length", "--samples", "100", "--json"],
+              code=0)
+    no_nan(out.stdout)
+    mc = json.loads(out.stdout)["monte_carlo"]
+    assert mc["assembled"] == 0 and mc["std"] is None and mc["mean"] is None
+    assert "no design of the 100 drawn assembles" in mc["note"]
+    out = run(["tolerance", "jb1-3", "--output", "stitch_length", "--samples", "100"], code=0)
+    no_nan(out.stdout)
+    assert "Monte Carlo (100 designs): undefined (no design" in " ".join(out.stdout.split())
+
+
+def test_7_json_is_strict_and_a_stray_nan_is_an_internal_error(monkeypatch, tmp_path):
+    """Every command's JSON is strict: a NaN that ever reached it would stop the command as the
+    bug it is (exit 70, naming where), never print the bare NaN JSON readers refuse."""
+    import io
+
+    from sewmech.app.files.io import dump_json
+    from sewmech.design import vibration
+
+    fh = io.StringIO()
+    dump_json({"a": [1.0, {"b": 2.0}]}, fh)
+    assert json.loads(fh.getvalue()) == {"a": [1.0, {"b": 2.0}]}
+    with pytest.raises(RuntimeError, match=r"a non-finite number at a\[1\]\.b"):
+        dump_json({"a": [1.0, {"b": float("nan")}]}, io.StringIO())
+    monkeypatch.setattr(vibration, "level_db", lambda v, ref=vibration.V_REF_MM_S: np.inf)
+    out = run(["level-change", "1", "2", "--json"], code=70, cwd=tmp_path)
+    assert "internal error" in out.stderr and "before_db" in out.stderr
+    no_nan(out.stdout)

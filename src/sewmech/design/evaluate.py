@@ -98,6 +98,11 @@ def _channel_inputs(machine: Machine, ref) -> dict | None:
     return {s.regulator: math.radians(ref.regulator_deg)}
 
 
+#: the prefixes of the channels of rates and accelerations (their derivatives need the
+#: sensitivities' ``rates``)
+RATE_PREFIXES = ("v", "a", "omega", "epsilon", "qd", "qdd")
+
+
 def _metric(machine: Machine, ref, P: np.ndarray) -> tuple[float, np.ndarray | None]:
     """A metric's value and its derivative by every parameter (None for a value-only metric),
     for the design P; ``ref`` names it (``metric``, ``regulator_deg``, ``phi_deg``, as a
@@ -130,9 +135,10 @@ def _metric(machine: Machine, ref, P: np.ndarray) -> tuple[float, np.ndarray | N
         S = sensitivities(machine, phi, params=P, inputs=inputs, outputs=[channel])
         v, d, _ = S.channel(channel)
         return float(v[0] - v[1]), d[0] - d[1]
-    try:
+    try:  # (a rate or an acceleration at the file's speed, as the batches read them)
         S = sensitivities(machine, np.radians([ref.phi_deg]), params=P,
-                          inputs=_channel_inputs(machine, ref), outputs=[name])
+                          inputs=_channel_inputs(machine, ref), outputs=[name],
+                          rates=name.split("_")[0] in RATE_PREFIXES)
         v, d, _ = S.channel(name)
     except KeyError as exc:
         raise OptionError("metric", exc.args[0]) from None

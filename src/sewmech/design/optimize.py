@@ -16,6 +16,17 @@ from .evaluate import ASSEMBLY_CLEARANCE_MM
 from .problem import Problem, batch_values
 
 METHODS = ("golden", "cyclic", "powell", "slsqp", "de", "nsga2")
+#: the largest random seed (numpy's and scipy's generators take 0 .. 2**32 - 1 everywhere)
+MAX_SEED = 2**32 - 1
+
+
+def check_seed(seed, option: str = "--seed") -> int:
+    """``seed`` if it is a whole number in 0 .. :data:`MAX_SEED`, else an OptionError."""
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) \
+            or not 0 <= seed <= MAX_SEED:
+        raise OptionError(option, f"must be a whole number in 0 .. {MAX_SEED}, got {seed!r}",
+                          f"Give e.g. {option} 0")
+    return int(seed)
 
 
 def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, seed: int = 0):
@@ -27,7 +38,10 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
     batch call; the compromise nearest the ideal point is the answer, the front in ``front``).
     Returns an OptimizeResult with x (file units), fun, objective_start, constraints (name ->
     value, satisfied), status ("success" when converged with every constraint met, else
-    "failed"), n_evaluations, history."""
+    "failed"), n_evaluations, history; ``fun`` and ``objective_start`` are infinite where the
+    objective is not defined (the design does not assemble over the whole turn, or a metric
+    cannot be formed on it), and ``fun_note`` and ``objective_start_note`` then say why in
+    words (else None)."""
     from scipy.optimize import OptimizeResult
 
     from .methods import golden_section, interior_penalty
@@ -35,6 +49,7 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
     if method not in METHODS:
         raise OptionError("--method", f"unknown method {method!r}",
                           f"Choose one of {', '.join(METHODS)}")
+    check_seed(seed)
     lo, hi = problem.lower, problem.upper
     span = hi - lo
 
@@ -78,7 +93,7 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
 
         u0 = (problem.start - lo) / span
         if not np.all(g_all(u0) > 0):
-            raise OptionError("problem", "the start is not strictly inside every constraint"
+            raise OptionError(problem.where, "the start is not strictly inside every constraint"
                               " and bound, which the interior penalty needs",
                               "Give a start (variables' start) that meets every constraint")
         r = interior_penalty(lambda u: fv_of(to_x(u)), g_all, u0, method=method, tol=tol)
@@ -102,10 +117,26 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
     ok = converged and math.isfinite(fx) and all(c["satisfied"] for c in report.values())
     res = OptimizeResult(x=x, fun=fx, objective_start=f0, constraints=report,
                          status="success" if ok else "failed", success=ok, message=message,
-                         n_evaluations=problem.evaluations, history=history, method=method)
+                         n_evaluations=problem.evaluations, history=history, method=method,
+                         fun_note=None if math.isfinite(fx) else undefined_objective(problem, x),
+                         objective_start_note=None if math.isfinite(f0) else
+                         undefined_objective(problem, problem.start))
     if method == "nsga2":
         res.front = front
     return res
+
+
+def undefined_objective(problem: Problem, x: np.ndarray) -> str:
+    """Why the objective is not defined at the design x (file units), in words."""
+    try:
+        if not problem.design_ok(x):
+            return ("not defined: the design does not assemble over the whole turn (every"
+                    f" closed-form unit {ASSEMBLY_CLEARANCE_MM:g} mm from failing, on a 1 deg"
+                    " grid at both ends of every setting input)")
+        problem.objective(x)
+    except SewmechError as exc:
+        return f"not defined: a metric cannot be formed on the design ({exc.message})"
+    return "not defined: a metric of the objective is not a finite number on the design"
 
 
 def _slsqp(problem: Problem, x0, lo, hi, tol: float, history: list) -> tuple[np.ndarray, bool]:

@@ -45,13 +45,24 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from ..engine.errors import MachineFileError, SewmechError
 from ..engine.machine import Machine, load_machine
 from ..engine.paths import user_path
-from ..engine.spec import load_toml_model
-from ._models import Bounds, Header, MetricRef, Strict
+from ..engine.spec import ValueHint, load_toml_model
+from ._models import (
+    MAX_WEIGHT,
+    SCALE_RANGE,
+    VALUE_LIMIT,
+    Bounds,
+    Header,
+    MetricRef,
+    Strict,
+    check_bounds,
+    check_limit,
+    check_range,
+)
 from .evaluate import (
     _metric,
     _setting_extremes,
@@ -67,6 +78,13 @@ class ProblemInfo(Header):
 class Variable(Bounds):
     start: float | None = None
 
+    @field_validator("start")
+    @classmethod
+    def _start_size(cls, v):
+        if v is not None:
+            check_range(v, -VALUE_LIMIT, VALUE_LIMIT, "a start (mm, or deg for an angle)")
+        return v
+
     @model_validator(mode="after")
     def _start(self):
         if self.start is not None and not self.lower <= self.start <= self.upper:
@@ -77,8 +95,25 @@ class Variable(Bounds):
 class Part(MetricRef):
     target: float | None = None
     sense: Literal["target", "min", "max"] = "target"
-    weight: float = Field(1.0, ge=0.0)
-    scale: float | None = Field(None, gt=0.0)
+    weight: float = 1.0
+    scale: float | None = None
+
+    @field_validator("target")
+    @classmethod
+    def _target_size(cls, v):
+        return check_limit(v, "a target")
+
+    @field_validator("weight")
+    @classmethod
+    def _weight(cls, v):
+        return check_range(v, 0.0, MAX_WEIGHT, "a weight")
+
+    @field_validator("scale")
+    @classmethod
+    def _scale(cls, v):
+        if v is not None:
+            check_range(v, *SCALE_RANGE, "a scale (in the metric's unit)")
+        return v
 
     @model_validator(mode="after")
     def _target(self):
@@ -95,6 +130,9 @@ class Objective(Strict):
     def _uniform(self):
         if self.form == "weighted_uniform" and any(p.sense != "target" for p in self.parts):
             raise ValueError("weighted_uniform needs a target for every part")
+        if not any(p.weight > 0.0 for p in self.parts):
+            raise ValueHint("every part has weight 0: the objective would be 0 for every"
+                            " design", "Give a part a weight > 0")
         return self
 
 
@@ -102,10 +140,18 @@ class Constraint(MetricRef):
     min: float | None = None
     max: float | None = None
 
+    @field_validator("min", "max")
+    @classmethod
+    def _limit(cls, v):
+        return check_limit(v)
+
     @model_validator(mode="after")
     def _bound(self):
         if self.min is None and self.max is None:
             raise ValueError("give min, max or both")
+        if self.min is not None and self.max is not None and self.min > self.max:
+            raise ValueHint(f"need min <= max, got {self.min:g} .. {self.max:g}: no design"
+                            " could meet it", "Swap them, or give the bound you meant")
         return self
 
 
@@ -119,11 +165,19 @@ class ProblemSpec(Strict):
 def load_problem(path: str | Path) -> tuple[ProblemSpec, Machine]:
     """Read and validate a problem file and load its machine; errors name the file and key."""
     path = user_path(path)
-    where = str(path)
     spec = load_toml_model(path, ProblemSpec, "problem file", "docs/design.md")
     ref = spec.problem.machine
     local = (path.parent / ref)
     machine = load_machine(str(local) if local.is_file() else ref)
+    check_problem(spec, machine, str(path))
+    return spec, machine
+
+
+def check_problem(spec: ProblemSpec, machine: Machine, where: str = "problem") -> None:
+    """What the schema cannot know, against the problem's machine: every variable a parameter
+    of it, its bounds and start inside the parameter's domain, every metric one that sewmech
+    can evaluate on it (an unknown one is named with those it resembles). Errors name
+    ``where`` (the file), the table and the key."""
     names = machine.parameter_names
     for k, v in enumerate(spec.variables):
         if v.parameter not in names:
@@ -134,12 +188,14 @@ def load_problem(path: str | Path) -> tuple[ProblemSpec, Machine]:
                                    f" not a parameter of '{machine.name}'",
                                    f"Did you mean {', '.join(near)}?" if near else
                                    f"`sewmech check {machine.name} --parameters` lists them")
+        unit = machine.parameter_units[names.index(v.parameter)]
+        check_bounds(where, "variables", k, v, machine,
+                     math.pi / 180.0 if unit == "rad" else 1.0, v.start)
     refs = [("objective.parts", k, p) for k, p in enumerate(spec.objective.parts)]
     refs += [("constraints", k, c) for k, c in enumerate(spec.constraints)]
     channels = None
     for table, k, ref in refs:
         channels = _check_metric(where, table, k, ref, machine, channels)
-    return spec, machine
 
 
 #: how each form of objective is made dimensionless from its parts' values f (their own units):
@@ -244,8 +300,9 @@ class Problem:
 
     ``evaluations`` counts the distinct designs evaluated (one at a time, or in batches)."""
 
-    def __init__(self, spec: ProblemSpec, machine: Machine):
-        self.spec, self.machine = spec, machine
+    def __init__(self, spec: ProblemSpec, machine: Machine, where: str = "problem"):
+        check_problem(spec, machine, where)
+        self.spec, self.machine, self.where = spec, machine, where
         names = machine.parameter_names
         self.index = np.array([names.index(v.parameter) for v in spec.variables])
         units = [machine.parameter_units[j] for j in self.index]
@@ -454,6 +511,9 @@ class Problem:
         out = {"assembles over the whole turn": {
             "value": float(ok), "satisfied": ok, "min": 1.0, "max": None,
             "smallest_margin_mm": min(smallest) if smallest else None,
+            **({} if smallest else {"smallest_margin_note": "none: no closed-form unit's"
+                                    " margin was located (the machine has no such unit, or"
+                                    " it fails to assemble)"}),
             "failures": [f"{f.unit}: {f.from_deg:.6g}..{f.to_deg:.6g} deg, {f.reason}"
                          for p in proofs for f in p.failures]}}
         for c in self.spec.constraints:
@@ -466,6 +526,9 @@ class Problem:
             name = c.metric if c.metric not in out else f"{c.metric} ({len(out)})"
             out[name] = {"value": v if math.isfinite(v) else None, "satisfied": bool(ok),
                          "min": c.min, "max": c.max}
+            if not math.isfinite(v):  # JSON has no NaN: null, and why beside it
+                out[name]["note"] = ("not defined: the metric cannot be formed on the design"
+                                     " (it does not assemble where the metric is read)")
         return out
 
 

@@ -48,13 +48,14 @@ import os
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from ..engine.errors import MachineFileError
+from ..engine.kinematics import MIN_RPM
 from ..engine.machine import Machine, load_machine, machine_from_toml, shipped_machines
 from ..engine.paths import user_path
-from ..engine.spec import load_toml_model, read_toml_text
-from ._models import Bounds, Header, MetricRef, Strict
+from ..engine.spec import ValueHint, load_toml_model, read_toml_text
+from ._models import Bounds, Header, MetricRef, Strict, check_bounds, check_limit
 
 DOC = "docs/sweeps.md"
 #: the outputs the force analysis gives (one DynamicsPlan call per chunk of designs)
@@ -71,7 +72,7 @@ class SweepInfo(Header):
 class Sampling(Strict):
     method: Literal["grid", "random", "lhs", "sobol"]
     designs: int | None = Field(None, ge=1, le=MAX_DESIGNS)
-    seed: int = Field(0, ge=0)
+    seed: int = Field(0, ge=0, le=2**32 - 1)  # (numpy's and scipy's generators' seeds)
 
     @model_validator(mode="after")
     def _count(self):
@@ -92,13 +93,16 @@ class Output(MetricRef):
     min: float | None = None
     max: float | None = None
 
+    @field_validator("min", "max")
+    @classmethod
+    def _limit(cls, v):
+        return check_limit(v)
+
     @model_validator(mode="after")
     def _limits(self):
-        for v in (self.regulator_deg, self.phi_deg, self.min, self.max):
-            if v is not None and not math.isfinite(v):
-                raise ValueError("numbers must be finite")
         if self.min is not None and self.max is not None and self.min > self.max:
-            raise ValueError(f"need min <= max, got {self.min} .. {self.max}")
+            raise ValueHint(f"need min <= max, got {self.min} .. {self.max}: no design could"
+                            " be feasible", "Swap them, or give the limit you meant")
         return self
 
     @property
@@ -114,7 +118,7 @@ class Output(MetricRef):
 
 
 class Dynamics(Strict):
-    rpm: float | None = Field(None, gt=0.0, le=20_000.0)
+    rpm: float | None = Field(None, ge=MIN_RPM, le=20_000.0)
     step_deg: float = Field(2.0, ge=0.1, le=30.0)
     gravity: bool = True
 
@@ -284,6 +288,9 @@ def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
             raise MachineFileError(where, "parameters", f"{k}.parameter", f"'{p.parameter}' is"
                                    " given twice", "Give each parameter once")
         seen.add(p.parameter)
+        unit = machine.parameter_units[names.index(p.parameter)]
+        check_bounds(where, "parameters", k, p, machine, math.pi / 180.0 if unit == "rad"
+                     else 1.0)
         grid = spec.sampling.method == "grid"
         if grid and p.points is None:
             raise MachineFileError(where, "parameters", f"{k}.points", "a grid needs points,"

@@ -32,7 +32,7 @@ from pydantic import Field, field_validator
 
 from ..engine.errors import MachineFileError, OptionError
 from ..engine.machine import Machine
-from ..engine.spec import load_toml_model
+from ..engine.spec import ValueHint, load_toml_model
 from ._models import Strict
 
 #: ISO 286-1 nominal size ranges (upper limits, mm) and standard tolerances IT5 .. IT13 (um)
@@ -66,9 +66,16 @@ def it_tolerance_mm(nominal_mm: float, grade: int) -> float:
     return IT_TABLE_UM[grade][k] * 1e-3
 
 
+#: the widest tolerance a file may give, +- in the parameter's unit (mm, deg, or 1 for a
+#: ratio): ten times the whole band of IT13 at 500 mm (0.97 mm), the coarsest the IT table has
+MAX_TOLERANCE = 10.0
+#: the largest cost weight (``[cost]``): weights are relative, 0 leaves a parameter free
+MAX_COST = 1e6
+
+
 class Defaults(Strict):
     it_grade: int | None = 9
-    angle_deg: float = Field(0.0, ge=0.0)
+    angle_deg: float = 0.0
     distribution: Literal["normal", "uniform"] = "normal"
     exclude: list[str] = Field(default_factory=list)
 
@@ -83,8 +90,9 @@ class Defaults(Strict):
     @field_validator("angle_deg")
     @classmethod
     def _finite(cls, v):
-        if not math.isfinite(v):
-            raise ValueError("must be a finite number")
+        if not 0.0 <= v <= MAX_TOLERANCE:  # (a NaN fails too)
+            raise ValueHint(f"a tolerance +- deg must be a finite number >= 0 and at most"
+                            f" {MAX_TOLERANCE:g} deg", "Give the angles' tolerance, e.g. 0.05")
         return v
 
 
@@ -95,12 +103,24 @@ class ToleranceSpec(Strict):
     parameters: dict[str, float] = Field(default_factory=dict)
     cost: dict[str, float] = Field(default_factory=dict)
 
-    @field_validator("parameters", "cost")
+    @field_validator("parameters")
     @classmethod
     def _values(cls, d):
         for k, v in d.items():
-            if not (math.isfinite(v) and v >= 0.0):
-                raise ValueError(f"'{k}' = {v!r}: give a finite number >= 0")
+            if not (math.isfinite(v) and 0.0 <= v <= MAX_TOLERANCE):
+                raise ValueHint(f"'{k}' = {v!r}: a tolerance is a finite number >= 0 and at"
+                                f" most {MAX_TOLERANCE:g} (+- mm, deg, or 1 for a ratio)",
+                                "Give the tolerance, e.g. 0.02 (mm); 0 holds it exact")
+        return d
+
+    @field_validator("cost")
+    @classmethod
+    def _costs(cls, d):
+        for k, v in d.items():
+            if not (math.isfinite(v) and 0.0 <= v <= MAX_COST):
+                raise ValueHint(f"'{k}' = {v!r}: a cost weight is a finite number >= 0 and at"
+                                f" most {MAX_COST:g} (weights are relative)",
+                                "Give e.g. 2.0 (twice the default cost); 0 leaves it free")
         return d
 
 

@@ -82,6 +82,10 @@ class ToleranceResult:
                 "allocation_rule": self.allocation_rule}
 
 
+#: the half-width of an allocation band, in the output's unit (mm, deg or rad): a nanometre
+#: (or 1e-6 deg) to a metre, beyond which no dimension of a sewing machine is allocated
+BAND_RANGE = (1e-6, 1e3)
+
 #: the metrics read off the feed (they need a regulator setting)
 FEED = ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
 
@@ -171,8 +175,14 @@ def tolerance_analysis(machine: Machine, metric: str, spec: ToleranceSpec | None
     if not (isinstance(samples, int) and 100 <= samples <= 1_000_000):
         raise OptionError("--samples", f"must be a whole number in 100 .. 1000000, got"
                           f" {samples!r}", "Give e.g. --samples 10000")
-    if band is not None and not (math.isfinite(band) and band > 0):
-        raise OptionError("--band", f"must be a number > 0, got {band!r}")
+    if band is not None and not BAND_RANGE[0] <= band <= BAND_RANGE[1]:  # (a NaN fails too)
+        raise OptionError("--band", f"must be in {BAND_RANGE[0]:g} .. {BAND_RANGE[1]:g} (the"
+                          f" output's unit: mm, deg or rad), got {band!r}",
+                          "Give the half-width of the band the output must stay in, e.g."
+                          " --band 0.05")
+    from .optimize import check_seed
+
+    check_seed(seed)
     tol = tolerances_of(machine, spec, where)
     dist = (spec or ToleranceSpec()).defaults.distribution
     value, d, unit, nominal = _gradient(machine, metric, regulator_deg, phi_deg, option, give)
@@ -204,10 +214,21 @@ def tolerance_analysis(machine: Machine, metric: str, spec: ToleranceSpec | None
                               phi_deg=phi_deg, nominal=nominal)
     ok = np.isfinite(vals[1:])
     dv = vals[1:][ok] - vals[0]
-    mc = {"n": int(samples), "assembled": int(ok.sum()), "mean": float(np.mean(dv)),
-          "std": float(np.std(dv, ddof=1)), "p99": float(np.quantile(np.abs(dv), 0.99)),
-          "min": float(dv.min()), "max": float(dv.max()), "seed": int(seed),
+    n_ok = int(ok.sum())
+
+    def stat(f, need: int) -> float | None:  # None where too few designs give the metric
+        return float(f(dv)) if n_ok >= need else None
+
+    mc = {"n": int(samples), "assembled": n_ok, "mean": stat(np.mean, 1),
+          "std": stat(lambda a: np.std(a, ddof=1), 2),
+          "p99": stat(lambda a: np.quantile(np.abs(a), 0.99), 1),
+          "min": stat(np.min, 1), "max": stat(np.max, 1), "seed": int(seed),
           "evaluation": how}
+    if n_ok < 2:  # JSON has no NaN: null, and why beside it
+        mc["note"] = (f"{'no design' if n_ok == 0 else 'only one design'} of the {samples}"
+                      " drawn assembles and gives the metric, so the figures that need"
+                      f" {'one' if n_ok == 0 else 'two'} are not defined (the tolerances are"
+                      " wider than the mechanism can be made within)")
     alloc = rule = None
     if band is not None:
         alloc, rule = allocate(machine, d, costs_of(machine, spec), on, band, dist)

@@ -33,6 +33,20 @@ from ..engine.errors import AnalysisError
 #: a level change does not depend on it)
 V_REF_MM_S = 5e-5
 
+#: the ranges of measured numbers (CSV files and arguments), checked where they enter:
+#: a vibration velocity or amplitude, mm/s (a magnitude; 1 m/s is far beyond any machine
+#: that still stands, and 0 is a reading at the instrument's floor)
+VELOCITY_RANGE_MM_S = (0.0, 1e6)
+#: a velocity whose level in dB is taken (``sewmech level-change``), mm/s: one nanometre per
+#: second, far below any vibration meter's floor, to a metre per second (a level needs a
+#: velocity > 0: the level of 0 is minus infinity)
+LEVEL_RANGE_MM_S = (1e-6, 1e6)
+#: a static moment (an extra counterweight, a trial mass), g cm: a magnitude (its sign belongs
+#: to its angle), up to 10 kg m
+STATIC_MOMENT_RANGE_GCM = (0.0, 1e6)
+#: a phase or a trial mass's angle, deg: within a turn either way
+ANGLE_RANGE_DEG = (-360.0, 360.0)
+
 
 @dataclass(frozen=True)
 class Crossing:
@@ -44,7 +58,9 @@ class Crossing:
     of the difference vx - vy about its line, mm/s; v_at_crossing_mm_s : the fitted velocity
     on either axis there; level_change_db : the level of the fitted velocity vector
     sqrt(vx^2 + vy^2) at the crossing against the lowest static moment measured (negative: the
-    machine is quieter)."""
+    machine is quieter), None where it is not defined (a fitted velocity vector of zero, or
+    of round-off of the velocities measured, at either end: the level of 0 is minus infinity),
+    and ``level_change_note`` then says why."""
 
     s_add_gcm: float
     ci95_gcm: tuple[float, float]
@@ -54,16 +70,20 @@ class Crossing:
     residual_mm_s: float
     v_at_crossing_mm_s: float
     s_lowest_gcm: float
-    level_change_db: float
+    level_change_db: float | None
+    level_change_note: str | None = None
 
     def to_json(self) -> dict:
-        return {"s_add_gcm": self.s_add_gcm, "ci95_gcm": list(self.ci95_gcm),
-                "n_points": self.n_points,
-                "fit_x": {"intercept_mm_s": self.fit_x[0], "slope_mm_s_per_gcm": self.fit_x[1]},
-                "fit_y": {"intercept_mm_s": self.fit_y[0], "slope_mm_s_per_gcm": self.fit_y[1]},
-                "residual_mm_s": self.residual_mm_s,
-                "v_at_crossing_mm_s": self.v_at_crossing_mm_s,
-                "s_lowest_gcm": self.s_lowest_gcm, "level_change_db": self.level_change_db}
+        out = {"s_add_gcm": self.s_add_gcm, "ci95_gcm": list(self.ci95_gcm),
+               "n_points": self.n_points,
+               "fit_x": {"intercept_mm_s": self.fit_x[0], "slope_mm_s_per_gcm": self.fit_x[1]},
+               "fit_y": {"intercept_mm_s": self.fit_y[0], "slope_mm_s_per_gcm": self.fit_y[1]},
+               "residual_mm_s": self.residual_mm_s,
+               "v_at_crossing_mm_s": self.v_at_crossing_mm_s,
+               "s_lowest_gcm": self.s_lowest_gcm, "level_change_db": self.level_change_db}
+        if self.level_change_db is None:
+            out["level_change_note"] = self.level_change_note
+        return out
 
 
 def _line(s: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
@@ -108,6 +128,14 @@ def crossing(s_add_gcm: ArrayLike, vx_mm_s: ArrayLike, vy_mm_s: ArrayLike,
     if np.any(vx < 0) or np.any(vy < 0):
         raise AnalysisError(where, "a vibration velocity is negative",
                             "Give the velocities' magnitudes (RMS or peak), mm/s")
+    for name, a, (lo, hi), unit in (("s_add_gcm", s, STATIC_MOMENT_RANGE_GCM, "g cm"),
+                                    ("vx_mm_s", vx, VELOCITY_RANGE_MM_S, "mm/s"),
+                                    ("vy_mm_s", vy, VELOCITY_RANGE_MM_S, "mm/s")):
+        bad = np.nonzero(~((a >= lo) & (a <= hi)))[0]
+        if bad.size:
+            raise AnalysisError(where, f"{name} is {a[bad[0]]:g} {unit} in measurement"
+                                f" {bad[0] + 1}, outside {lo:g} .. {hi:g} {unit}",
+                                "Check the value and its unit")
     if np.unique(s).size < 3:
         raise AnalysisError(where, f"{np.unique(s).size} different static moments measured",
                             "Measure at least three (two on each side of the crossing)")
@@ -148,9 +176,19 @@ def crossing(s_add_gcm: ArrayLike, vx_mm_s: ArrayLike, vy_mm_s: ArrayLike,
     s0 = lo_s
     v0 = math.hypot(cx[0] + cx[1] * s0, cy[0] + cy[1] * s0)
     v1 = math.hypot(v_cross, float(cy[0] + cy[1] * root))
-    change = level_change_db(v0, v1) if v0 > 0 and v1 > 0 else float("nan")
+    # a level in dB needs a velocity > 0: a fitted velocity vector of zero (or of round-off of
+    # the velocities measured) at either end has none, and the change is said to be undefined
+    floor = 1e-9 * max(float(np.max(vx)), float(np.max(vy)))
+    change, note = None, None
+    if v1 <= floor or v0 <= floor:
+        at = (f"at the crossing ({root:.4g} g cm)" if v1 <= floor
+              else f"at the lowest static moment measured ({s0:g} g cm)")
+        note = (f"not defined: the fitted lines give a velocity of 0 mm/s {at}, and a level in"
+                " dB needs a velocity > 0 (the level of 0 is minus infinity)")
+    else:
+        change = level_change_db(v0, v1)
     return Crossing(float(root), (float(lo), float(hi)), n, (float(cx[0]), float(cx[1])),
-                    (float(cy[0]), float(cy[1])), math.sqrt(var), v_cross, s0, change)
+                    (float(cy[0]), float(cy[1])), math.sqrt(var), v_cross, s0, change, note)
 
 
 def level_db(v_mm_s: ArrayLike, ref_mm_s: float = V_REF_MM_S) -> np.ndarray:
@@ -231,6 +269,13 @@ def influence_balance(baseline: ArrayLike, trials: ArrayLike, trial_gcm: ArrayLi
     V0 = np.asarray(baseline, dtype=complex)
     Vt = np.atleast_2d(np.asarray(trials, dtype=complex))
     Ut = phasor(trial_gcm, trial_angle_deg).reshape(-1)
+    for name, a, hi, unit in (("a baseline reading", np.abs(V0), VELOCITY_RANGE_MM_S[1], "mm/s"),
+                              ("a trial run's reading", np.abs(Vt), VELOCITY_RANGE_MM_S[1],
+                               "mm/s"),
+                              ("a trial mass", np.abs(Ut), STATIC_MOMENT_RANGE_GCM[1], "g cm")):
+        if not np.all(a <= hi):  # (a NaN fails too)
+            raise AnalysisError("influence", f"{name} is not a finite number within"
+                                f" {hi:g} {unit}", "Check the value and its unit")
     if V0.ndim != 1 or Vt.shape != (len(Ut), len(V0)):
         raise AnalysisError("influence", f"{len(Ut)} trial masses and {len(V0)} baseline"
                             f" readings need trials of shape ({len(Ut)}, {len(V0)}), got"

@@ -604,7 +604,9 @@ def _loop_steps(u, g, k0, nb, grp, unk, terms, cams_i, arcs_i, params, d, march_
             else:
                 r1 = sd[kb, L]
                 r2 = sdd[kb, L]
-            if ws != 0.0:  # d/dphi = (d/dt) / omega
+            # d/dphi = (d/dt) / omega; at rest, or so slowly that omega^2 leaves the range of
+            # floats (below 1e-100 rad/s), the predictor takes the last solution as it is
+            if abs(ws) > 1e-100:
                 dq1_prev[u0 + j] = r1 / ws
                 dq2_prev[u0 + j] = (r2 - r1 / ws * es) / (ws * ws)
             else:

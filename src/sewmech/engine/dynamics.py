@@ -368,8 +368,23 @@ class DynamicsResult:
 
     @cached_property
     def reduced_inertia(self) -> np.ndarray:
-        """Equivalent moment of inertia at the upper shaft, J(phi) = 2 T / omega^2, kg mm^2."""
-        return 2e3 * self.kinetic_energy / self.kin.omega_shaft ** 2
+        """Equivalent moment of inertia at the upper shaft, J(phi) = 2 T / omega^2, kg mm^2:
+        from the velocities divided by the shaft speed first (the motion's ratios, which do
+        not depend on it), so that a slow shaft's squares never leave the floating-point
+        range. NaN where the shaft is at rest (omega = 0, or below 1e-290 rad/s, where the
+        velocities themselves underflow: a motion at rest has no ratios)."""
+        w = np.asarray(self.kin.omega_shaft, dtype=float)
+        moving = np.abs(w) >= 1e-290
+        inv = np.divide(1.0, w, out=np.zeros_like(w), where=moving)
+        v2 = np.sum((self.com_v * inv[:, None, None]) ** 2, axis=-1)
+        two_t = 1e-3 * (np.sum(self._m * v2, axis=-1)
+                        + np.sum(self._I * (self.kin.omega * inv[:, None]) ** 2, axis=-1))
+        if self.counterweights is not None:  # (N mm per (rad/s)^2, as 2 T / omega^2)
+            cw = self.counterweights
+            two_t = two_t + 1e-3 * np.einsum(
+                "...c,...kc->...k", cw.mass, np.sum((cw.v * inv[:, None, None]) ** 2,
+                                                    axis=-1))
+        return np.where(moving, 1e3 * two_t, np.nan)
 
 
 

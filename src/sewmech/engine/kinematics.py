@@ -82,18 +82,23 @@ def _march(phi: np.ndarray, start: float, max_step: float):
 #: the fastest shaft speed sewmech accepts, rev/min (household machines run at 1000-1500,
 #: industrial ones up to about 10,000)
 MAX_RPM = 1e5
+#: the slowest: a turn in 1000 minutes, slower than any hand turns a hand wheel. Below it the
+#: squares of the speed (accelerations, kinetic energy) leave the floating-point range long
+#: before the speed itself does (at 1e-165 rpm the continuation of the loop units failed, at
+#: 5e-324 rpm the reduced inertia was 0 / 0)
+MIN_RPM = 1e-3
 
 
 def check_speed(name: str, rpm: float) -> float:
     """``rpm`` as a float, or an :class:`OptionError` unless it is a finite speed in
-    (0, MAX_RPM] rev/min."""
+    MIN_RPM .. MAX_RPM rev/min."""
     try:
         value = float(rpm)
     except (TypeError, ValueError):
         raise OptionError(name, f"must be a number of rev/min, got {rpm!r}") from None
-    if not 0.0 < value <= MAX_RPM:  # (a NaN fails too)
-        raise OptionError(name, f"must be a shaft speed in (0, {MAX_RPM:g}] rev/min, got"
-                          f" {value:g}", "Give the working speed, e.g. 1000")
+    if not MIN_RPM <= value <= MAX_RPM:  # (a NaN fails too)
+        raise OptionError(name, f"must be a shaft speed in {MIN_RPM:g} .. {MAX_RPM:g} rev/min,"
+                          f" got {value:g}", "Give the working speed, e.g. 1000")
     return value
 
 

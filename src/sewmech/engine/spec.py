@@ -54,6 +54,15 @@ Vec2 = tuple[Float, Float]
 NUMBER_LIMIT = 1e9
 
 
+class ValueHint(ValueError):
+    """A validator's ValueError that also says what to do: the :class:`MachineFileError` made
+    from it carries ``hint`` (every file sewmech reads, :func:`validate_model`)."""
+
+    def __init__(self, message: str, hint: str = ""):
+        super().__init__(message)
+        self.hint = hint
+
+
 def _too_large(value, path: str):
     """The first number in ``value`` (a number or nested tuples/lists/dicts of them) beyond
     NUMBER_LIMIT, as (path, value); None if there is none."""
@@ -157,7 +166,7 @@ class Convention(_Spec):
 class Speed(_Spec):
     """``[speed]``: working speed of the upper shaft."""
 
-    rpm: Annotated[Float, Field(gt=0.0, le=1e5)] = 1000.0
+    rpm: Annotated[Float, Field(ge=1e-3, le=1e5)] = 1000.0  # (kinematics.MIN_RPM, MAX_RPM)
     note: str = ""
 
 
@@ -665,6 +674,11 @@ class CounterweightSpec(_Spec):
         return self.static_moment_gcm is not None
 
 
+#: the largest process load, N: ten tonnes, far beyond any force a sewing machine's process
+#: puts on it (its presser foot about 15 N, the needle through thick material a few hundred)
+MAX_LOAD_N = 1e5
+
+
 class LoadSpec(_Spec):
     """``[[loads]]``: a process force on a point of a link while the shaft angle is inside one
     of its windows (degrees in the machine's convention; a window may wrap through 360).
@@ -683,6 +697,15 @@ class LoadSpec(_Spec):
     windows_deg: list[tuple[Float, Float]] = Field(default_factory=lambda: [(0.0, 360.0)],
                                                    min_length=1)
     note: str = ""
+
+    @field_validator("force_N")
+    @classmethod
+    def _force(cls, v):
+        if not abs(v) <= MAX_LOAD_N:  # (a NaN is refused before: allow_inf_nan)
+            raise ValueHint(f"a process load must be within +-{MAX_LOAD_N:g} N",
+                            "Give the force in N (a presser foot's is about 15 N, the needle's"
+                            " through thick material a few hundred)")
+        return v
 
     @model_validator(mode="after")
     def _direction(self):
@@ -867,6 +890,11 @@ def _counterweight_domain(key: str, got) -> tuple[str, str]:
     return f"is {shown}: {what}", hint
 
 
+#: pydantic's errors of a number beyond a bound: the comparison and the bound's key in ctx
+_BOUND_ERRORS = {"greater_than": (">", "gt"), "greater_than_equal": (">=", "ge"),
+                 "less_than": ("<", "lt"), "less_than_equal": ("<=", "le")}
+
+
 def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpec,
              doc: str = "docs/machine-files.md") -> MachineFileError:
     loc = tuple(err["loc"])
@@ -875,8 +903,10 @@ def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpe
     if model is not None and n_model == len(path) and not rest:
         table, key = ".".join(path), ""  # the table as a whole (a model validator)
     else:
-        table = ".".join(path[:n_model])
-        key = ".".join(path[n_model:])
+        # a top-level table of plain values (a tolerance file's [parameters]) is the table
+        k = 1 if n_model == 0 and path and isinstance(raw.get(path[0]), dict) else n_model
+        table = ".".join(path[:k])
+        key = ".".join(path[k:])
         for part in rest:
             key += f"[{part}]" if isinstance(part, int) else (f".{part}" if key else str(part))
     got = err.get("input")
@@ -907,6 +937,12 @@ def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpe
         msg, hint = _counterweight_domain(key, got)
     elif etype in ("greater_than", "greater_than_equal") and "length" in key:
         msg = f"must be a positive length in mm, got {_short(got)}"
+    elif etype in _BOUND_ERRORS:  # a number beyond a bound of its key (Field(ge=...))
+        op, ctx_key = _BOUND_ERRORS[etype]
+        limit = (err.get("ctx") or {}).get(ctx_key)
+        shown = f"{limit:g}" if isinstance(limit, int | float) else str(limit)
+        msg = f"must be {op} {shown}, got {_short(got)}"
+        hint = f"Check the value and its unit ({doc}; docs/errors.md gives every range)"
     elif etype == "union_tag_not_found":
         msg = "missing key 'type'"
         hint = "Every unit says its type: crank, point, rrr, rrp, rpr or loop"
@@ -929,6 +965,9 @@ def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpe
         msg = err["msg"].removeprefix("Value error, ")
         if not isinstance(got, dict | list):
             msg += f" (got {_short(got)})"
+        cause = (err.get("ctx") or {}).get("error")
+        if isinstance(cause, ValueHint):
+            hint = cause.hint
     elif etype in ("dict_type", "model_type", "model_attributes_type"):
         msg = f"must be a table ({{ key = value, ... }} or [{'.'.join(path)}]), got {_short(got)}"
     else:

@@ -5,7 +5,6 @@ when :mod:`sewmech.app.cli` imports this module."""
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -218,10 +217,14 @@ def tolerance_cmd(
     console.print(f"{m.name}: {output} = {res.value:.6g} {u}; {len(res.names)} toleranced"
                   f" dimensions ({res.distribution})")
     console.print(f"  worst case +-{res.worst_case:.4g} {u}, RSS +-{res.rss:.4g} {u}")
-    console.print(f"  Monte Carlo ({mc['n']} designs): std {mc['std']:.4g} {u} (RSS /"
-                  f" {res.sigma_divisor[1]} = {res.sigma:.4g} {u} to first order,"
-                  f" {res.distribution} dimensions), p99 of |deviation| {mc['p99']:.4g} {u}, range"
-                  f" {mc['min']:.4g} .. {mc['max']:.4g}")
+    if mc["std"] is None:
+        console.print(escape(f"  Monte Carlo ({mc['n']} designs): undefined ({mc['note']})"),
+                      highlight=False)
+    else:
+        console.print(f"  Monte Carlo ({mc['n']} designs): std {mc['std']:.4g} {u} (RSS /"
+                      f" {res.sigma_divisor[1]} = {res.sigma:.4g} {u} to first order,"
+                      f" {res.distribution} dimensions), p99 of |deviation| {mc['p99']:.4g}"
+                      f" {u}, range {mc['min']:.4g} .. {mc['max']:.4g}")
     how = mc.get("evaluation", {})
     if "located" in how:
         console.print(f"    events located on each design ({how['located']} from their"
@@ -264,7 +267,7 @@ def _write_tolerance(m, out: Path, res, data: dict) -> None:
     import pandas as pd
 
     from ..drawing.figures import save_figure
-    from ..files.io import atomic_write
+    from ..files.io import atomic_write, dump_json
     from ..files.outdir import output_dir
 
     u = res.unit
@@ -302,4 +305,4 @@ def _write_tolerance(m, out: Path, res, data: dict) -> None:
                           "share": list(res.contributions.values())}).to_csv(
                 fh, index=False, float_format="%.10g")
         with atomic_write(root / f"{m.name}-tolerance.json") as fh:
-            json.dump(data, fh, indent=1)
+            dump_json(data, fh, indent=1)

@@ -4,9 +4,7 @@
 
 from __future__ import annotations
 
-import json
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -266,8 +264,7 @@ def kinematics_cmd(
     else:
         res = kinematics(m, phi, rpm=rpm, inputs=settings or None)
     if as_json:
-        json.dump(kinematics_to_dict(res), sys.stdout)
-        sys.stdout.write("\n")
+        print_json(kinematics_to_dict(res))
         return
     console.print(_summary(res) if not phi_deg else _values(res))
     if out is not None:
@@ -415,6 +412,16 @@ def _pair_table(res) -> Table:
     return table
 
 
+#: why a figure of the feed table is not defined at a setting (it is NaN there)
+FEED_UNDEFINED = {
+    "mid_feed_deg": "the dog does not pass the middle of its stroke while above the plate and"
+                    " moving with the stitch (no feed at this setting, as at the zero mark)",
+    "rise_deg": "the dog's tip never rises through the throat plate at this setting",
+    "fall_deg": "the dog's tip never drops through the throat plate at this setting",
+    "stitch_mm": "the dog's tip never rises through the throat plate at this setting",
+}
+
+
 @command("feed")
 def feed_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="machine name or TOML file"),
@@ -434,23 +441,37 @@ def feed_cmd(
     phase_now = next((u.phase_deg for u in m.spec.units if timing and
                       u.name == m.spec.sewing.feed_cam), None)
     if as_json:
-        rows = cyc.astype(object).where(cyc.notna(), None)  # JSON has no NaN: null
-        json.dump({"machine": m.name, "settings": rows.to_dict(orient="records"),
-                   "scale_marks": [{"stitch_mm": k.stitch_mm, "regulator_deg": k.regulator_deg}
-                                   for k in marks],
-                   "feed_cam_phase_deg": phase_now,
-                   "feed_cam_phase_for_mid_feed_at_top_deg":
-                       timing.phase_deg if timing else None}, sys.stdout)
-        sys.stdout.write("\n")
+        rows = cyc.astype(object).where(cyc.notna(), None).to_dict(orient="records")
+        for row in rows:  # JSON has no NaN: null, and why beside it
+            for key in list(row):
+                if row[key] is None and key in FEED_UNDEFINED:
+                    row[f"{key}_note"] = "not defined: " + FEED_UNDEFINED[key]
+        print_json({"machine": m.name, "settings": rows,
+                    "scale_marks": [{"stitch_mm": k.stitch_mm,
+                                     "regulator_deg": k.regulator_deg} for k in marks],
+                    "feed_cam_phase_deg": phase_now,
+                    "feed_cam_phase_for_mid_feed_at_top_deg":
+                        timing.phase_deg if timing else None})
         return
     table = Table(title=f"{m.name}: feed dog (angles in deg of shaft, lengths mm)")
     cols = ("regulator_deg", "stitch_mm", "lift_mm", "rise_deg", "top_deg", "mid_feed_deg",
             "fall_deg")
     for c in cols:
         table.add_column(c, justify="right")
+    undefined = {}
     for row in cyc.itertuples():
-        table.add_row(*(f"{getattr(row, c):.4g}" for c in cols))
+        cells = []
+        for c in cols:
+            x = getattr(row, c)
+            if math.isnan(x):
+                undefined.setdefault(c, []).append(f"{row.regulator_deg:g}")
+            cells.append("undefined" if math.isnan(x) else f"{x:.4g}")
+        table.add_row(*cells)
     console.print(table)
+    for c, settings in undefined.items():
+        console.print(escape(f"  {c} undefined at regulator {', '.join(settings)} deg:"
+                             f" {FEED_UNDEFINED.get(c, 'it cannot be formed there')}"),
+                      highlight=False)
     mt = Table(title=f"scale-plate marks every {step_mm:g} mm")
     mt.add_column(escape("stitch [mm]"), justify="right")
     mt.add_column(escape("regulator [deg]"), justify="right")
@@ -486,8 +507,7 @@ def embroidery_cmd(
                           f" assembled at alpha = {alpha_deg:g} deg, beta = {beta_deg:g} deg",
                           "The paper's study uses alpha 5 .. 30 deg and beta 33 .. 35 deg")
     if as_json:
-        json.dump({"phi_deg": phi.tolist(), "L_mm": L.tolist()}, sys.stdout)
-        sys.stdout.write("\n")
+        print_json({"phi_deg": phi.tolist(), "L_mm": L.tolist()})
         return
     table = Table(title=f"{m.name}: thread drawn, alpha {alpha_deg:g} deg, beta {beta_deg:g} deg")
     table.add_column(escape("phi [deg]"), justify="right")

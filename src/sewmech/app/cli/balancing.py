@@ -5,7 +5,6 @@ on a machine), ``trial-balance`` (the crossing of measured vibration velocities)
 
 from __future__ import annotations
 
-import json
 import math
 from enum import Enum
 from pathlib import Path
@@ -17,8 +16,19 @@ from rich.table import Table
 
 from ...engine.errors import OptionError
 from ..display import is_round_off, number
-from .common import (DEFAULT_MACHINE, SET_HELP, _bounded, _choice, _load, _phi_grid, _rpm,
-                     choices_metavar, command, console, print_json)
+from .common import (
+    DEFAULT_MACHINE,
+    SET_HELP,
+    _bounded,
+    _choice,
+    _load,
+    _phi_grid,
+    _rpm,
+    choices_metavar,
+    command,
+    console,
+    print_json,
+)
 
 
 class Criterion(str, Enum):
@@ -29,6 +39,10 @@ class Criterion(str, Enum):
     bearings = "bearings"
     torque = "torque"
     weighted = "weighted"
+
+
+#: the largest --weight (weights are relative; each part is divided by its value before)
+MAX_WEIGHT = 1e6
 
 
 def _weights(items: list[str] | None) -> dict[str, float] | None:
@@ -45,8 +59,10 @@ def _weights(items: list[str] | None) -> dict[str, float] | None:
         if not eq or not name:
             raise OptionError("--weight", f"{item!r} is not PART=WEIGHT",
                               "Write e.g. --weight peak_force_N=2")
-        if not (math.isfinite(value) and value >= 0):
-            raise OptionError("--weight", f"{item!r}: the weight must be a number >= 0")
+        if not 0.0 <= value <= MAX_WEIGHT:  # (a NaN fails too)
+            raise OptionError("--weight", f"{item!r}: the weight must be a number in 0 .."
+                              f" {MAX_WEIGHT:g} (weights are relative)",
+                              "Write e.g. --weight peak_force_N=2")
         if name in out:
             raise OptionError("--weight", f"{item!r}: '{name}' is given twice", "Give it once")
         out[name] = value
@@ -222,7 +238,7 @@ def _write_balance(m, out: Path, res, data: dict, names, rpm, point) -> None:
 
     matplotlib.use("Agg")
     from ..drawing.figures import Figures
-    from ..files.io import atomic_write
+    from ..files.io import atomic_write, dump_json
     from ..files.outdir import output_dir
     from ..report.balancing import balancing_section, results_frame
 
@@ -234,7 +250,7 @@ def _write_balance(m, out: Path, res, data: dict, names, rpm, point) -> None:
         with atomic_write(root / f"{m.name}-balance-criteria.csv") as fh:
             results_frame(sec["results"]).to_csv(fh, index=False, float_format="%.10g")
         with atomic_write(root / f"{m.name}-balance.json") as fh:
-            json.dump(data, fh, indent=1)
+            dump_json(data, fh, indent=1)
 
 
 @command("trial-balance")
@@ -248,10 +264,13 @@ def trial_balance_cmd(
 ):
     """The static moment where the measured x and y vibration velocities are equal, with its
     95 % interval (the balancing paper's correction from measurements)."""
-    from ...design.vibration import crossing
+    from ...design.vibration import STATIC_MOMENT_RANGE_GCM, VELOCITY_RANGE_MM_S, crossing
     from ..files.io import read_csv_columns
 
-    cols = read_csv_columns(file, ["s_add_gcm", "vx_mm_s", "vy_mm_s"])
+    cols = read_csv_columns(file, ["s_add_gcm", "vx_mm_s", "vy_mm_s"],
+                            ranges={"s_add_gcm": (*STATIC_MOMENT_RANGE_GCM, "g cm"),
+                                    "vx_mm_s": (*VELOCITY_RANGE_MM_S, "mm/s"),
+                                    "vy_mm_s": (*VELOCITY_RANGE_MM_S, "mm/s")})
     c = crossing(cols["s_add_gcm"], cols["vx_mm_s"], cols["vy_mm_s"], where=str(file))
     data = c.to_json()
     if out is not None:
@@ -262,8 +281,11 @@ def trial_balance_cmd(
     lo, hi = c.ci95_gcm
     console.print(f"crossing: S_add = [bold]{c.s_add_gcm:.4g} g cm[/] (95 % interval {lo:.4g}"
                   f" .. {hi:.4g} g cm) from {c.n_points} measurements")
-    console.print(f"velocity there {c.v_at_crossing_mm_s:.4g} mm/s on each axis; level change"
-                  f" against S_add = {c.s_lowest_gcm:g} g cm: {c.level_change_db:+.2f} dB")
+    change = (f"{c.level_change_db:+.2f} dB" if c.level_change_db is not None else
+              f"undefined ({c.level_change_note.removeprefix('not defined: ')})")
+    console.print(escape(f"velocity there {c.v_at_crossing_mm_s:.4g} mm/s on each axis; level"
+                         f" change against S_add = {c.s_lowest_gcm:g} g cm: {change}"),
+                  highlight=False)
     if out is not None:
         console.print(f"written: plot and fit in {out}")
 
@@ -276,7 +298,7 @@ def _write_trial(out: Path, file: Path, cols: dict, c) -> None:
     import pandas as pd
 
     from ..drawing.figures import save_figure
-    from ..files.io import atomic_write
+    from ..files.io import atomic_write, dump_json
     from ..files.outdir import output_dir
 
     s = cols["s_add_gcm"]
@@ -301,7 +323,7 @@ def _write_trial(out: Path, file: Path, cols: dict, c) -> None:
                           "vy_fit_mm_s": c.fit_y[0] + c.fit_y[1] * grid}).to_csv(
                 fh, index=False, float_format="%.10g")
         with atomic_write(root / "trial-balance.json") as fh:
-            json.dump(c.to_json(), fh, indent=1)
+            dump_json(c.to_json(), fh, indent=1)
 
 
 @command("influence-balance")
@@ -324,7 +346,14 @@ def influence_balance_cmd(
     shaft, counted in the same sense as trial_angle_deg (it grows when a trial mass is turned
     forward); give --phase-lag for an instrument that counts it against that sense. The
     corrections' angles come out in the frame of the trial angles."""
-    from ...design.vibration import _count, influence_balance, phasor
+    from ...design.vibration import (
+        ANGLE_RANGE_DEG,
+        STATIC_MOMENT_RANGE_GCM,
+        VELOCITY_RANGE_MM_S,
+        _count,
+        influence_balance,
+        phasor,
+    )
     from ...engine.errors import AnalysisError
     from ..files.io import read_csv_columns
 
@@ -334,7 +363,11 @@ def influence_balance_cmd(
                                          " it >= 0 and add 180 deg to its phase_deg instead",
                                          "trial_gcm": "A trial mass's static moment is a"
                                          " magnitude: give it > 0 and add 180 deg to its"
-                                         " trial_angle_deg instead"})
+                                         " trial_angle_deg instead"},
+                            ranges={"amplitude_mm_s": (*VELOCITY_RANGE_MM_S, "mm/s"),
+                                    "phase_deg": (*ANGLE_RANGE_DEG, "deg"),
+                                    "trial_gcm": (*STATIC_MOMENT_RANGE_GCM, "g cm"),
+                                    "trial_angle_deg": (*ANGLE_RANGE_DEG, "deg")})
     runs = list(dict.fromkeys(cols["run"]))
     places = list(dict.fromkeys(cols["place"]))
     if "0" not in runs or len(runs) < 2:
@@ -400,11 +433,14 @@ def level_change_cmd(
 ):
     """The change in vibration velocity level (dB) between two measurements, and each level
     against 5e-8 m/s."""
-    from ...design.vibration import V_REF_MM_S, level_change_db, level_db
+    from ...design.vibration import LEVEL_RANGE_MM_S, V_REF_MM_S, level_change_db, level_db
 
+    lo, hi = LEVEL_RANGE_MM_S
     for name, v in (("BEFORE", before), ("AFTER", after)):
-        if not (math.isfinite(v) and v > 0):
-            raise OptionError(name, f"must be a velocity > 0 mm/s, got {v:g}")
+        if not lo <= v <= hi:  # (a NaN fails too)
+            raise OptionError(name, f"must be a vibration velocity in {lo:g} .. {hi:g} mm/s,"
+                              f" got {v:g}", "Give the velocity measured (RMS or peak), mm/s;"
+                              " a level in dB needs a velocity > 0")
     data = {"before_db": float(level_db(before)), "after_db": float(level_db(after)),
             "level_change_db": level_change_db(before, after), "reference_mm_s": V_REF_MM_S}
     if as_json:

@@ -135,10 +135,11 @@ class Terminated(BaseException):
 
 
 def print_json(data) -> None:
-    """A command's result as one line of JSON on stdout (``--json``)."""
-    import json
+    """A command's result as one line of strict JSON on stdout (``--json``): no NaN or
+    infinity (:func:`sewmech.app.files.io.dump_json`)."""
+    from ..files.io import dump_json
 
-    json.dump(data, sys.stdout)
+    dump_json(data, sys.stdout)
     sys.stdout.write("\n")
 
 

@@ -4,7 +4,7 @@ problem file). Registered on the shared app of :mod:`sewmech.app.cli.common` whe
 
 from __future__ import annotations
 
-import json
+import math
 from pathlib import Path
 
 import typer
@@ -40,7 +40,7 @@ def optimize_cmd(
     from ...design.problem import OBJECTIVE_FORMS, Problem, load_problem, metric_unit
 
     spec, machine = load_problem(problem)
-    p = Problem(spec, machine)
+    p = Problem(spec, machine, str(problem))
     if out is not None:
         from ..files.outdir import preflight
 
@@ -53,12 +53,25 @@ def optimize_cmd(
             "x": {n: float(v) for n, v in zip(p.names, r.x)},
             "units": dict(zip(p.names, p.units)),
             "x_start": {n: float(v) for n, v in zip(p.names, p.start)},
-            "objective": float(r.fun), "objective_start": float(r.objective_start),
+            "objective": _defined(r.fun), "objective_start": _defined(r.objective_start),
             "objective_form": OBJECTIVE_FORMS[spec.objective.form],
-            "objective_parts": [{**a, "start": a.pop("value"), "answer": b["value"]}
+            "objective_parts": [{**{k: v for k, v in a.items() if k != "value"},
+                                 "start": a["value"], "answer": b["value"]}
                                 for a, b in zip(p.parts(p.start), p.parts(r.x))],
             "constraints": r.constraints, "n_evaluations": int(r.n_evaluations),
-            "history": [float(h) for h in r.history]}
+            "history": [_defined(h) for h in r.history]}
+    # JSON has no NaN or infinity: an undefined figure is null, and a note beside it says why
+    for key, note in (("objective", r.fun_note), ("objective_start", r.objective_start_note)):
+        if data[key] is None:
+            data[f"{key}_note"] = note
+    for part in data["objective_parts"]:
+        for key in ("start", "answer"):
+            if part[key] is None:
+                part[f"{key}_note"] = UNDEFINED_PART
+    if any(h is None for h in data["history"]):
+        data["history_note"] = ("null: the step's best design does not assemble over the whole"
+                                " turn, or a metric cannot be formed on it (the searches count"
+                                " it infinitely bad)")
     if "front" in r:
         data["front"] = r.front
     if out is not None:
@@ -72,8 +85,9 @@ def optimize_cmd(
     for n, s0, x, u, lo, hi in zip(p.names, p.start, r.x, p.units, p.lower, p.upper):
         t.add_row(n, f"{s0:.6g}", f"{x:.6g}", u, f"{lo:g} .. {hi:g}")
     console.print(t)
-    console.print(f"objective {r.objective_start:.6g} -> {r.fun:.6g} in {r.n_evaluations}"
-                  f" evaluations ({escape(str(r.message))})", highlight=False)
+    console.print(escape(f"objective {_shown(data, 'objective_start')} ->"
+                         f" {_shown(data, 'objective')} in {r.n_evaluations} evaluations"
+                         f" ({r.message})"), highlight=False)
     console.print(f"  (normalised, dimensionless: {OBJECTIVE_FORMS[spec.objective.form]})",
                   highlight=False)
     pt = Table(title="the objective's parts in their own units")
@@ -86,16 +100,39 @@ def optimize_cmd(
         if part["weight"] != 1.0:
             goal += f", w {part['weight']:g}"
         pt.add_row(part["metric"], _at(part), goal, number(scale, digits=6),
-                   number(part["start"], scale, 6), number(part["answer"], scale, 6),
-                   part["unit"])
+                   number(part["start"], scale, 6, "undefined"),
+                   number(part["answer"], scale, 6, "undefined"), part["unit"])
     console.print(pt)
+    if any(part[k] is None for part in data["objective_parts"] for k in ("start", "answer")):
+        console.print(escape(f"  undefined: {UNDEFINED_PART.removeprefix('not defined: ')}"),
+                      highlight=False)
     units = {c.metric: metric_unit(machine, c.metric) for c in spec.constraints}
     for name, c in r.constraints.items():
         mark = "[green]met[/]" if c["satisfied"] else "[red]VIOLATED[/]"
         unit = units.get(name.split(" (")[0], "")
-        value = "none" if c["value"] is None else f"{c['value']:.6g}"
+        value = (f"undefined ({c['note'].removeprefix('not defined: ')})" if c["value"] is None
+                 else f"{c['value']:.6g}")
         console.print(f"  {escape(name)} = {value}{' ' + unit if unit else ''} {mark}",
                       highlight=False)
+
+
+#: why an objective part has no value at a design, in words
+UNDEFINED_PART = ("not defined: the design does not assemble, or the metric cannot be formed"
+                  " on it")
+
+
+def _defined(x) -> float | None:
+    """``x`` as a float, or None where it is not a finite number (JSON has neither)."""
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _shown(data: dict, key: str) -> str:
+    """A figure of the result as a line shows it: the number, or "undefined (why)"."""
+    x = data[key]
+    if x is None:
+        return f"undefined ({data[f'{key}_note'].removeprefix('not defined: ')})"
+    return f"{x:.6g}"
 
 
 def _at(part: dict) -> str:
@@ -110,11 +147,11 @@ def _at(part: dict) -> str:
 
 
 def _write(out: Path, problem, data: dict, problem_file: Path) -> None:
-    from ..files.io import atomic_write
+    from ..files.io import atomic_write, dump_json
     from ..files.outdir import output_dir
     from ..report.design import problem_page
 
     with output_dir(out, command="optimize") as root:
         problem_page(root, problem, data, problem_file)
         with atomic_write(root / "optimize.json") as fh:
-            json.dump(data, fh, indent=1)
+            dump_json(data, fh, indent=1)

@@ -45,6 +45,37 @@ def atomic_write(path: str | Path, mode: str = "w", encoding: str | None = "utf-
         raise
 
 
+def dump_json(data, fh, *, indent: int | None = None) -> None:
+    """``data`` as JSON into the open text file ``fh``: strict JSON, which has no NaN or
+    infinity. Every command gives an undefined figure as null with a note that says why, at
+    its source; a NaN or an infinity that still reaches this point is a bug in sewmech, and
+    is raised as one (a RuntimeError naming where it is) rather than written as the bare
+    ``NaN`` that JSON readers refuse."""
+    try:
+        text = json.dumps(data, indent=indent, allow_nan=False)
+    except ValueError:
+        raise RuntimeError(f"a non-finite number at {_non_finite_path(data)} was about to be"
+                           " written as JSON") from None
+    fh.write(text)
+
+
+def _non_finite_path(data, path: str = "") -> str:
+    """Where the first NaN or infinity in ``data`` is (``objective_parts[0].start``), or ""."""
+    if isinstance(data, float):
+        return "" if math.isfinite(data) else (path or "the top level")
+    if isinstance(data, dict):
+        items = ((f"{path}.{k}" if path else str(k), v) for k, v in data.items())
+    elif isinstance(data, list | tuple):
+        items = ((f"{path}[{k}]", v) for k, v in enumerate(data))
+    else:
+        return ""
+    for where, v in items:
+        hit = _non_finite_path(v, where)
+        if hit:
+            return hit
+    return ""
+
+
 def _clean(x):
     """JSON has no NaN: write null for infeasible entries."""
     if isinstance(x, float) and not math.isfinite(x):
@@ -74,7 +105,7 @@ def write_kinematics_json(result: KinematicsResult, path: str | Path) -> Path:
     """Write :func:`kinematics_to_dict` as JSON, atomically."""
     path = Path(path)
     with atomic_write(path) as fh:
-        json.dump(kinematics_to_dict(result), fh, indent=1)
+        dump_json(kinematics_to_dict(result), fh, indent=1)
     return path
 
 
@@ -132,6 +163,8 @@ def dynamics_to_dict(res) -> dict:
                                 " it is in potential_energy_J)",
             "shaking_force_N": "-sum m a_G of the moving links: what the frame feels",
             "shaking_moment_Nm": "-sum (I alpha + r_G x m a_G) about the frame origin",
+            "reduced_inertia_kgm2": "J(phi) = 2 T / omega^2; null where the shaft is at rest"
+                                    " (omega = 0: a motion at rest has no velocity ratios)",
             "bearing_front_N": "force of the front bearing on the upper shaft (x, y)",
             "bearing_rear_N": "force of the rear bearing on the upper shaft (x, y)"
                               + (f"; null here: {why}" if why else ""),
@@ -194,15 +227,18 @@ MAX_CSV_BYTES = 64 * 2**20
 
 def read_csv_columns(path: str | Path, numbers: Sequence[str], texts: Sequence[str] = (),
                      *, what: str = "measurements",
-                     nonnegative: Mapping[str, str] | None = None) -> dict[str, np.ndarray]:
+                     nonnegative: Mapping[str, str] | None = None,
+                     ranges: Mapping[str, tuple[float, float, str]] | None = None
+                     ) -> dict[str, np.ndarray]:
     """The columns ``numbers`` (as floats) and ``texts`` (as strings) of a CSV file with a
     header line; other columns are ignored, blank lines and lines starting with ``#`` skipped.
     ``nonnegative``: number columns that must be >= 0, each with what to do instead (a
-    magnitude's sign belongs to an angle).
+    magnitude's sign belongs to an angle); ``ranges``: number columns that must lie in
+    (lo, hi, unit), a range a measurement can have.
 
     Raises AnalysisError naming the file, and the line and column of a bad value, when a column
-    is missing, a number is not a finite number (or negative where it may not be), or there
-    are no data lines."""
+    is missing, a number is not a finite number (or negative where it may not be, or outside
+    its range), or there are no data lines."""
     import csv
 
     from ...engine.errors import AnalysisError
@@ -261,5 +297,10 @@ def read_csv_columns(path: str | Path, numbers: Sequence[str], texts: Sequence[s
             if nonnegative and c in nonnegative and v < 0.0:
                 raise AnalysisError(f"{where}:{k}", f"column {c}: {cell} is negative",
                                     nonnegative[c])
+            if ranges and c in ranges and not ranges[c][0] <= v <= ranges[c][1]:
+                lo, hi, unit = ranges[c]
+                raise AnalysisError(f"{where}:{k}", f"column {c}: {cell} is outside {lo:g} .."
+                                    f" {hi:g} {unit}, the range a measurement of it can have",
+                                    "Check the value and its unit (docs/balancing.md)")
             out[c].append(v)
     return {c: np.array(v, dtype=float if c in numbers else object) for c, v in out.items()}

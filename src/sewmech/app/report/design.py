@@ -254,6 +254,14 @@ def _channel(figs: Figures, machine, channel: str, before, after, reg: float | N
              f"{channel} for the start (dashed) and the answer{at}.", pd.DataFrame(cols))
 
 
+def _objective(data: dict, key: str) -> str:
+    """The objective as the page says it: its value, or "undefined (why)"."""
+    x = data[key]
+    if x is None:
+        return f"undefined ({data.get(key + '_note', '').removeprefix('not defined: ')})"
+    return f"{x:.6g}"
+
+
 def page_html(data: dict, problem, metrics: pd.DataFrame, blocks, text: str, file_name: str
           ) -> str:
     from .page import CSS
@@ -276,8 +284,9 @@ def page_html(data: dict, problem, metrics: pd.DataFrame, blocks, text: str, fil
 <h1>{e(data['problem'])}</h1>
 <p class="sub">{e(spec.problem.description or '')}</p>
 <p>Machine {e(data['machine'])}; method {e(data['method'])}; objective
-{data['objective_start']:.6g} at the start, {data['objective']:.6g} at the answer
-(dimensionless: each part divided by its scale). Lengths in mm, angles in degrees.</p>
+{e(_objective(data, 'objective_start'))} at the start, {e(_objective(data, 'objective'))} at
+the answer (dimensionless: each part divided by its scale). Lengths in mm, angles in
+degrees.</p>
 {verdict}
 <h2>Variables</h2>{table_html(var)}
 <h2>Metrics before and after</h2>
