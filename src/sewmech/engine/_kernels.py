@@ -1116,10 +1116,10 @@ FORCE_CHUNK = CHUNK
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
-def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA, mass,
-                  inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off, rperm, cperm,
-                  cpl_ptr, cpl_row, cpl_col, pslot, LF, LPOW, X, MINPIV, W, B, XV, t1, t2, t3,
-                  t4, worst, rpos, cpos, max_written):
+def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH, GP, GA, mass,
+                  inertia, gravity, XB, blk_ptr, blk_off, rperm, cperm, cpl_ptr, cpl_row,
+                  cpl_col, pslot, X, MINPIV, W, B, XV, t1, t2, t3, t4, worst, rpos, cpos,
+                  max_written):
     """One design, positions in chunks of FORCE_CHUNK. W (n_slots * chunk, flat: slot s of
     position kk at s * chunk + kk) holds the blocks' entries (row-major within a block) and
     then the coupling entries; B the right-hand sides and XV the unknowns (n_eq * chunk, flat),
@@ -1148,6 +1148,7 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
     GPf = GP.reshape(GP.size)
     GAf = GA.reshape(GA.size)
     EPf = EP.reshape(EP.size)
+    XBf = XB.reshape(XB.size)
     n_pt = P.shape[2]
     n_g = GP.shape[2]
     sp = _U(2 * n_pt)  # P's step from one position to the next
@@ -1161,7 +1162,8 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
         for blk in range(n_blocks):
             if blk_ptr[blk + 1] - blk_ptr[blk] > n_written:
                 W[blk_off[blk]:blk_off[blk + 1], :] = 0.0
-        # right-hand side per moving link: m a_G - m g - sum F ; I alpha - sum (X - G) x F
+        # right-hand side per moving link: m a_G - m g - sum F ; I alpha - sum (X - G) x F,
+        # the applied forces and their moments about the centre of mass given in XB
         for li in range(1, n_links):
             rx = rpos[3 * (li - 1)]
             ry = rpos[3 * (li - 1) + 1]
@@ -1171,45 +1173,13 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
             ii = 1e-3 * inertia[li]
             ga = _U(((d * n_phi + k0) * n_g + li) * 2)
             el = _U((d * n_phi + k0) * EP.shape[2] + li)
+            xb = _U((d * n_phi + k0) * n_eq + 3 * (li - 1))
             bx, by, bm = _U(rx) * CH, _U(ry) * CH, _U(rm) * CH
             for kk in range(_U(nk)):
-                Bf[bx + kk] = m * GAf[ga + kk * sg_]
-                Bf[by + kk] = m * GAf[ga + kk * sg_ + _U(1)] + mg
-                Bf[bm + kk] = ii * EPf[el + kk * sl]
-        for kk in range(nk):
-            LPOW[d, k0 + kk] = 0.0
-        for j in range(ld_int.shape[0]):
-            li = ld_int[j, 0]
-            pi = ld_int[j, 1]
-            for kk in range(nk):
-                k = k0 + kk
-                if ld_int[j, 3] == 0:  # a fixed direction
-                    ux = ld_f[j, 1]
-                    uy = ld_f[j, 2]
-                else:  # along the bisector of the unit vectors toward the given points
-                    ux = 0.0
-                    uy = 0.0
-                    for t in range(ld_int[j, 2], ld_int[j, 2] + ld_int[j, 3]):
-                        ex = P[d, k, ld_tw[t], 0] - P[d, k, pi, 0]
-                        ey = P[d, k, ld_tw[t], 1] - P[d, k, pi, 1]
-                        n = math.sqrt(ex * ex + ey * ey)
-                        ux += ex / n
-                        uy += ey / n
-                    n = math.sqrt(ux * ux + uy * uy)
-                    ux /= n
-                    uy /= n
-                f = ld_f[j, 0] * ld_on[j, k]
-                fx = f * ux
-                fy = f * uy
-                LF[d, k, j, 0] = fx
-                LF[d, k, j, 1] = fy
-                LPOW[d, k] += fx * V[d, k, pi, 0] + fy * V[d, k, pi, 1]
-                if li > 0:
-                    r = 3 * (li - 1)
-                    B[rpos[r], kk] -= fx
-                    B[rpos[r + 1], kk] -= fy
-                    B[rpos[r + 2], kk] -= ((P[d, k, pi, 0] - GP[d, k, li, 0]) * fy
-                                           - (P[d, k, pi, 1] - GP[d, k, li, 1]) * fx)
+                ix = xb + kk * _U(n_eq)
+                Bf[bx + kk] = m * GAf[ga + kk * sg_] - XBf[ix]
+                Bf[by + kk] = m * GAf[ga + kk * sg_ + _U(1)] + mg - XBf[ix + _U(1)]
+                Bf[bm + kk] = ii * EPf[el + kk * sl] - XBf[ix + _U(2)]
         # the matrix entries of every pair (pslot: where each of its entries goes in W)
         for i in range(pairs.shape[0]):
             kind = pairs[i, 0]
@@ -1347,20 +1317,21 @@ def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH
     return n_low
 
 
-_FORCE_DOC = """Loads, right-hand sides and pair forces of every design and position.
+_FORCE_DOC = """Right-hand sides and pair forces of every design and position.
 
-    The motion comes from the kinematics kernel: P, V (D, n_phi, n_pt, 2) of the points, EP,
+    The motion comes from the kinematics kernel: P (D, n_phi, n_pt, 2) of the points, EP,
     TH (D, n_phi, n_links) of the links, Q (D, n_phi, n_var), GP, GA (D, n_phi, n_links, 2) of
     the centres of mass. mass (kg), inertia (kg mm^2 about the centre of mass) per link;
-    gravity (m/s^2, along -y). Loads: ld_int rows (link, point, first row in ld_tw, number of
-    toward points: 0 for a fixed direction), ld_f rows (force N, cos, sin of the fixed
-    direction), ld_on (n_loads, n_phi) 1 inside the load's windows. The equations (row 3 (link
+    gravity (m/s^2, along -y). XB (D, n_phi, n_eq): the applied forces on every moving link
+    (process loads, springs, dampers, friction), as equation rows: the sum of their x and y
+    components (N) and of their moments about the link's centre of mass (N mm), row 3 (link -
+    1) + 0, 1, 2. The equations (row 3 (link
     - 1) + x, y, moment about the centre of mass; one column per unknown) are solved block by
     block in the block upper-triangular order of blk_ptr, rperm (rows) and cperm (unknowns);
     block b's entries sit row-major at blk_off[b] of the n_slots entry slots, its coupling
     entries (cpl_row within the block, cpl_col) after all blocks, and pslot says in which slot
     each matrix entry of each pair goes (see :func:`sewmech.dynamics.force_structure`). Fills
-    LF (D, n_phi, n_loads, 2) N, LPOW (D, n_phi) N mm/s, X (D, n_phi, n_eq) and MINPIV (D,
+    X (D, n_phi, n_eq) and MINPIV (D,
     n_phi), the smallest |R_jj| of the blocks' QR factors relative to each block's largest
     entry (0: singular). Blocks of up to max_written unknowns (at most
     :data:`sewmech._blocks.MAX_BLOCK`) go to the written solvers of :mod:`sewmech._blocks`,
@@ -1378,18 +1349,16 @@ def _force_scratch(n_slots, n_eq):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
-def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH, GP, GA,
-                mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on, blk_ptr, blk_off, rperm,
-                cperm, cpl_ptr, cpl_row, cpl_col, pslot, n_slots, LF, LPOW, X, MINPIV,
-                max_written):
+def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH, GP, GA,
+                mass, inertia, gravity, XB, blk_ptr, blk_off, rperm, cperm, cpl_ptr, cpl_row,
+                cpl_col, pslot, n_slots, X, MINPIV, max_written):
     W, B, XV, t1, t2, t3, t4, worst, rpos, cpos = _force_scratch(n_slots, X.shape[2])
     n_low = 0
     for d in range(d0, d1):
-        n_low += _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, V, EP, Q, TH,
-                               GP, GA, mass, inertia, gravity, ld_int, ld_f, ld_tw, ld_on,
-                               blk_ptr, blk_off, rperm, cperm, cpl_ptr, cpl_row, cpl_col, pslot,
-                               LF, LPOW, X, MINPIV, W, B, XV, t1, t2, t3, t4, worst, rpos, cpos,
-                               max_written)
+        n_low += _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH,
+                               GP, GA, mass, inertia, gravity, XB, blk_ptr, blk_off, rperm,
+                               cperm, cpl_ptr, cpl_row, cpl_col, pslot, X, MINPIV, W, B, XV,
+                               t1, t2, t3, t4, worst, rpos, cpos, max_written)
     return n_low
 
 

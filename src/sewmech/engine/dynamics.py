@@ -35,6 +35,7 @@ from ._threads import run_chunks
 from .counterweights import CounterweightMotion, counterweight_values
 from .errors import AnalysisError, OptionError, SewmechError
 from .kinematics import KinematicsPlan, check_speed, kernel_input, kernel_params
+from .loads import LoadTables, in_windows  # noqa: F401  (in_windows: sewmech.dynamics.in_windows)
 from .machine import Machine, Pair
 from .mass import MassProperties
 from .results import KinematicsResult
@@ -122,20 +123,6 @@ def _first_point(machine: Machine, link: str) -> str | None:
 
 
 # ---- loads -------------------------------------------------------------------------------------
-
-
-def in_windows(phi_deg: np.ndarray, windows: Sequence[tuple[float, float]]) -> np.ndarray:
-    """Mask of shaft angles (deg) inside any of the windows [start, end] (deg); a window with
-    end < start wraps through 360; a window of 360 deg or more is the whole cycle."""
-    a = np.mod(phi_deg, 360.0)
-    out = np.zeros(np.shape(phi_deg), dtype=bool)
-    for w0, w1 in windows:
-        if w1 - w0 >= 360.0:
-            return np.ones(np.shape(phi_deg), dtype=bool)
-        s, e = w0 % 360.0, w1 % 360.0
-        tol = 1e-9
-        out |= ((a >= s - tol) & (a <= e + tol)) if s <= e else ((a >= s - tol) | (a <= e + tol))
-    return out
 
 
 # ---- the force analysis --------------------------------------------------------------------------
@@ -675,31 +662,6 @@ def force_structure(machine: Machine) -> ForceStructure:
     return out
 
 
-def _load_tables(machine: Machine, loads: Sequence[LoadSpec], phi_deg: np.ndarray):
-    """The loads as the force kernel's tables (see ``_kernels.force_solve``)."""
-    ints, floats, toward, on = [], [], [], []
-    masks = {}
-    for load in loads:
-        key = tuple(map(tuple, load.windows_deg))
-        if key not in masks:
-            masks[key] = in_windows(phi_deg, load.windows_deg).astype(float)
-        on.append(masks[key])
-        if load.angle_deg is not None:
-            a = math.radians(load.angle_deg)
-            floats.append((load.force_N, math.cos(a), math.sin(a)))
-            ints.append((machine.link_index(load.link), machine.point_index(load.point),
-                         len(toward), 0))
-        else:
-            floats.append((load.force_N, 0.0, 0.0))
-            ints.append((machine.link_index(load.link), machine.point_index(load.point),
-                         len(toward), len(load.toward)))
-            toward.extend(machine.point_index(q) for q in load.toward)
-    return (np.asarray(ints, dtype=np.int64).reshape(-1, 4),
-            np.asarray(floats, dtype=float).reshape(-1, 3),
-            np.asarray(toward, dtype=np.int64),
-            np.asarray(on, dtype=float).reshape(len(loads), phi_deg.shape[0]))
-
-
 #: a DynamicsResult's own fields; anything else in its __dict__ is a cached derived quantity
 _RESULT_FIELDS = frozenset(f.name for f in fields(DynamicsResult))
 _N_RESULT_FIELDS = len(_RESULT_FIELDS)
@@ -759,8 +721,8 @@ class DynamicsPlan:
         self.kin_plan = KinematicsPlan(
             machine, phi, rpm=rpm, omega=omega, epsilon=epsilon, on_failure=on_failure,
             extra_points=(np.concatenate(rows), np.concatenate(local)))
-        self._loads = _load_tables(machine, self.loads, np.degrees(self.kin_plan.phi))
-        self._load_links = tuple(int(i) for i in self._loads[0][:, 0])
+        self._loads = LoadTables.build(machine, self.loads, np.degrees(self.kin_plan.phi))
+        self._load_links = self._loads.links
         self._live: tuple | None = None
         #: blocks of up to this many unknowns go to the written solvers of ``_blocks``, larger
         #: ones to the force kernel's generic loop (0: all of them; the tests compare the two)
@@ -780,15 +742,16 @@ class DynamicsPlan:
         live = self._live
         if live is None or live[0] is not a:  # a new batch shape: new arrays and result
             live = self._live = self._prepare(kin, a)
-        _, solve, head, tail, res, cw = live
+        _, solve, head, tail, res, cw, out = live
+        self._applied(a, out)
         if solve(*head, kernel_params(P), *tail, self._max_written):  # some pivots ~ zero
-            self._raise_singular(kin, a["feasible"], tail[-1])
+            self._raise_singular(kin, a["feasible"], out["MINPIV"])
         if cw is not None:
             self._counterweights(P, solve, head, tail, cw)
         if kp.any_failed:  # some positions could not be assembled (on_failure="mask")
             feasible = a["feasible"]
-            for x in tail[-4:]:  # LF, LPOW, X, MINPIV
-                x[~feasible] = np.nan
+            for key in ("LF", "LPOW", "X", "MINPIV"):
+                out[key][~feasible] = np.nan
         np.copyto(res.params, P)
         cached = res.__dict__
         if len(cached) > _N_RESULT_FIELDS:  # the last call's derived quantities are stale
@@ -803,9 +766,10 @@ class DynamicsPlan:
         batch, n_phi = kin.batch_shape, kp.n_phi
         n_d = math.prod(batch)
         n_eq = st.pattern.shape[0]
-        LF = np.empty((n_d, n_phi, self._loads[0].shape[0], 2))
+        LF = np.empty((n_d, n_phi, len(self._loads), 2))
         LPOW, MINPIV = np.empty((n_d, n_phi)), np.empty((n_d, n_phi))
         X = np.empty((n_d, n_phi, n_eq))
+        XB = np.zeros((n_d, n_phi, n_eq))
         if n_d >= 4 and n_d * n_phi >= 20000:  # big batches: chunks of designs on threads
             def solve(*args, n_d=n_d):
                 return run_chunks(K.force_solve, n_d, args)
@@ -814,12 +778,13 @@ class DynamicsPlan:
                 return K.force_solve(0, n_d, *args)
         # inputs read-only (one array type per argument: numba compiles the kernel once)
         head = tuple(kernel_input(x) for x in (st.table, st.angles, st.cam_rows, machine.terms))
-        tail = (a["P"], a["V"], a["EP"], a["S"], a["TH"], a["GP"], a["GA"],
+        tail = (a["P"], a["EP"], a["S"], a["TH"], a["GP"], a["GA"],
                 *(kernel_input(x) for x in (lm.mass, lm.inertia)),
-                GRAVITY if self.gravity else 0.0, *(kernel_input(x) for x in self._loads),
+                GRAVITY if self.gravity else 0.0, XB,
                 *(kernel_input(x) for x in (st.blk_ptr, st.blk_off, st.rperm, st.cperm,
                                             st.cpl_ptr, st.cpl_row, st.cpl_col, st.pslot)),
-                st.n_slots, LF, LPOW, X, MINPIV)
+                st.n_slots, X, MINPIV)
+        out = {"LF": LF, "LPOW": LPOW, "X": X, "XB": XB, "MINPIV": MINPIV}
 
         def shape(x):
             return x.reshape(batch + x.shape[1:])
@@ -835,7 +800,19 @@ class DynamicsPlan:
             load_force=shape(LF), load_power=shape(LPOW), mass=lm, com_p=gp, com_v=gv,
             com_a=ga, params=np.empty(batch + (machine.defaults.size,)),
             mass_props=self.mass_props, load_links=self._load_links, counterweights=motion)
-        return a, solve, head, tail, res, cw
+        return a, solve, head, tail, res, cw, out
+
+    def _applied(self, a: dict[str, np.ndarray], out: dict[str, np.ndarray]) -> None:
+        """The applied forces of this call's motion: the loads' forces and power (out's LF,
+        LPOW) and every applied force as generalized forces (XB)."""
+        XB = out["XB"]
+        XB[...] = 0.0
+        loads = self._loads
+        if len(loads):
+            loads.forces(a["P"], a["V"], out["LF"], out["LPOW"])
+            loads.generalized(a["P"], a["GP"], out["LF"], XB)
+        else:
+            out["LPOW"][...] = 0.0
 
     # ---- counterweights -----------------------------------------------------------------------
     # The forces are linear in the loads a point mass m at r = (u, v) of link L's frame puts on
@@ -857,12 +834,10 @@ class DynamicsPlan:
             e[li] = 1.0
         units = [kernel_input(e) for e in units]
         nothing = kernel_input(np.zeros(n_links))
-        empty = _load_tables(self.machine, [], np.degrees(self.kin_plan.phi))
         scratch = dict(
             GP=np.zeros((n_d, n_phi, n_links, 2)), GA=np.zeros((n_d, n_phi, n_links, 2)),
             unit=units, nothing=nothing,
-            loads=tuple(kernel_input(x) for x in empty),
-            LF=np.empty((n_d, n_phi, 0, 2)), LPOW=np.empty((n_d, n_phi)),
+            XB=kernel_input(np.zeros((n_d, n_phi, n_eq))),  # no applied forces
             MINPIV=np.empty((n_d, n_phi)),
             X=np.empty((len(self._cw_links), 4, n_d, n_phi, n_eq)),
             cp=np.empty((n_d, n_phi, n_cw, 2)), cv=np.empty((n_d, n_phi, n_cw, 2)),
@@ -886,7 +861,7 @@ class DynamicsPlan:
         n_d = a["GP"].shape[0]
         m, u, v = counterweight_values(self.counterweights, P.reshape(n_d, -1))
         cw["mass"][...] = m
-        X = tail[-2]
+        X = tail[-2]  # (X, MINPIV)
         for j, li in enumerate(self._cw_links):
             base = n_links + 3 * j  # the three frame points of this link among the extras
             on = [k for k, c in enumerate(self.counterweights) if c.link_index == li]
@@ -907,15 +882,16 @@ class DynamicsPlan:
         """The machine's answers to 1 kg at (0, 0), (1, 0), (0, 1) of link ``li``'s frame and
         to 1 kg mm^2 on it, as X_0, X_u - X_0 - X_I, X_v - X_0 - X_I, X_I in cw["X"][j]."""
         a = self.kin_plan.kernel_arrays()
-        state, rest = tail[:5], tail[14:-4]  # (P, V, EP, S, TH); the block structure, n_slots
+        # tail: P, EP, S, TH, GP, GA, mass, inertia, gravity, XB, (8 block arrays), n_slots,
+        # X, MINPIV
+        state, gravity, rest = tail[:4], tail[8], tail[10:-2]
         for b in range(4):  # 1 kg at each point; then 1 kg mm^2 (at any point: a couple)
             cw["GP"][:, :, li] = a["GP"][:, :, base + min(b, 2)]
             cw["GA"][:, :, li] = a["GA"][:, :, base + min(b, 2)]
             mass, inertia = (cw["unit"][j], cw["nothing"]) if b < 3 else \
                 (cw["nothing"], cw["unit"][j])
-            solve(*head, kernel_params(P), *state, cw["GP"], cw["GA"], mass, inertia, tail[9],
-                  *cw["loads"], *rest, cw["LF"], cw["LPOW"], cw["X"][j, b], cw["MINPIV"],
-                  self._max_written)
+            solve(*head, kernel_params(P), *state, cw["GP"], cw["GA"], mass, inertia, gravity,
+                  cw["XB"], *rest, cw["X"][j, b], cw["MINPIV"], self._max_written)
         X0, Xu, Xv, XI = cw["X"][j]
         Xu -= X0 + XI
         Xv -= X0 + XI
