@@ -1365,3 +1365,168 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
 force_solve.__doc__ = _FORCE_DOC.format(
     which="Designs d0 <= d < d1; it releases the GIL, so big batches run as chunks on threads.")
 
+
+
+# ---- friction -----------------------------------------------------------------------------------
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
+def friction_forces(fr_int, fr_f, X, CP, CN, OM, GP, GV, XB0, XB, FP, FF):
+    """The friction of every frictional pair from the pair forces X (D, n_phi, n_eq), as
+    generalized forces XB = XB0 + friction (see :func:`force_solve`'s XB).
+
+    fr_int rows (kind, first link, second link, column of its first unknown in X), fr_f rows
+    (mu, pin radius mm, viscous N mm s or N s/mm, smoothing speed mm/s). CP, CN (D, n_phi,
+    n_fr, 2): each pair's force point and force direction (revolute: the pin, unused). OM (D,
+    n_phi, n_links) the links' angular velocities, GP, GV (D, n_phi, >= n_links, 2) their
+    centres of mass and those points' velocities. Revolute pairs: a moment -(mu r |F| s(r w)
+    + viscous w) on the second link, the opposite on the first, w the relative angular
+    velocity (second less first); prismatic, cam and slot pairs: a force -(mu |N| s(v) +
+    viscous v) along the contact's tangent t on the second link at the force point, the
+    opposite on the first, v = t . (relative velocity of the point on the second link and on
+    the first); s(x) = x / sqrt(x^2 + smooth^2). Fills FF (D, n_phi, n_fr) with that moment
+    (N mm) or force (N) on the second link and FP with the power it takes out of the machine
+    (N mm/s, >= 0). Returns the largest |XB - XB0| entry written (0 without friction)."""
+    D, n_phi = X.shape[0], X.shape[1]
+    n_fr = fr_int.shape[0]
+    for d in range(D):
+        for k in range(n_phi):
+            for r in range(XB.shape[2]):
+                XB[d, k, r] = XB0[d, k, r]
+            for i in range(n_fr):
+                kind = fr_int[i, 0]
+                la = fr_int[i, 1]
+                lb = fr_int[i, 2]
+                c = fr_int[i, 3]
+                mu = fr_f[i, 0]
+                rad = fr_f[i, 1]
+                visc = fr_f[i, 2]
+                sm = fr_f[i, 3]
+                if kind == PAIR_REVOLUTE:
+                    fx = X[d, k, c]
+                    fy = X[d, k, c + 1]
+                    w = OM[d, k, lb] - OM[d, k, la]
+                    v = rad * w
+                    m = -(mu * rad * math.sqrt(fx * fx + fy * fy) * v / math.sqrt(v * v + sm * sm)
+                          + visc * w)
+                    FF[d, k, i] = m
+                    FP[d, k, i] = -m * w
+                    if lb > 0:
+                        XB[d, k, 3 * (lb - 1) + 2] += m
+                    if la > 0:
+                        XB[d, k, 3 * (la - 1) + 2] -= m
+                    continue
+                n = X[d, k, c]
+                px = CP[d, k, i, 0]
+                py = CP[d, k, i, 1]
+                tx = CN[d, k, i, 1]  # the tangent: the normal turned -90 deg
+                ty = -CN[d, k, i, 0]
+                # velocity of the force point as a point of each link
+                vbx = GV[d, k, lb, 0] - OM[d, k, lb] * (py - GP[d, k, lb, 1])
+                vby = GV[d, k, lb, 1] + OM[d, k, lb] * (px - GP[d, k, lb, 0])
+                vax = GV[d, k, la, 0] - OM[d, k, la] * (py - GP[d, k, la, 1])
+                vay = GV[d, k, la, 1] + OM[d, k, la] * (px - GP[d, k, la, 0])
+                v = tx * (vbx - vax) + ty * (vby - vay)
+                f = -(mu * abs(n) * v / math.sqrt(v * v + sm * sm) + visc * v)
+                FF[d, k, i] = f
+                FP[d, k, i] = -f * v
+                fx = f * tx
+                fy = f * ty
+                if lb > 0:
+                    rb = 3 * (lb - 1)
+                    XB[d, k, rb] += fx
+                    XB[d, k, rb + 1] += fy
+                    XB[d, k, rb + 2] += (px - GP[d, k, lb, 0]) * fy - (py - GP[d, k, lb, 1]) * fx
+                if la > 0:
+                    ra = 3 * (la - 1)
+                    XB[d, k, ra] -= fx
+                    XB[d, k, ra + 1] -= fy
+                    XB[d, k, ra + 2] -= (px - GP[d, k, la, 0]) * fy - (py - GP[d, k, la, 1]) * fx
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
+def anderson_step(X, Xold, HF, HG, k, feasible):
+    """One step of Anderson acceleration (type II, depth HF.shape[0] - 1) of the fixed point
+    x = g(x), at every design and position on its own: Xold (D, n_phi, n) is x_k, X holds
+    g(x_k) on entry and x_{k+1} on return. HF, HG (depth + 1, D, n_phi, n): the residuals
+    f = g(x) - x and the images g(x) of the last steps (a ring, step k in slot k % (depth +
+    1)). x_{k+1} = g_k - sum_j gamma_j (g_{k-j} - g_{k-j-1}), gamma the least-squares
+    combination of the residuals' differences that best cancels f_k (normal equations of at
+    most depth unknowns per position, solved by Gaussian elimination, damped by 1e-12 of
+    their trace). Returns max |f_k| relative to each design's largest |g| over its assembled
+    positions (the change of the plain step)."""
+    depth = HF.shape[0] - 1
+    ring = depth + 1
+    slot = k % ring
+    D, n_phi, n = X.shape[0], X.shape[1], X.shape[2]
+    mk = min(k, depth)
+    worst = 0.0
+    A = np.zeros((depth, depth + 1))
+    gamma = np.zeros(depth)
+    for d in range(D):
+        scale = 1.0
+        for kk in range(n_phi):
+            if feasible[d, kk]:
+                for e in range(n):
+                    scale = max(scale, abs(X[d, kk, e]))
+        for kk in range(n_phi):
+            res = 0.0
+            for e in range(n):
+                f = X[d, kk, e] - Xold[d, kk, e]
+                HF[slot, d, kk, e] = f
+                HG[slot, d, kk, e] = X[d, kk, e]
+                res = max(res, abs(f))
+            if not feasible[d, kk]:
+                continue
+            if not res / scale <= worst:
+                worst = res / scale
+            if mk == 0:
+                continue
+            # normal equations [A | b] of min |f_k - sum_j gamma_j (f_{k-j} - f_{k-j-1})|
+            for i in range(mk):
+                si = (k - i) % ring
+                si1 = (k - i - 1) % ring
+                bi = 0.0
+                for e in range(n):
+                    bi += (HF[si, d, kk, e] - HF[si1, d, kk, e]) * HF[slot, d, kk, e]
+                A[i, mk] = bi
+                for j in range(i, mk):
+                    sj = (k - j) % ring
+                    sj1 = (k - j - 1) % ring
+                    aij = 0.0
+                    for e in range(n):
+                        aij += ((HF[si, d, kk, e] - HF[si1, d, kk, e])
+                                * (HF[sj, d, kk, e] - HF[sj1, d, kk, e]))
+                    A[i, j] = aij
+                    A[j, i] = aij
+            tr = 0.0
+            for i in range(mk):
+                tr += A[i, i]
+            if not tr > 0.0:
+                continue
+            for i in range(mk):
+                A[i, i] += 1e-12 * tr
+            ok = True
+            for c in range(mk):  # elimination (symmetric positive definite: no pivoting)
+                p = A[c, c]
+                if not p > 0.0:
+                    ok = False
+                    break
+                for r in range(c + 1, mk):
+                    q = A[r, c] / p
+                    for j in range(c, mk + 1):
+                        A[r, j] -= q * A[c, j]
+            if not ok:
+                continue
+            for c in range(mk - 1, -1, -1):
+                t = A[c, mk]
+                for j in range(c + 1, mk):
+                    t -= A[c, j] * gamma[j]
+                gamma[c] = t / A[c, c]
+            for i in range(mk):
+                si = (k - i) % ring
+                si1 = (k - i - 1) % ring
+                gi = gamma[i]
+                for e in range(n):
+                    X[d, kk, e] -= gi * (HG[si, d, kk, e] - HG[si1, d, kk, e])
+    return worst

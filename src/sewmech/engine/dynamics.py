@@ -35,11 +35,13 @@ from ._threads import run_chunks
 from .counterweights import CounterweightMotion, counterweight_values
 from .errors import AnalysisError, OptionError, SewmechError
 from .kinematics import KinematicsPlan, check_speed, kernel_input, kernel_params
+from .friction import ANDERSON_DEPTH, MAX_STEPS, TOLERANCE, FrictionTables
 from .loads import LoadTables, in_windows  # noqa: F401  (in_windows: sewmech.dynamics.in_windows)
 from .machine import Machine, Pair
 from .mass import MassProperties
 from .results import KinematicsResult
 from .spec import FRAME, SHAFT, LoadSpec
+from .springs import SpringTables
 
 #: standard gravity, m/s^2 (acts along -y of the machine frame)
 GRAVITY = 9.80665
@@ -128,6 +130,46 @@ def _first_point(machine: Machine, link: str) -> str | None:
 # ---- the force analysis --------------------------------------------------------------------------
 
 
+@dataclass(frozen=True)
+class SpringForces:
+    """The springs' forces over the turn (``[[springs]]`` then ``[[torsion_springs]]``).
+
+    ``force``: batch + (n_phi, n_springs), a translational spring's tension (N, positive when
+    it pulls its ends together) or a torsion spring's moment on its pair's second link
+    (N mm); ``length``: its length (mm) or the pair's relative angle (rad); ``energy``: their
+    potential energy, N mm, batch + (n_phi,); ``energy_rate``: its rate and ``damping_power``
+    the dampers' loss (>= 0), N mm/s. The first ``n_translational`` are translational."""
+
+    names: tuple[str, ...]
+    n_translational: int
+    force: np.ndarray = field(repr=False)
+    length: np.ndarray = field(repr=False)
+    energy: np.ndarray = field(repr=False)
+    energy_rate: np.ndarray = field(repr=False)
+    damping_power: np.ndarray = field(repr=False)
+
+    def of(self, name: str) -> np.ndarray:
+        """One spring's force (N) or moment (N mm), batch + (n_phi,)."""
+        return self.force[..., self.names.index(name)]
+
+
+@dataclass(frozen=True)
+class FrictionForces:
+    """Friction in the pairs over the turn (``[friction]``): ``force`` batch + (n_phi, n_fr),
+    each frictional pair's friction moment (N mm, revolute) or force (N, along the contact's
+    tangent) on its second link; ``power`` the power it takes out of the machine (N mm/s,
+    >= 0)."""
+
+    pairs: tuple[str, ...]
+    force: np.ndarray = field(repr=False)
+    power: np.ndarray = field(repr=False)
+
+    @property
+    def total_power(self) -> np.ndarray:
+        """The friction loss of all pairs, N mm/s, batch + (n_phi,)."""
+        return self.power.sum(axis=-1)
+
+
 @dataclass(frozen=True, eq=False)
 class DynamicsResult:
     """Forces and energies of a machine over crank angles (see the module doc for units).
@@ -158,6 +200,14 @@ class DynamicsResult:
         The machine's ``[counterweights]`` (point masses on links, per design): their masses
         and motion; the forces, the shaking, the energies and the bearing reactions include
         them.
+    load_on : ndarray, batch + (n_phi, n_loads)
+        1 where each load acts (its windows and conditions hold), else 0.
+    load_dissipative : tuple[bool, ...]
+        Which loads are resistive (take energy out wherever they act).
+    springs : SpringForces
+        The springs' forces, energy and damping loss (empty without springs).
+    friction : FrictionForces or None
+        Friction in the pairs (None without ``[friction]``).
     """
 
     machine: Machine = field(repr=False)
@@ -176,6 +226,10 @@ class DynamicsResult:
     mass_props: dict = field(default_factory=dict, repr=False)
     load_links: tuple[int, ...] = ()
     counterweights: CounterweightMotion | None = field(default=None, repr=False)
+    load_on: np.ndarray | None = field(default=None, repr=False)
+    load_dissipative: tuple[bool, ...] = ()
+    springs: SpringForces | None = field(default=None, repr=False)
+    friction: FrictionForces | None = field(default=None, repr=False)
 
     # ---- pairs
     @cached_property
@@ -324,22 +378,26 @@ class DynamicsResult:
 
     @cached_property
     def potential_energy(self) -> np.ndarray:
-        """Potential energy of gravity, N mm, above y = 0 of the frame (zero without gravity)."""
-        if not self.gravity:
-            return np.zeros_like(self.kinetic_energy)
-        out = GRAVITY * np.sum(self._m * self.com_p[..., 1], axis=-1)
-        if self.counterweights is not None:
-            out += GRAVITY * self.counterweights.weight_height()
+        """Potential energy of gravity (above y = 0 of the frame) and of the springs, N mm."""
+        out = np.zeros_like(self.kinetic_energy)
+        if self.gravity:
+            out += GRAVITY * np.sum(self._m * self.com_p[..., 1], axis=-1)
+            if self.counterweights is not None:
+                out += GRAVITY * self.counterweights.weight_height()
+        if self.springs is not None and self.springs.names:
+            out += self.springs.energy
         return out
 
     @cached_property
     def potential_energy_rate(self) -> np.ndarray:
-        """dV/dt, N mm/s."""
-        if not self.gravity:
-            return np.zeros_like(self.kinetic_energy)
-        out = GRAVITY * np.sum(self._m * self.com_v[..., 1], axis=-1)
-        if self.counterweights is not None:
-            out += GRAVITY * self.counterweights.weight_rate()
+        """dV/dt (gravity and springs), N mm/s."""
+        out = np.zeros_like(self.kinetic_energy)
+        if self.gravity:
+            out += GRAVITY * np.sum(self._m * self.com_v[..., 1], axis=-1)
+            if self.counterweights is not None:
+                out += GRAVITY * self.counterweights.weight_rate()
+        if self.springs is not None and self.springs.names:
+            out += self.springs.energy_rate
         return out
 
     @property
@@ -347,6 +405,28 @@ class DynamicsResult:
         """Power of the applied loads on the machine, N mm/s (gravity not included: it is in
         the potential energy)."""
         return self.load_power
+
+    @cached_property
+    def friction_power(self) -> np.ndarray:
+        """Power friction takes out of the machine (all pairs), N mm/s, >= 0."""
+        if self.friction is None:
+            return np.zeros_like(self.kinetic_energy)
+        return self.friction.total_power
+
+    @cached_property
+    def damping_power(self) -> np.ndarray:
+        """Power the springs' dampers take out of the machine, N mm/s, >= 0."""
+        if self.springs is None or not self.springs.names:
+            return np.zeros_like(self.kinetic_energy)
+        return self.springs.damping_power
+
+    @cached_property
+    def power_balance(self) -> np.ndarray:
+        """P_in - dT/dt - dV/dt + P_loads - P_friction - P_damping, N mm/s: zero to round-off
+        (every term computed on its own: the motor's torque from the force solve, the rest from
+        the motion and the applied forces)."""
+        return (self.input_power - self.kinetic_energy_rate - self.potential_energy_rate
+                + self.external_power - self.friction_power - self.damping_power)
 
     @cached_property
     def bearings(self) -> BearingReactions:
@@ -723,6 +803,8 @@ class DynamicsPlan:
             extra_points=(np.concatenate(rows), np.concatenate(local)))
         self._loads = LoadTables.build(machine, self.loads, np.degrees(self.kin_plan.phi))
         self._load_links = self._loads.links
+        self._springs = SpringTables.build(machine)
+        self._friction = FrictionTables.build(machine)
         self._live: tuple | None = None
         #: blocks of up to this many unknowns go to the written solvers of ``_blocks``, larger
         #: ones to the force kernel's generic loop (0: all of them; the tests compare the two)
@@ -743,15 +825,25 @@ class DynamicsPlan:
         if live is None or live[0] is not a:  # a new batch shape: new arrays and result
             live = self._live = self._prepare(kin, a)
         _, solve, head, tail, res, cw, out = live
-        self._applied(a, out)
-        if solve(*head, kernel_params(P), *tail, self._max_written):  # some pivots ~ zero
+        self._applied(a, P, out)
+        kp_params = kernel_params(P)
+        if solve(*head, kp_params, *tail, self._max_written):  # some pivots ~ zero
             self._raise_singular(kin, a["feasible"], out["MINPIV"])
+        cw_part = None
         if cw is not None:
+            if self._friction is not None:
+                cw_part = -out["X"].copy()
             self._counterweights(P, solve, head, tail, cw)
+            if cw_part is not None:
+                cw_part += out["X"]
+        if self._friction is not None:
+            self._solve_friction(kin, a, kp_params, solve, head, tail, out, cw_part)
         if kp.any_failed:  # some positions could not be assembled (on_failure="mask")
             feasible = a["feasible"]
-            for key in ("LF", "LPOW", "X", "MINPIV"):
-                out[key][~feasible] = np.nan
+            for key in ("LF", "LPOW", "X", "MINPIV", "SF", "SL", "SE", "SER", "SD", "FF",
+                        "FP", "LON"):
+                if key in out:
+                    out[key][~feasible] = np.nan
         np.copyto(res.params, P)
         cached = res.__dict__
         if len(cached) > _N_RESULT_FIELDS:  # the last call's derived quantities are stale
@@ -770,6 +862,18 @@ class DynamicsPlan:
         LPOW, MINPIV = np.empty((n_d, n_phi)), np.empty((n_d, n_phi))
         X = np.empty((n_d, n_phi, n_eq))
         XB = np.zeros((n_d, n_phi, n_eq))
+        n_sp, fr = len(self._springs), self._friction
+        springs = dict(SF=np.empty((n_d, n_phi, n_sp)), SL=np.empty((n_d, n_phi, n_sp)),
+                       SE=np.zeros((n_d, n_phi)), SER=np.zeros((n_d, n_phi)),
+                       SD=np.zeros((n_d, n_phi)))
+        friction = {} if fr is None else dict(
+            FF=np.zeros((n_d, n_phi, len(fr))), FP=np.zeros((n_d, n_phi, len(fr))),
+            XB0=np.empty((n_d, n_phi, n_eq)), Xold=np.empty((n_d, n_phi, n_eq)),
+            HF=np.zeros((ANDERSON_DEPTH + 1, n_d, n_phi, n_eq)),
+            HG=np.zeros((ANDERSON_DEPTH + 1, n_d, n_phi, n_eq)),
+            CP=np.zeros((n_d, n_phi, len(machine.pairs), 2)),
+            CN=np.zeros((n_d, n_phi, len(machine.pairs), 2)))
+        LON = np.empty((n_d, n_phi, len(self._loads)))
         if n_d >= 4 and n_d * n_phi >= 20000:  # big batches: chunks of designs on threads
             def solve(*args, n_d=n_d):
                 return run_chunks(K.force_solve, n_d, args)
@@ -784,7 +888,8 @@ class DynamicsPlan:
                 *(kernel_input(x) for x in (st.blk_ptr, st.blk_off, st.rperm, st.cperm,
                                             st.cpl_ptr, st.cpl_row, st.cpl_col, st.pslot)),
                 st.n_slots, X, MINPIV)
-        out = {"LF": LF, "LPOW": LPOW, "X": X, "XB": XB, "MINPIV": MINPIV}
+        out = {"LF": LF, "LPOW": LPOW, "X": X, "XB": XB, "MINPIV": MINPIV, "LON": LON,
+               **springs, **friction}
 
         def shape(x):
             return x.reshape(batch + x.shape[1:])
@@ -799,20 +904,76 @@ class DynamicsPlan:
             gravity=self.gravity, load_names=tuple(ld.name for ld in self.loads),
             load_force=shape(LF), load_power=shape(LPOW), mass=lm, com_p=gp, com_v=gv,
             com_a=ga, params=np.empty(batch + (machine.defaults.size,)),
-            mass_props=self.mass_props, load_links=self._load_links, counterweights=motion)
+            mass_props=self.mass_props, load_links=self._load_links, counterweights=motion,
+            load_on=shape(LON), load_dissipative=self._loads.dissipative,
+            springs=SpringForces(self._springs.all_names, len(self._springs.names),
+                                 shape(springs["SF"]), shape(springs["SL"]),
+                                 shape(springs["SE"]), shape(springs["SER"]),
+                                 shape(springs["SD"])),
+            friction=None if fr is None else FrictionForces(
+                fr.names, shape(friction["FF"]), shape(friction["FP"])))
         return a, solve, head, tail, res, cw, out
 
-    def _applied(self, a: dict[str, np.ndarray], out: dict[str, np.ndarray]) -> None:
-        """The applied forces of this call's motion: the loads' forces and power (out's LF,
-        LPOW) and every applied force as generalized forces (XB)."""
+    def _applied(self, a: dict[str, np.ndarray], P: np.ndarray,
+                 out: dict[str, np.ndarray]) -> None:
+        """The applied forces of this call's motion that do not depend on the pair forces:
+        the loads' forces, power and where they act (out's LF, LPOW, LON), the springs'
+        (SF, SL, SE, SER, SD), all as generalized forces (XB)."""
         XB = out["XB"]
         XB[...] = 0.0
         loads = self._loads
         if len(loads):
-            loads.forces(a["P"], a["V"], out["LF"], out["LPOW"])
+            on = loads.forces(a, P, out["LF"], out["LPOW"])
+            out["LON"][...] = np.moveaxis(on, 0, -1)
             loads.generalized(a["P"], a["GP"], out["LF"], XB)
         else:
             out["LPOW"][...] = 0.0
+        if len(self._springs):
+            self._springs.evaluate(a, XB, out)
+
+    def _solve_friction(self, kin, a, kp_params, solve, head, tail, out, cw_part) -> None:
+        """Friction in the pairs: fixed-point iteration from the frictionless solution in
+        out["X"] (:mod:`sewmech.engine.friction`), each step one solve with the last step's
+        friction as applied forces; the counterweights' part ``cw_part`` (linear, frictionless)
+        added after each solve."""
+        fr = self._friction
+        X, XB, XB0, Xold = out["X"], out["XB"], out["XB0"], out["Xold"]
+        CP, CN = out["CP"], out["CN"]
+        K.pair_geometry(*head, kp_params, a["P"], a["TH"], a["S"], CP, CN)
+        idx = list(fr.pair_index)
+        cp, cn = np.ascontiguousarray(CP[:, :, idx]), np.ascontiguousarray(CN[:, :, idx])
+        XB0[...] = XB
+        feasible = a["feasible"]
+        ints, vals = kernel_input(fr.ints), kernel_input(fr.values)
+        HF, HG = out["HF"], out["HG"]
+        for step in range(MAX_STEPS):
+            np.copyto(Xold, X)
+            K.friction_forces(ints, vals, X, cp, cn, a["OM"], a["GP"], a["GV"], XB0, XB,
+                              out["FP"], out["FF"])
+            solve(*head, kp_params, *tail, self._max_written)
+            if cw_part is not None:
+                X += cw_part
+            change = K.anderson_step(X, Xold, HF, HG, step, feasible)
+            if change <= TOLERANCE:
+                np.copyto(X, HG[step % HG.shape[0]])  # the forces of the last solve
+                break
+        else:
+            from .errors import AnalysisError
+
+            batch = kin.batch_shape
+            d, k = np.unravel_index(int(np.argmax(np.abs(HF[step % HF.shape[0]]).max(axis=-1))),
+                                    feasible.shape)
+            design = tuple(int(i) for i in np.unravel_index(d, batch)) if batch else ()
+            at = f"design {design}, " if design else ""
+            raise AnalysisError(
+                f"machine '{self.machine.name}' at {at}phi = {float(kin.phi_deg[k]):.6g}"
+                " deg", f"the force analysis with friction did not settle in {MAX_STEPS} steps"
+                f" (a change of {change:.2g} of the largest force remained): the friction may"
+                " lock the mechanism there", "Lower the friction coefficients or pin radii"
+                " ([friction]), or check the pairs' geometry near this angle")
+        # the friction of the settled forces (the last step's came from the step before)
+        K.friction_forces(ints, vals, X, cp, cn, a["OM"], a["GP"], a["GV"], XB0, XB,
+                          out["FP"], out["FF"])
 
     # ---- counterweights -----------------------------------------------------------------------
     # The forces are linear in the loads a point mass m at r = (u, v) of link L's frame puts on

@@ -1,16 +1,28 @@
-"""Applied forces of the force analysis: process loads, evaluated from the motion.
+"""Process loads of the force analysis, evaluated from the motion.
 
 Every applied force acts at a point of a link (or of the frame, where it is only recorded).
 The force kernel (:func:`sewmech._kernels.force_solve`) reads them as generalized forces per
 link, in the rows of the Newton-Euler equations: the sum of their x and y components (N) and of
-their moments about the link's centre of mass (N mm); :func:`add_point_force` puts one force
-there.
+their moments about the link's centre of mass (N mm); :func:`add_point_force` and
+:func:`add_couple` put one force or couple there (springs and friction use them too).
 
-A process load (``[[loads]]``, :class:`~sewmech.spec.LoadSpec`) acts inside its shaft-angle
-windows, along a fixed direction or along the bisector of the unit vectors from its point
-toward other points (a thread over the point to two guides). :class:`LoadTables` prepares the
-loads of a machine once for a grid of shaft angles; :meth:`LoadTables.forces` evaluates them
-for a batch of designs.
+A process load (``[[loads]]``, :class:`~sewmech.spec.LoadSpec`) acts where its shaft-angle
+windows and every clause of its ``when`` hold. A clause reads a channel of the motion: a
+kinematics channel (``p_feed_dog.tip_y``: the dog's tip height, mm; ``v_...``, ``theta_...``,
+``q_...``; docs/notation.md) or the thread's take-up section ``thread.take_up_mm`` (the length of
+the needle thread between the file's ``[thread] take_up`` guides, mm: it grows while the take-up
+draws thread back). ``above``/``below`` compare the channel with a value; ``rising``/``falling``
+read the sign of its rate; ``within_of_max`` holds where the channel is within that much of its
+largest value over the whole turn (found on a 0.25 deg grid of its own and refined by a
+parabola, whatever grid the forces are asked on).
+
+Force laws: ``constant`` (``force_N`` along a fixed direction or the bisector toward points),
+``elastic`` (``force_N`` plus ``rate_N_per_mm`` times the travel of its first above/below
+channel past the threshold, along the fixed direction), ``resistive`` (``force_N`` against the
+point's velocity, along the line ``angle_deg`` if given, with the smooth sign
+v / sqrt(v^2 + s^2), s = ``smooth_mm_s``). :class:`LoadTables` prepares the loads of a machine
+once for a grid of shaft angles; :meth:`LoadTables.forces` evaluates them for a batch of
+designs.
 
 Units: positions mm, velocities mm/s, forces N, moments N mm, power N mm/s.
 """
@@ -19,12 +31,25 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .machine import Machine
-from .spec import LoadSpec
+from .errors import MachineFileError
+from .spec import FRAME, Condition, LoadSpec
+
+if TYPE_CHECKING:
+    from .machine import Machine
+
+#: the thread channels a condition may read (with a ``[thread]`` table)
+THREAD_CHANNELS = ("thread.take_up_mm",)
+#: the grid on which ``within_of_max`` finds a channel's largest value over the turn, deg
+MAX_GRID_DEG = 0.25
+#: channel kind -> (kernel array of its value, of its rate)
+_KINDS = {"p": ("P", "V"), "v": ("V", "A"), "a": ("A", None), "theta": ("TH", "OM"),
+          "omega": ("OM", "EP"), "epsilon": ("EP", None), "q": ("S", "SD"), "qd": ("SD", "SDD"),
+          "qdd": ("SDD", None)}
 
 
 def in_windows(phi_deg: np.ndarray, windows: Sequence[tuple[float, float]]) -> np.ndarray:
@@ -61,69 +86,275 @@ def add_couple(XB: np.ndarray, link: int, M: np.ndarray) -> None:
         XB[..., 3 * (link - 1) + 2] += M
 
 
+def smooth_sign(x: np.ndarray, scale: float) -> np.ndarray:
+    """x / sqrt(x^2 + scale^2): the sign of x, smooth where |x| is below ``scale``."""
+    return x / np.sqrt(x * x + scale * scale)
+
+
+# ---- channels ---------------------------------------------------------------------------------
+
+
 @dataclass(frozen=True)
+class ChannelRef:
+    """A channel resolved to kernel arrays: ``kind`` (p, v, ..., or thread), the index of its
+    point, link or variable, and its component (0 x, 1 y) for point channels."""
+
+    name: str
+    kind: str
+    index: int = -1
+    comp: int = 0
+
+
+def resolve_channel(name: str, points: Sequence[str], links: Sequence[str],
+                    variables: Sequence[str], has_thread: bool) -> ChannelRef | None:
+    """The channel ``name`` of a machine with these points, links and joint variables, or
+    None if it has no such channel."""
+    if name in THREAD_CHANNELS:
+        return ChannelRef(name, "thread") if has_thread else None
+    kind, _, rest = name.partition("_")
+    if kind not in _KINDS or not rest:
+        return None
+    if kind in ("p", "v", "a"):
+        pt, _, comp = rest.rpartition("_")
+        if comp not in ("x", "y") or pt not in points:
+            return None
+        return ChannelRef(name, kind, list(points).index(pt), "xy".index(comp))
+    if kind in ("theta", "omega", "epsilon"):
+        if rest not in links or rest == FRAME:
+            return None
+        return ChannelRef(name, kind, list(links).index(rest))
+    if rest not in variables:
+        return None
+    return ChannelRef(name, kind, list(variables).index(rest))
+
+
+def channel_examples(points: Sequence[str]) -> str:
+    ex = [f"p_{p}_y" for p in list(points)[:2]]
+    return ", ".join(ex + ["theta_LINK", "q_VARIABLE", *THREAD_CHANNELS])
+
+
+def check_conditions(machine_name: str, file: str, loads: Sequence[LoadSpec], points, links,
+                     variables, has_thread: bool) -> None:
+    """Raise :class:`MachineFileError` (file, load, ``when``) for a condition that names a
+    channel the machine does not have, or asks the rate of a channel that has none here."""
+    import difflib
+
+    for k, load in enumerate(loads):
+        table = f'loads[{k}] "{load.name}"'
+        for j, c in enumerate(load.when):
+            ref = resolve_channel(c.channel, points, links, variables, has_thread)
+            if ref is None:
+                known = [f"p_{p}_{x}" for p in points for x in "xy"] + list(THREAD_CHANNELS)
+                close = difflib.get_close_matches(c.channel, known, n=3)
+                why = (" (thread channels need a [thread] table)"
+                       if c.channel in THREAD_CHANNELS else "")
+                raise MachineFileError(file, table, f"when[{j}].channel", f"machine"
+                                       f" '{machine_name}' has no channel '{c.channel}'{why}",
+                                       f"Did you mean {', '.join(close)}?" if close else
+                                       f"Channels look like {channel_examples(points)}")
+            if (c.rising or c.falling) and ref.kind != "thread" and _KINDS[ref.kind][1] is None:
+                raise MachineFileError(file, table, f"when[{j}]", f"'{c.channel}' is an"
+                                       " acceleration: sewmech has no rate of it to read",
+                                       "Use the velocity's channel with above or below")
+
+
+def channel_values(ref: ChannelRef, a: dict[str, np.ndarray], thread=None
+                   ) -> tuple[np.ndarray, np.ndarray | None]:
+    """A channel's values and rates (D, n_phi) from the kinematics kernel arrays ``a`` (the
+    rate None where sewmech has none); ``thread``: a :class:`ThreadSection` for thread
+    channels."""
+    if ref.kind == "thread":
+        return thread.length_and_rate(a["P"], a["V"])
+    val, rate = _KINDS[ref.kind]
+    point = ref.kind in ("p", "v", "a")
+
+    def get(key: str) -> np.ndarray:
+        return a[key][:, :, ref.index, ref.comp] if point else a[key][:, :, ref.index]
+
+    return get(val), (get(rate) if rate is not None else None)
+
+
+@dataclass(frozen=True)
+class ThreadSection:
+    """The take-up section of the machine's ``[thread]`` path: guide point indices and signed
+    radii (mm, + a counter-clockwise wrap)."""
+
+    points: tuple[int, ...]
+    rho: np.ndarray
+
+    @classmethod
+    def of(cls, machine: Machine) -> ThreadSection | None:
+        t = machine.spec.thread
+        if t is None:
+            return None
+        i0, i1 = t.take_up
+        guides = t.guides[i0:i1 + 1]
+        return cls(tuple(machine.point_index(g.point) for g in guides),
+                   np.array([g.radius * (1.0 if g.wrap == "ccw" else -1.0) for g in guides]))
+
+    def length_and_rate(self, P: np.ndarray, V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Length (mm) and its rate (mm/s) of the section, (D, n_phi)."""
+        from .threadpath import path_length, path_length_gradient
+
+        c = P[:, :, list(self.points)]
+        L = path_length(c, self.rho, on_overlap="nan")
+        g = path_length_gradient(c, self.rho)
+        return L, np.einsum("dkgc,dkgc->dk", g, V[:, :, list(self.points)])
+
+
+# ---- loads ------------------------------------------------------------------------------------
+
+
+@dataclass
 class LoadTables:
-    """The process loads of a machine, prepared for the shaft angles ``phi_deg``.
+    """The process loads of a machine, prepared for the shaft angles ``phi_deg``: for each
+    load its link and point indices, its window mask (n_phi,), its direction (a fixed (cos,
+    sin), or None for a bisector toward the ``toward`` points, or for a resistive load without
+    a line), its conditions resolved to channels."""
 
-    links, points: (n_loads,) link and point indices; on: (n_loads, n_phi) 1.0 inside the
-    windows; force_N: (n_loads,); direction: (n_loads, 2) the fixed direction (cos, sin), or
-    None rows for loads along a bisector, whose ``toward`` point indices are in ``toward``."""
-
-    names: tuple[str, ...]
+    specs: tuple[LoadSpec, ...]
     links: tuple[int, ...]
     points: tuple[int, ...]
-    force_N: np.ndarray
     on: np.ndarray
     direction: tuple[tuple[float, float] | None, ...]
     toward: tuple[tuple[int, ...], ...]
+    conditions: tuple[tuple[tuple[ChannelRef, Condition], ...], ...]
+    thread: ThreadSection | None
+    machine: Machine = field(repr=False)
+    phi: np.ndarray = field(repr=False)
+    _max_plan: object = field(default=None, repr=False)
 
     @classmethod
     def build(cls, machine: Machine, loads: Sequence[LoadSpec], phi_deg: np.ndarray
               ) -> LoadTables:
-        names, links, points, force, on, direction, toward = [], [], [], [], [], [], []
+        links, points, on, direction, toward, conds = [], [], [], [], [], []
         masks: dict[tuple, np.ndarray] = {}
+        names = (machine.point_names, machine.link_names, machine.variable_names)
+        thread = ThreadSection.of(machine)
         for load in loads:
             key = tuple(map(tuple, load.windows_deg))
             if key not in masks:
                 masks[key] = in_windows(phi_deg, load.windows_deg).astype(float)
-            names.append(load.name)
             on.append(masks[key])
             links.append(machine.link_index(load.link))
             points.append(machine.point_index(load.point))
-            force.append(load.force_N)
             if load.angle_deg is not None:
                 a = math.radians(load.angle_deg)
                 direction.append((math.cos(a), math.sin(a)))
                 toward.append(())
             else:
                 direction.append(None)
-                toward.append(tuple(machine.point_index(q) for q in load.toward))
-        return cls(tuple(names), tuple(links), tuple(points), np.asarray(force, dtype=float),
+                toward.append(tuple(machine.point_index(q) for q in load.toward or ()))
+            conds.append(tuple((resolve_channel(c.channel, *names, thread is not None), c)
+                               for c in load.when))
+        return cls(tuple(loads), tuple(links), tuple(points),
                    np.asarray(on, dtype=float).reshape(len(loads), len(phi_deg)),
-                   tuple(direction), tuple(toward))
+                   tuple(direction), tuple(toward), tuple(conds), thread, machine,
+                   np.radians(np.asarray(phi_deg, dtype=float)))
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(ld.name for ld in self.specs)
 
     def __len__(self) -> int:
-        return len(self.names)
+        return len(self.specs)
 
-    def forces(self, P: np.ndarray, V: np.ndarray, LF: np.ndarray, LPOW: np.ndarray) -> None:
-        """Fill LF (D, n_phi, n_loads, 2) with each load's force, N, and LPOW (D, n_phi) with
-        their power on the machine, N mm/s, from the points' positions P and velocities V
-        (D, n_phi, n_points, 2)."""
-        LPOW[...] = 0.0
+    @property
+    def dissipative(self) -> tuple[bool, ...]:
+        """Which loads only ever take energy out (the resistive ones)."""
+        return tuple(ld.law == "resistive" for ld in self.specs)
+
+    def _maxima(self, ref: ChannelRef, params: np.ndarray) -> np.ndarray:
+        """The channel's largest value over the turn, (D,), for the designs ``params`` (the
+        same designs and settings the forces are asked for)."""
+        from .kinematics import KinematicsPlan
+
+        if self._max_plan is None:
+            n = round(360.0 / MAX_GRID_DEG)
+            self._max_plan = KinematicsPlan(self.machine, np.arange(n) * (2 * math.pi / n),
+                                            on_failure="mask")
+        plan = self._max_plan
+        plan.run(params.reshape(-1, params.shape[-1]))
+        v = channel_values(ref, plan.kernel_arrays(), self.thread)[0]  # (D, n)
+        k = np.nanargmax(np.where(np.isfinite(v), v, -np.inf), axis=1)
+        n = v.shape[1]
+        rows = np.arange(v.shape[0])
+        y0, y1, y2 = v[rows, (k - 1) % n], v[rows, k], v[rows, (k + 1) % n]
+        den = y0 - 2.0 * y1 + y2
+        with np.errstate(invalid="ignore", divide="ignore"):
+            peak = np.where(den < 0.0, y1 - 0.125 * (y2 - y0) ** 2 / den, y1)
+        return np.maximum(peak, y1)
+
+    def masks(self, a: dict[str, np.ndarray], params: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """(n_loads, D, n_phi): where each load acts (1.0 or 0.0), and the travel of its first
+        above/below channel past the threshold (mm or the channel's unit; 0 without one)."""
+        D, n_phi = a["P"].shape[:2]
+        on = np.empty((len(self), D, n_phi))
+        travel = np.zeros((len(self), D, n_phi))
         for j in range(len(self)):
+            m = np.broadcast_to(self.on[j] > 0.5, (D, n_phi)).copy()
+            first = True
+            for ref, c in self.conditions[j]:
+                val, rate = channel_values(ref, a, self.thread)
+                with np.errstate(invalid="ignore"):
+                    if c.above is not None:
+                        m &= val > c.above
+                        if first:
+                            travel[j] = np.maximum(val - c.above, 0.0)
+                    elif c.below is not None:
+                        m &= val < c.below
+                        if first:
+                            travel[j] = np.maximum(c.below - val, 0.0)
+                    elif c.rising:
+                        m &= rate > 0.0
+                    elif c.falling:
+                        m &= rate < 0.0
+                    else:
+                        top = self._maxima(ref, params)
+                        m &= val >= top[:, None] - c.within_of_max
+                if c.above is not None or c.below is not None:
+                    first = False
+            on[j] = m
+        return on, travel
+
+    def forces(self, a: dict[str, np.ndarray], params: np.ndarray, LF: np.ndarray,
+               LPOW: np.ndarray) -> np.ndarray:
+        """Fill LF (D, n_phi, n_loads, 2) with each load's force, N, and LPOW (D, n_phi) with
+        their power on the machine, N mm/s, from the kinematics kernel arrays ``a`` (P, V of
+        the points: (D, n_phi, n_points, 2), ...) of the designs ``params``; returns where
+        each load acts, (n_loads, D, n_phi), 1.0 or 0.0."""
+        P, V = a["P"], a["V"]
+        LPOW[...] = 0.0
+        on, travel = self.masks(a, params)
+        for j, spec in enumerate(self.specs):
             pi = self.points[j]
             d = self.direction[j]
-            if d is not None:
-                u = np.array(d)
-            else:  # the bisector of the unit vectors toward the given points
-                u = np.zeros(P.shape[:2] + (2,))
-                for q in self.toward[j]:
-                    e = P[:, :, q] - P[:, :, pi]
-                    u += e / np.sqrt(e[..., :1] ** 2 + e[..., 1:] ** 2)
-                u /= np.sqrt(u[..., :1] ** 2 + u[..., 1:] ** 2)
-            f = self.force_N[j] * self.on[j]
-            LF[:, :, j] = f[:, None] * u
-            LPOW += LF[:, :, j, 0] * V[:, :, pi, 0] + LF[:, :, j, 1] * V[:, :, pi, 1]
+            v = V[:, :, pi]
+            if spec.law == "resistive":
+                if d is not None:  # against the velocity's component along the line
+                    u = np.array(d)
+                    f = -spec.force_N * smooth_sign(v @ u, spec.smooth_mm_s)
+                    F = f[..., None] * u
+                else:  # against the velocity
+                    speed = np.sqrt(np.sum(v * v, axis=-1))
+                    F = -spec.force_N * (v / np.sqrt(speed * speed + spec.smooth_mm_s ** 2
+                                                     )[..., None])
+            else:
+                if d is not None:
+                    u = np.array(d)
+                else:  # the bisector of the unit vectors toward the given points
+                    u = np.zeros(P.shape[:2] + (2,))
+                    for q in self.toward[j]:
+                        e = P[:, :, q] - P[:, :, pi]
+                        u += e / np.sqrt(e[..., :1] ** 2 + e[..., 1:] ** 2)
+                    u /= np.sqrt(u[..., :1] ** 2 + u[..., 1:] ** 2)
+                f = spec.force_N + (spec.rate_N_per_mm * travel[j]
+                                    if spec.law == "elastic" else 0.0)
+                F = np.broadcast_to(f, P.shape[:2])[..., None] * u
+            LF[:, :, j] = F * on[j][..., None]
+            LPOW += LF[:, :, j, 0] * v[..., 0] + LF[:, :, j, 1] * v[..., 1]
+        return on
 
     def generalized(self, P: np.ndarray, GP: np.ndarray, LF: np.ndarray,
                     XB: np.ndarray) -> None:

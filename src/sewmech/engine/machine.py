@@ -25,8 +25,11 @@ from .cams import CONSTANT_WIDTH_KEYS, constant_width_arcs, constant_width_fault
 from .counterweights import PARAMETERS as CW_PARAMETERS
 from .counterweights import Counterweight
 from .errors import MachineFileError, ParameterError, name_index
+from .friction import check_friction
+from .loads import check_conditions
 from .mass import from_spec as mass_from_spec
 from .paths import user_path
+from .springs import check_springs
 from .spec import (
     FRAME,
     SHAFT,
@@ -336,6 +339,8 @@ class Machine:
     def check_loads(self, loads, file: str = "<loads>") -> None:
         """Check loads (e.g. from a load file) against this machine's links and points."""
         check_loads(self.name, self.link_names, self.point_names, self.point_links, loads, file)
+        check_conditions(self.name, file, loads, self.point_names, self.link_names,
+                         self.variable_names, self.spec.thread is not None)
 
     @cached_property
     def _selections(self) -> dict:
@@ -1019,6 +1024,11 @@ class _Compiler:
                                " a point unit on it and name its origin here")
         check_loads(spec.machine.name, self.links, self.points, self.point_links, spec.loads,
                     self.file)
+        check_conditions(spec.machine.name, self.file, spec.loads, self.points, self.links,
+                         self.vars, spec.thread is not None)
+        check_springs(spec.machine.name, self.file, spec.springs, spec.torsion_springs,
+                      self.links, self.points, self.point_links, self.pairs)
+        check_friction(spec.machine.name, self.file, spec.friction, tuple(self.pairs))
         if spec.shaft is not None:
             cranks = {(u.link or u.name): u for u in spec.units if u.type == "crank"}
             pivots = set()

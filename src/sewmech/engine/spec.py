@@ -381,6 +381,7 @@ class CamContact(_Spec):
     cam: Name
     follower: Name | None = None
     one_sided: Bool = False  # a contact that can only push (a cam under a pad): it opens at N < 0
+    margin_N: NonNegFloat = 1.0  # one-sided: the least force it must keep (its check)
 
 
 class SlotContact(_Spec):
@@ -396,6 +397,7 @@ class SlotContact(_Spec):
     slot_link: Name
     slot_deg: Float = 0.0
     one_sided: Bool = False  # a roller on one flat face only: it lifts off at N < 0
+    margin_N: NonNegFloat = 1.0  # one-sided: the least force it must keep (its check)
 
 
 class LoopUnit(_Spec):
@@ -679,13 +681,46 @@ class CounterweightSpec(_Spec):
 MAX_LOAD_N = 1e5
 
 
+class Condition(_Spec):
+    """One clause of a load's ``when``: a channel of the machine's motion (a kinematics
+    channel such as ``p_feed_dog.tip_y``, or a thread channel such as
+    ``thread.take_up_mm``) above or below a value (in the channel's unit), rising or falling
+    (the sign of its rate), or within ``within_of_max`` of its largest value over the turn."""
+
+    channel: str = Field(min_length=1, max_length=200)
+    above: Float | None = None
+    below: Float | None = None
+    rising: Bool | None = None
+    falling: Bool | None = None
+    within_of_max: NonNegFloat | None = None
+
+    @model_validator(mode="after")
+    def _one(self):
+        given = [k for k in ("above", "below", "rising", "falling", "within_of_max")
+                 if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueHint(f"a condition needs exactly one of above, below, rising, falling"
+                            f" and within_of_max, got {', '.join(given) or 'none'}",
+                            "Write e.g. { channel = \"p_feed_dog.tip_y\", above = -140.0 }")
+        if (self.rising is False) or (self.falling is False):
+            raise ValueHint("rising and falling take true", "Write rising = true, or the"
+                            " opposite clause (falling = true)")
+        return self
+
+
 class LoadSpec(_Spec):
     """``[[loads]]``: a process force on a point of a link while the shaft angle is inside one
-    of its windows (degrees in the machine's convention; a window may wrap through 360).
+    of its windows (degrees in the machine's convention; a window may wrap through 360) and
+    every condition of ``when`` holds (docs/dynamics.md).
 
     The direction is fixed in the frame (``angle_deg``, counter-clockwise from +x) or along the
     resultant of unit vectors from the point ``toward`` other points (a thread that runs over
-    the point to two guides pulls along the bisector of its legs).
+    the point to two guides pulls along the bisector of its legs). The force law ``law``:
+    ``constant`` (``force_N``), ``elastic`` (``force_N`` plus ``rate_N_per_mm`` times the travel
+    of the first above/below condition's channel past its threshold: the presser foot lifted by
+    the dog through the fabric) or ``resistive`` (``force_N`` against the point's velocity,
+    along the line ``angle_deg`` if given: the fabric's feed resistance; a smooth sign below
+    ``smooth_mm_s``).
     """
 
     name: str
@@ -696,7 +731,16 @@ class LoadSpec(_Spec):
     toward: list[Name] | None = Field(default=None, min_length=1)
     windows_deg: list[tuple[Float, Float]] = Field(default_factory=lambda: [(0.0, 360.0)],
                                                    min_length=1)
+    when: list[Condition] = Field(default_factory=list)
+    law: Literal["constant", "elastic", "resistive"] = "constant"
+    rate_N_per_mm: NonNegFloat | None = None
+    smooth_mm_s: PosFloat = 1.0
     note: str = ""
+
+    @field_validator("when", mode="before")
+    @classmethod
+    def _one_or_many(cls, v):
+        return [v] if isinstance(v, dict) else v
 
     @field_validator("force_N")
     @classmethod
@@ -709,9 +753,28 @@ class LoadSpec(_Spec):
 
     @model_validator(mode="after")
     def _direction(self):
-        if (self.angle_deg is None) == (self.toward is None):
+        if self.law == "resistive":
+            if self.toward is not None:
+                raise ValueError("a resistive load acts against its point's velocity: give no"
+                                 " toward (angle_deg, if given, is the line it acts along)")
+        elif (self.angle_deg is None) == (self.toward is None):
             raise ValueError("a load needs exactly one of angle_deg (a fixed direction) and"
                              " toward (points its line of action is pulled towards)")
+        if self.law == "elastic":
+            if self.rate_N_per_mm is None:
+                raise ValueHint("an elastic load needs rate_N_per_mm, the force it gains per mm"
+                                " of travel", "Give e.g. rate_N_per_mm = 2.0")
+            if not any(c.above is not None or c.below is not None for c in self.when):
+                raise ValueHint("an elastic load needs a when condition with above or below:"
+                                " its travel is counted from that threshold",
+                                "Give e.g. when = { channel = \"p_feed_dog.tip_y\","
+                                " above = -140.0 }")
+        elif self.rate_N_per_mm is not None:
+            raise ValueHint(f"rate_N_per_mm is for an elastic load, this one is {self.law}",
+                            "Write law = \"elastic\", or leave rate_N_per_mm out")
+        if self.law != "constant" and self.force_N < 0.0:
+            raise ValueHint(f"an {self.law} load's force_N is a magnitude (>= 0), got"
+                            f" {self.force_N:g}", "Give it >= 0; the law gives its direction")
         for a, b in self.windows_deg:
             if not (0.0 <= a <= 360.0 and 0.0 <= b <= 360.0) or a == b:
                 raise ValueError(f"windows_deg: [{a:g}, {b:g}] is not a shaft-angle window;"
@@ -719,6 +782,130 @@ class LoadSpec(_Spec):
                                  " from != to ([350, 20] wraps through 0; [0, 360] is the whole"
                                  " cycle)")
         return self
+
+
+class SpringSpec(_Spec):
+    """``[[springs]]``: a translational spring-damper between two points, each on a link or
+    on the frame (``links``, ``points``: the two ends). Its tension (N, positive when it
+    pulls the ends together) is ``stiffness_N_per_mm`` times its stretch past
+    ``free_length_mm``, or ``preload_N`` plus that stiffness times its length past
+    ``length_mm``, plus ``damping_N_s_per_mm`` times the rate of its length."""
+
+    name: str = Field(min_length=1, max_length=200)
+    links: tuple[Name, Name]
+    points: tuple[Name, Name]
+    stiffness_N_per_mm: NonNegFloat = 0.0
+    free_length_mm: NonNegFloat | None = None
+    preload_N: Float | None = None
+    length_mm: PosFloat | None = None
+    damping_N_s_per_mm: NonNegFloat = 0.0
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _length(self):
+        free, pre = self.free_length_mm is not None, (self.preload_N, self.length_mm)
+        if free and any(x is not None for x in pre):
+            raise ValueHint("give either free_length_mm, or preload_N with length_mm (the"
+                            " length at which the spring pulls with preload_N), not both",
+                            "Keep one of the two")
+        if not free and (pre[0] is None) != (pre[1] is None):
+            raise ValueHint("preload_N needs length_mm, the length at which the spring pulls"
+                            " with it", "Give both, or free_length_mm instead")
+        if not free and pre[0] is None and self.stiffness_N_per_mm > 0.0:
+            raise ValueHint("a spring with stiffness needs free_length_mm, or preload_N with"
+                            " length_mm", "Give e.g. free_length_mm = 20.0")
+        if self.stiffness_N_per_mm == 0.0 and self.damping_N_s_per_mm == 0.0 and (
+                self.preload_N in (None, 0.0)):
+            raise ValueHint("the spring has no stiffness, no damping and no preload: it does"
+                            " nothing", "Give stiffness_N_per_mm, damping_N_s_per_mm or"
+                            " preload_N, or leave the spring out")
+        return self
+
+    @property
+    def free_length(self) -> float:
+        """Free length, mm (from the preload where that is given)."""
+        if self.free_length_mm is not None:
+            return self.free_length_mm
+        if self.stiffness_N_per_mm == 0.0:
+            return 0.0
+        return self.length_mm - (self.preload_N or 0.0) / self.stiffness_N_per_mm
+
+
+class TorsionSpringSpec(_Spec):
+    """``[[torsion_springs]]``: a torsional spring-damper at a revolute pair (``pair``, as
+    ``sewmech check --pairs`` names it). Its moment on the pair's second link (N mm,
+    restoring) is ``stiffness_N_mm_per_deg`` times the pair's relative angle (second link's
+    angle less the first's) past ``free_angle_deg``, or ``preload_N_mm`` plus that stiffness
+    times the angle past ``angle_deg``, plus ``damping_N_mm_s_per_deg`` times its rate (deg/s);
+    the first link takes the opposite moment."""
+
+    name: str = Field(min_length=1, max_length=200)
+    pair: str = Field(min_length=1, max_length=200)
+    stiffness_N_mm_per_deg: NonNegFloat = 0.0
+    free_angle_deg: Float | None = None
+    preload_N_mm: Float | None = None
+    angle_deg: Float | None = None
+    damping_N_mm_s_per_deg: NonNegFloat = 0.0
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _angle(self):
+        free, pre = self.free_angle_deg is not None, (self.preload_N_mm, self.angle_deg)
+        if free and any(x is not None for x in pre):
+            raise ValueHint("give either free_angle_deg, or preload_N_mm with angle_deg, not"
+                            " both", "Keep one of the two")
+        if not free and (pre[0] is None) != (pre[1] is None):
+            raise ValueHint("preload_N_mm needs angle_deg, the relative angle at which the"
+                            " spring holds it", "Give both, or free_angle_deg instead")
+        if not free and pre[0] is None:
+            raise ValueHint("a torsion spring needs free_angle_deg, or preload_N_mm with"
+                            " angle_deg", "Give e.g. free_angle_deg = 0.0")
+        if self.stiffness_N_mm_per_deg == 0.0 and self.damping_N_mm_s_per_deg == 0.0 and (
+                self.preload_N_mm in (None, 0.0)):
+            raise ValueHint("the torsion spring has no stiffness, no damping and no preload: it"
+                            " does nothing", "Give stiffness_N_mm_per_deg,"
+                            " damping_N_mm_s_per_deg or preload_N_mm, or leave it out")
+        return self
+
+    @property
+    def free_angle(self) -> float:
+        """Relative angle at which the spring holds no moment, deg."""
+        if self.free_angle_deg is not None:
+            return self.free_angle_deg
+        if self.stiffness_N_mm_per_deg == 0.0:
+            return self.angle_deg
+        return self.angle_deg - self.preload_N_mm / self.stiffness_N_mm_per_deg
+
+
+#: the largest friction coefficient sewmech takes: dry steel on steel is about 0.8, and a
+#: coefficient of 1 or more in a pin would lock most linkages
+MAX_FRICTION = 1.0
+
+
+class PairFriction(_Spec):
+    """Friction of one pair (``[friction.pairs]``): any of the defaults overridden."""
+
+    coefficient: NonNegFloat | None = Field(None, le=MAX_FRICTION)
+    pin_radius_mm: NonNegFloat | None = Field(None, le=1000.0)
+    viscous_N_mm_s: NonNegFloat | None = None
+
+
+class FrictionSpec(_Spec):
+    """``[friction]``: Coulomb friction in every pair (docs/dynamics.md). ``coefficient`` mu;
+    revolute pairs: the friction moment mu r |F| about the pin (``pin_radius_mm`` r, the pin's
+    radius); prismatic pairs: mu |N| along the guide; cam and slot contacts: mu N along the
+    contact's tangent; each against the relative motion, with a smooth sign below
+    ``smooth_mm_s`` of sliding speed (revolute pairs: that speed at the pin's radius).
+    ``viscous_N_mm_s``: a viscous part, that many N mm (N for sliding pairs) per unit of
+    relative speed (rad/s; mm/s). ``pairs``: a table per pair name overriding any of
+    these."""
+
+    coefficient: NonNegFloat = Field(0.0, le=MAX_FRICTION)
+    pin_radius_mm: NonNegFloat = Field(0.0, le=1000.0)
+    viscous_N_mm_s: NonNegFloat = 0.0
+    smooth_mm_s: PosFloat = 1.0
+    pairs: dict[str, PairFriction] = Field(default_factory=dict)
+    note: str = ""
 
 
 class LoadFile(_Spec):
@@ -763,6 +950,9 @@ class MachineSpec(_Spec):
     thread: ThreadSpec | None = None
     masses: dict[Name, MassSpec] = Field(default_factory=dict)
     loads: list[LoadSpec] = Field(default_factory=list)
+    springs: list[SpringSpec] = Field(default_factory=list)
+    torsion_springs: list[TorsionSpringSpec] = Field(default_factory=list)
+    friction: FrictionSpec | None = None
     shaft: ShaftSpec | None = None
     counterweights: dict[Name, CounterweightSpec] = Field(default_factory=dict)
 

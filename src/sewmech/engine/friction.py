@@ -1,0 +1,109 @@
+"""Friction in the pairs (``[friction]``): Coulomb friction with an optional viscous part.
+
+A revolute pair carries a friction moment mu r |F| about its pin (r: the pin's radius, |F|:
+the pin force), a prismatic pair a friction force mu |N| along its guide, a cam or slot contact
+mu N along the contact's tangent; each acts against the relative motion of the pair's two links
+(the sign smoothed as v / sqrt(v^2 + s^2) below the sliding speed s, ``smooth_mm_s``; a
+revolute pair's sliding speed is its relative angular velocity times r), and a viscous part adds
+``viscous_N_mm_s`` per unit of relative speed. Friction depends on the pair forces, which
+depend on the friction: the force analysis becomes nonlinear. :mod:`sewmech.engine.dynamics`
+solves it at every position by fixed-point iteration from the frictionless solution (each step
+one call of the force kernel with the friction of the last step as applied forces),
+accelerated by Anderson's method (each position's next step the combination of its last four
+that best cancels their changes), to a change below 1e-10 of each design's largest force.
+Where it does not settle the mechanism is self-locking or near it, and the analysis says
+where.
+
+mu = 0 everywhere (or no ``[friction]`` table) is the frictionless analysis, exactly.
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from . import _kernels as K
+from .errors import MachineFileError
+
+if TYPE_CHECKING:
+    from .machine import Machine, Pair
+
+#: unknowns per pair kind (as the force analysis lays them out)
+N_UNKNOWN = {"revolute": 2, "prismatic": 2, "cam": 1, "slot": 1, "driver": 1}
+KIND_CODE = {"revolute": K.PAIR_REVOLUTE, "prismatic": K.PAIR_PRISMATIC, "cam": K.PAIR_CAM,
+             "slot": K.PAIR_SLOT}
+#: the fixed-point iteration stops when no unknown changes by more than this, relative to
+#: its design's largest force, or fails after MAX_STEPS
+TOLERANCE = 1e-10
+MAX_STEPS = 60
+#: the steps Anderson's acceleration combines (:func:`sewmech._kernels.anderson_step`)
+ANDERSON_DEPTH = 3
+
+
+def check_friction(machine_name: str, file: str, friction, pairs: tuple[Pair, ...]) -> None:
+    """Raise :class:`MachineFileError` for a ``[friction.pairs]`` entry naming no pair of the
+    machine, or a pin radius given for a pair that has no pin."""
+    if friction is None:
+        return
+    kinds = {p.name: p.kind for p in pairs if p.kind != "driver"}
+    for name, pf in friction.pairs.items():
+        if name not in kinds:
+            close = difflib.get_close_matches(name, list(kinds), n=3)
+            raise MachineFileError(file, "friction.pairs", name, f"machine '{machine_name}' has"
+                                   f" no pair '{name}'",
+                                   f"Did you mean {', '.join(close)}?" if close else
+                                   "`sewmech check MACHINE --pairs` lists them")
+        if pf.pin_radius_mm is not None and kinds[name] != "revolute":
+            raise MachineFileError(file, f"friction.pairs.{name}", "pin_radius_mm", f"'{name}'"
+                                   f" is a {kinds[name]} pair, which has no pin",
+                                   "Give pin_radius_mm only for revolute pairs")
+
+
+@dataclass(frozen=True)
+class FrictionTables:
+    """The frictional pairs of a machine for the friction kernel
+    (:func:`sewmech._kernels.friction_forces`): their indices among the machine's pairs, the
+    integer rows (kind, first link, second link, first unknown's column) and the values (mu,
+    pin radius mm, viscous part, smoothing speed mm/s)."""
+
+    pair_index: tuple[int, ...]
+    names: tuple[str, ...]
+    ints: np.ndarray
+    values: np.ndarray
+
+    @classmethod
+    def build(cls, machine: Machine) -> FrictionTables | None:
+        f = machine.spec.friction
+        if f is None:
+            return None
+        idx, names, ints, vals = [], [], [], []
+        col = 0
+        for i, p in enumerate(machine.pairs):
+            n_unknown = N_UNKNOWN[p.kind]
+            if p.kind != "driver":
+                own = f.pairs.get(p.name)
+                mu = own.coefficient if own is not None and own.coefficient is not None \
+                    else f.coefficient
+                r = own.pin_radius_mm if own is not None and own.pin_radius_mm is not None \
+                    else f.pin_radius_mm
+                visc = own.viscous_N_mm_s if own is not None and \
+                    own.viscous_N_mm_s is not None else f.viscous_N_mm_s
+                if p.kind != "revolute":
+                    r = 0.0
+                if (mu > 0.0 and (p.kind != "revolute" or r > 0.0)) or visc > 0.0:
+                    idx.append(i)
+                    names.append(p.name)
+                    ints.append((KIND_CODE[p.kind], machine.link_index(p.links[0]),
+                                 machine.link_index(p.links[1]), col))
+                    vals.append((mu, r, visc, f.smooth_mm_s))
+            col += n_unknown
+        if not idx:
+            return None
+        return cls(tuple(idx), tuple(names), np.asarray(ints, dtype=np.int64).reshape(-1, 4),
+                   np.asarray(vals, dtype=float).reshape(-1, 4))
+
+    def __len__(self) -> int:
+        return len(self.names)
