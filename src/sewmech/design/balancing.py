@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -240,14 +240,24 @@ def balance_basis(machine: Machine, counterweights: Sequence[str] | None = None,
     bearings = machine.spec.shaft is not None
     n = len(chosen)
     # designs: the chosen counterweights off, then each one's four probes (1 kg at radius r and
-    # angle a; the others off)
+    # angle a; the others off). The responses to the probes are the frictionless machine's,
+    # whose forces are linear in the counterweights; the base is the whole machine's (its
+    # friction included: see balance())
     rows = [_set(machine, chosen, {})]
     for c in chosen:
         for r, a in _PROBES:
             rows.append(_set(machine, chosen, {c.name: (1.0, r, a)}))
-    res = plan(np.stack(rows))
+    linear = plan if machine.spec.friction is None else DynamicsPlan(
+        machine, phi, rpm=rpm, gravity=gravity, friction=False)
+    res = linear(np.stack(rows))
     q = _quantities(res, point, bearings)
-    base = {k: v[0].copy() for k, v in q.items()}
+    if linear is not plan:
+        q0 = _quantities(plan(rows[0]), point, bearings)
+        base = {k: np.asarray(v).copy() for k, v in q0.items()}
+        q = {k: np.concatenate([v[:1] * 0.0 + q0[k][None], v[1:] - v[:1] + q0[k][None]])
+             for k, v in q.items()}
+    else:
+        base = {k: v[0].copy() for k, v in q.items()}
     resp = {}
     Ginv = np.linalg.inv(_G)
     for k, v in q.items():
@@ -398,6 +408,10 @@ WEIGHTED_PARTS = ("peak_force_N", "rms_force_N", "peak_moment_Nm", "bearings_pea
                   "torque_fluctuation_Nm")
 
 
+#: how often balance() solves again with the friction of its answer, at most
+FRICTION_PASSES = 8
+
+
 def balance(machine: Machine, criterion: str = "delta-q",
             counterweights: Sequence[str] | None = None, *, rpm: float | None = None,
             step_deg: float = 1.0, moment_point: tuple[float, float] | None = None,
@@ -430,22 +444,44 @@ def balance(machine: Machine, criterion: str = "delta-q",
                           " its bearing reactions are not known", "Add [shaft] (the cranks' and"
                           " bearings' planes along the shaft) or choose another criterion")
     w = _weights(weights, B) if criterion == "weighted" else {}
-    if criterion == "delta-q":
-        xy, status, message = _solve_delta_q(B)
-    elif criterion == "rms":
-        xy, status, message = _solve_rms(B)
-    elif criterion == "weighted":
-        xy, status, message = _solve_weighted(B, w)
-    else:
-        xy, status, message = _solve_peak(B, criterion)
+
+    def solve(B):
+        if criterion == "delta-q":
+            return _solve_delta_q(B)
+        if criterion == "rms":
+            return _solve_rms(B)
+        if criterion == "weighted":
+            return _solve_weighted(B, w)
+        return _solve_peak(B, criterion)
+
+    xy, status, message = solve(B)
+    both = B.evaluate(np.stack([B.start, xy]))  # the file's and the chosen, on the machine
+    exact = {k: v[1] for k, v in both.items()}
+    predicted = B.quantities(xy)
+    if machine.spec.friction is not None and status != "infeasible":
+        # the counterweights change the pair forces and with them the friction, which the
+        # linear basis cannot know (the shaking force and moment do not depend on it): solve
+        # again with the basis moved by the friction's change at the answer, until the answer
+        # stays (the friction of the answer, as it is)
+        passes = 0
+        for passes in range(1, FRICTION_PASSES + 1):
+            shifted = replace(B, base={k: B.base[k] + (exact[k] - predicted[k]) for k in exact})
+            xy2, status, message = solve(shifted)
+            moved = float(np.abs(xy2 - xy).max())
+            xy = xy2
+            exact = {k: v[0] for k, v in B.evaluate(xy[None]).items()}
+            predicted = shifted.quantities(xy)
+            B_used = shifted
+            if moved <= 1e-9 * max(1.0, float(np.abs(xy).max())):
+                break
+        message += (f"; with the friction of the answer ({passes} pass"
+                    f"{'es' if passes != 1 else ''}: the counterweights change the friction)")
+        B = B_used
     if status == "optimal" and np.any(np.hypot(xy[:, 0], xy[:, 1]) >= B.s_max * (1 - 1e-9)):
         status = "bounded"
         message += "; a counterweight is at its max_static_moment_gcm"
-    both = B.evaluate(np.stack([B.start, xy]))  # the file's and the chosen, on the machine
     before = figures({k: v[0] for k, v in both.items()})
-    exact = {k: v[1] for k, v in both.items()}
     after = figures(exact)
-    predicted = B.quantities(xy)
     err = max(float(np.abs(predicted[k] - exact[k]).max()) * (1e-3 if k in ("M", "T") else 1.0)
               for k in exact)
     curves = {"phi": B.phi, "before": {k: v[0] for k, v in both.items()}, "after": exact}

@@ -84,11 +84,14 @@ def _least(values: np.ndarray, phi_deg: np.ndarray) -> tuple[float, float]:
 
 
 def contact_margins(machine: Machine, *, rpm: float | None = None,
-                    inputs: Mapping[str, float] | None = None, params=None,
-                    n_phi: int = 360) -> list[ContactMargin]:
+                    inputs: Mapping[str, float] | None = None, params=None, loads=None,
+                    gravity: bool = True, n_phi: int = 360, opening: bool = True
+                    ) -> list[ContactMargin]:
     """Every one-sided contact's least force over the turn at ``rpm`` (default: the machine
     file's working speed) and setting ``inputs`` (rad; default: the working setting), and the
-    speed above which it opens (see the module doc). One design (``params``)."""
+    speed above which it opens (see the module doc). One design (``params``); ``loads`` and
+    ``gravity`` as for :func:`~sewmech.dynamics.inverse_dynamics`. ``opening=False``: the
+    least forces alone (one force analysis; ``opens_above_rpm`` None)."""
     from .dynamics import DynamicsPlan
 
     pairs = one_sided_pairs(machine)
@@ -103,13 +106,19 @@ def contact_margins(machine: Machine, *, rpm: float | None = None,
         """(n_phi, n_pairs): the contact forces at r rev/min."""
         plan = plans.get(r)
         if plan is None:
-            plan = plans[r] = DynamicsPlan(machine, phi, rpm=r)
+            plan = plans[r] = DynamicsPlan(machine, phi, rpm=r, loads=loads, gravity=gravity)
         res = plan(params, inputs=inputs)
         return np.stack([np.asarray(res.pair(p.name))[..., 0].reshape(-1) for p in pairs],
                         axis=-1)
 
     f1 = forces(rpm0)
     out = []
+    if not opening:
+        for j, p in enumerate(pairs):
+            least, at = _least(f1[:, j], phi_deg)
+            out.append(ContactMargin(p.name, _margin_of(machine, p.name), least, at, None,
+                                     rpm0))
+        return out
     speeds = (0.5 * rpm0, rpm0, 2.0 * rpm0)
     fit = [f1 if s == rpm0 else forces(s) for s in speeds]
     w = np.array([s * math.pi / 30.0 for s in speeds])

@@ -762,7 +762,9 @@ class DynamicsPlan:
 
     Parameters are those of :func:`inverse_dynamics` (which see); ``params`` and ``inputs`` are
     given per call. ``on_failure="mask"`` (as for the kinematics) gives NaN forces at the
-    positions that cannot be assembled instead of raising (design sweeps).
+    positions that cannot be assembled instead of raising (design sweeps). ``friction=False``
+    leaves the file's ``[friction]`` out: the forces are then linear in the masses and the
+    applied forces (the balancing basis' responses).
     """
 
     def __init__(
@@ -777,6 +779,7 @@ class DynamicsPlan:
         loads: Sequence[LoadSpec] | None = None,
         masses: Mapping[str, MassProperties] | None = None,
         on_failure: str = "raise",
+        friction: bool = True,
     ):
         self.machine = machine
         self.structure = force_structure(machine)
@@ -804,7 +807,7 @@ class DynamicsPlan:
         self._loads = LoadTables.build(machine, self.loads, np.degrees(self.kin_plan.phi))
         self._load_links = self._loads.links
         self._springs = SpringTables.build(machine)
-        self._friction = FrictionTables.build(machine)
+        self._friction = FrictionTables.build(machine) if friction else None
         self._live: tuple | None = None
         #: blocks of up to this many unknowns go to the written solvers of ``_blocks``, larger
         #: ones to the force kernel's generic loop (0: all of them; the tests compare the two)

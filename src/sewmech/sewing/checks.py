@@ -4,7 +4,10 @@
 and needle descent, :mod:`sewmech.sewing.timing`) and of the feed (:func:`sewmech.sewing.feed.
 check_feed`) that the machine's ``[sewing]`` roles allow; the report and ``sewmech report``
 print them. Each is a :class:`~sewmech.sewing.timing.Check`: value, expectation, pass/fail and
-source (a key of docs/references.md, :mod:`sewmech.sewing.references`).
+source (a key of docs/references.md, :mod:`sewmech.sewing.references`). A machine with masses
+and one-sided contacts (a cam under a pad, a roller on a flat) also gets a check per contact
+(:func:`check_contacts`): its least force over the turn at the working speed must stay at or
+above its ``margin_N``, or the follower leaves its cam.
 """
 
 from __future__ import annotations
@@ -24,8 +27,36 @@ from .timing import (
 )
 
 
-def check_timing(machine: Machine, params=None) -> list[Check]:
-    """The stitch-formation checks that the machine's roles allow, as numbers with pass/fail."""
+def check_contacts(machine: Machine, params=None, *, opening_speeds: bool = True
+                   ) -> list[Check]:
+    """A check per one-sided contact of a machine with ``[masses]``: its least force over the
+    turn at the working speed and setting, against its ``margin_N`` (N), with the speed above
+    which it opens in the expectation (``opening_speeds=False`` leaves that out: the least force
+    alone is one force analysis, the opening speed a few dozen)."""
+    from ..engine.contacts import contact_margins, one_sided_pairs
+
+    if not machine.spec.masses or not one_sided_pairs(machine):
+        return []
+    import numpy as np
+
+    P = None if params is None else np.asarray(params, dtype=float)
+    out = []
+    margins = contact_margins(machine, params=P, opening=opening_speeds)
+    for c in margins:
+        opens = ("" if not opening_speeds else "; it never opens below"
+                 f" {100 * c.rpm:g} rpm" if c.opens_above_rpm is None
+                 else f"; it opens above {c.opens_above_rpm:.0f} rpm")
+        out.append(Check(f"contact '{c.name}' stays closed at {c.rpm:g} rpm", c.least_force_N,
+                         "N", f">= {c.margin_N:g} N over the turn (least at"
+                         f" {c.at_phi_deg:.1f} deg{opens})", c.ok,
+                         "the force analysis (docs/dynamics.md)"))
+    return out
+
+
+def check_timing(machine: Machine, params=None, *, opening_speeds: bool = True
+                 ) -> list[Check]:
+    """The stitch-formation checks that the machine's roles allow, as numbers with pass/fail,
+    and the one-sided contacts' (:func:`check_contacts`)."""
     s = roles(machine)
     out: list[Check] = []
     if s.shuttle_link is not None:
@@ -53,4 +84,5 @@ def check_timing(machine: Machine, params=None) -> list[Check]:
                          "[Thread-holder-timing] (household machines: about 1/8 in)"))
     if s.feed_dog is not None and s.regulator is not None:
         out += check_feed(machine, params)
+    out += check_contacts(machine, params, opening_speeds=opening_speeds)
     return out

@@ -97,9 +97,12 @@ REFERENCES: tuple[Reference, ...] = (
        ("phi = 90 deg at the needle bar's top", "the report's shaft-angle convention",
         "the JB files' `[convention]`, checked by `sewmech check`"),
        ("2.94 N over 135-155 deg (JB8-2 also 78-82 deg)", "the take-up's pull on the needle"
-        " thread", "the JB files' `[[loads]]`"),
+        " thread", "the JB files' `[[loads]]`: the magnitude, applied while the take-up draws"
+        " its last 3 mm of thread in (135-150 deg in the files' own timing)"),
        ("14.7 N and 7.35 N over 90-175 deg", "the presser foot's force on the feed dog and the"
-        " fabric's resistance to the feed", "the JB files' `[[loads]]`"),
+        " fabric's resistance to the feed", "the JB files' `[[loads]]`: the magnitudes, applied"
+        " while the dog's teeth stand above the throat plate (the presser foot as an elastic"
+        " load, the resistance against the dog's motion)"),
        ("the longest forward stitch", "the hardest case for the feed, at which the forces are"
         " computed", "the regulator setting of the report's dynamics section"),
        ("basic units; Newton-Raphson on loop closure; upper-shaft bearing reactions",
@@ -281,7 +284,29 @@ REFERENCES: tuple[Reference, ...] = (
        "https://manualshive.com/en/manual/elna/star-edition/2395070?page=11", "seen",
        ("5.5-6.2 mm, set at 6.0 mm", "the presser-foot lift of a household machine",
         "jb1-3.toml, jb8-2.toml: the needle point clears a 6 mm lift above the plate")),
+    _r("JSPE-presser",
+       "A study of the dynamic force of the presser bar on the feed bar of a sewing machine."
+       " Journal of the Japan Society for Precision Engineering 53(3), p. 395, 1987.",
+       "https://www.jstage.jst.go.jp/article/jjspe1986/53/3/53_3_395/_article/-char/en", "title",
+       ("< 2 x the spring preload", "the dynamic presser-bar force on the feed bar stays below"
+        " twice the presser spring's preload (from the abstract)", "the bound the JB files'"
+        " presser-foot rate (2 N/mm) is chosen within: 17.4 N at the dog's full lift against"
+        " 14.7 N at the plate")),
+    _r("Home-speed",
+       "Comparison of lockstitch power machine and the home sewing machine. BD Textile Mates,"
+       " November 2022.",
+       "https://bdtextilemates.blogspot.com/2022/11/comparison-of-lockstitch-power-machine-and-the-home-sewing-machine.html",
+       "seen",
+       ("1000-1200 stitches/min, the fastest <= 1500", "the working speeds of household"
+        " machines", "the speed range the JB files' one-sided contacts must stay closed in"
+        " (their feed-bar spring)")),
     # ---- standards, textbooks and methods -----------------------------------------------------
+    _r("Friction-handbook",
+       "Oberg E. et al., Machinery's Handbook, section on friction: coefficients of friction of"
+       " metals, dry and lubricated. Industrial Press, New York.",
+       "", "textbook",
+       ("mu 0.05-0.15", "steel on steel in boundary lubrication (oiled plain bearings and"
+        " cams)", "the JB files' `[friction]` coefficient 0.08 [estimate within the range]")),
     _r("ISO-286",
        "ISO 286-1:2010, Geometrical product specifications (GPS) - ISO code system for"
        " tolerances on linear sizes - Part 1: Basis of tolerances, deviations and fits. Table 1.",

@@ -106,6 +106,17 @@ def check_cmd(
     table.add_row("force analysis", escape(force_system(m)))
     console.print(table)
     console.print(_margin_table(m, proofs))
+    from ...sewing.checks import check_contacts
+
+    contacts = check_contacts(m)  # at the working speed and setting
+    if contacts:
+        ct = Table(title=f"{m.name}: one-sided contacts at the working speed and setting")
+        for col in ("check", "least force, N", "expected", "passes"):
+            ct.add_column(col, justify="right" if col == "least force, N" else "left")
+        for c in contacts:
+            ct.add_row(escape(c.name), f"{c.value:.4g}", escape(c.expected),
+                       "yes" if c.passed else "[bold red]no[/]")
+        console.print(ct)
     if list_parameters:
         _print_parameters(m)
 
@@ -292,6 +303,7 @@ def dynamics_cmd(
 ):
     """Inverse dynamics: driving torque, pair forces, shaking force and moment, energies,
     upper-shaft bearing reactions."""
+    from ...engine.contacts import contact_margins
     from ...engine.dynamics import inverse_dynamics
     from ...engine.spec import load_load_file
     from ..files.io import dynamics_to_dict, write_dynamics_csv
@@ -315,7 +327,9 @@ def dynamics_cmd(
                             " neither")
     res = inverse_dynamics(m, phi, rpm=rpm, inputs=settings or None, gravity=gravity,
                            loads=load_specs)
-    data = dynamics_to_dict(res)
+    contacts = contact_margins(m, rpm=rpm, inputs=settings or None, loads=load_specs,
+                               gravity=gravity)
+    data = dynamics_to_dict(res, contacts)
     if as_json:
         print_json(data)
         return
@@ -324,6 +338,8 @@ def dynamics_cmd(
                                                    " inertia forces or weights, only the loads"))
     console.print(_dynamics_summary(res, data))
     console.print(_pair_table(res))
+    if contacts:
+        console.print(_contact_table(contacts))
     if out is not None:
         with output_dir(out, command="dynamics") as root:
             written = write_dynamics_csv(res, root)
@@ -397,6 +413,34 @@ def _dynamics_summary(res, data) -> Table:
         add("rear bearing", "N", [r["bearing_rear_N"] for r in rows])
     for name, values in res.setting_torques.items():
         add(f"torque holding '{name}'", "N m", values * 1e-3)
+    if res.friction is not None:
+        add("friction loss", "W", res.friction_power * 1e-3)
+    if res.springs is not None and res.springs.names:
+        for j, name in enumerate(res.springs.names):
+            torsion = j >= res.springs.n_translational
+            add(f"spring '{name}'", "N m" if torsion else "N",
+                res.springs.force[..., j] * (1e-3 if torsion else 1.0))
+    if data["mean_input_power_W"] is not None:
+        table.add_section()
+        for key, label in (("mean_input_power_W", "mean input power (over the turn)"),
+                           ("friction_loss_W", "friction loss (mean)"),
+                           ("damping_loss_W", "dampers' loss (mean)"),
+                           ("load_dissipation_W", "loads' dissipation (mean)")):
+            table.add_row(label, "W", f"{data[key]:.4g}", "", "")
+    return table
+
+
+def _contact_table(contacts) -> Table:
+    table = Table(title="one-sided contacts: least force over the turn at this speed, and the"
+                        " speed above which each opens")
+    for col in ("contact", "least force, N", "at phi, deg", "margin, N", "holds",
+                "opens above, rpm"):
+        table.add_column(col, justify="left" if col == "contact" else "right")
+    for c in contacts:
+        table.add_row(c.name, f"{c.least_force_N:.4g}", f"{c.at_phi_deg:.1f}",
+                      f"{c.margin_N:g}", "yes" if c.ok else "[bold red]no[/]",
+                      "never (below 100 x this speed)" if c.opens_above_rpm is None
+                      else f"{c.opens_above_rpm:.0f}")
     return table
 
 

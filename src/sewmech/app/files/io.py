@@ -123,11 +123,37 @@ _PAIR_LABELS = {"revolute": ("Fx_N", "Fy_N"), "prismatic": ("N_N", "M_Nmm"), "ca
                 "slot": ("N_N",), "driver": ("torque_Nmm",)}
 
 
-def dynamics_to_dict(res) -> dict:
+def full_turn(phi_deg) -> bool:
+    """Whether the angles (deg) are a whole turn in equal steps (the grid of `--step-deg`),
+    on which a turn's mean is the grid's mean."""
+    a = np.asarray(phi_deg, dtype=float)
+    if a.size < 4:
+        return False
+    step = 360.0 / a.size
+    return bool(np.allclose(np.diff(a), step, rtol=0, atol=1e-6 * step))
+
+
+def turn_means(res) -> dict:
+    """Means over the turn (W) of the motor's power, the friction loss, the dampers' loss and
+    the loads' dissipation (minus their mean power: positive when they take energy out); None
+    each unless the result's angles are a whole turn in equal steps."""
+    if not full_turn(res.phi_deg):
+        return {k: None for k in ("mean_input_power_W", "friction_loss_W", "damping_loss_W",
+                                  "load_dissipation_W")}
+    return {"mean_input_power_W": _clean(float(np.mean(res.input_power)) * 1e-3),
+            "friction_loss_W": _clean(float(np.mean(res.friction_power)) * 1e-3),
+            "damping_loss_W": _clean(float(np.mean(res.damping_power)) * 1e-3),
+            "load_dissipation_W": _clean(-float(np.mean(res.external_power)) * 1e-3)}
+
+
+def dynamics_to_dict(res, contacts=None) -> dict:
     """A JSON-ready dict of a single-design :class:`sewmech.dynamics.DynamicsResult`: per
     position the driving torque, energies, powers, shaking force and moment and the upper
     shaft's bearing reactions (SI units, named in the keys; null where not defined), and every
-    pair's unknowns per position (``pairs``: kind, links, components with units, values)."""
+    pair's unknowns per position (``pairs``: kind, links, components with units, values);
+    the turn's means of the motor's power and the losses (null unless the angles are a whole
+    turn in equal steps), the springs' and the friction's figures, where each load acts, and
+    ``contacts`` (:func:`sewmech.engine.contacts.contact_margins`' entries, if given)."""
     if res.kin.batch_shape:
         raise ValueError("dynamics_to_dict takes one design (batch shape ()), got batch shape"
                          f" {res.kin.batch_shape}")
@@ -149,8 +175,23 @@ def dynamics_to_dict(res) -> dict:
             "shaking_moment_Nm": _clean(float(res.shaking_moment[k]) * 1e-3),
             "bearing_front_N": None if br is None else [_clean(float(x)) for x in br.front[k]],
             "bearing_rear_N": None if br is None else [_clean(float(x)) for x in br.rear[k]],
+            "friction_power_W": _clean(float(res.friction_power[k]) * 1e-3),
+            "damping_power_W": _clean(float(res.damping_power[k]) * 1e-3),
+            "loads_acting": [res.load_names[j] for j in range(len(res.load_names))
+                             if res.load_on is not None and res.load_on[k, j] > 0.5],
         })
-    return {
+    sp = res.springs
+    springs = {} if sp is None else {
+        name: {"kind": "translational" if j < sp.n_translational else "torsional",
+               "unit": "N" if j < sp.n_translational else "N m",
+               "values": [_clean(float(v) * (1.0 if j < sp.n_translational else 1e-3))
+                          for v in sp.force[:, j]]}
+        for j, name in enumerate(sp.names)}
+    fr = res.friction
+    friction = {} if fr is None else {
+        name: {"power_W": [_clean(float(v) * 1e-3) for v in fr.power[:, j]]}
+        for j, name in enumerate(fr.pairs)}
+    out = {
         "machine": res.machine.name,
         "rpm": round(float(res.kin.omega_shaft[0] * 60 / (2 * math.pi)), 9),
         "gravity": res.gravity,
@@ -168,6 +209,16 @@ def dynamics_to_dict(res) -> dict:
             "bearing_front_N": "force of the front bearing on the upper shaft (x, y)",
             "bearing_rear_N": "force of the rear bearing on the upper shaft (x, y)"
                               + (f"; null here: {why}" if why else ""),
+            "mean_input_power_W": "the motor's mean power over the turn; it equals"
+                                  " friction_loss_W + damping_loss_W + load_dissipation_W"
+                                  " (null unless the angles are a whole turn in equal steps)",
+            "load_dissipation_W": "minus the loads' mean power: what they take out of the"
+                                  " machine (negative: they would drive it)",
+            "contacts": "one-sided contacts at this speed: least force over the turn and where,"
+                        " and the speed above which each opens (null: it never opens below"
+                        " 100 x this speed)",
+            "springs": "tension (N, + pulling its ends together) or moment on the pair's second"
+                       " link (N m) over the turn",
         },
         "positions": rows,
         "pairs": {pair.name: {"kind": pair.kind, "links": list(pair.links),
@@ -177,6 +228,11 @@ def dynamics_to_dict(res) -> dict:
                                          for row in res.pair(pair.name)]}
                   for pair in res.pairs},
     }
+    out.update(turn_means(res))
+    out["contacts"] = None if contacts is None else [c.to_json() for c in contacts]
+    out["springs"] = springs
+    out["friction"] = friction
+    return out
 
 
 def write_dynamics_csv(res, out_dir: str | Path) -> list[Path]:

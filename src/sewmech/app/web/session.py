@@ -458,7 +458,7 @@ class Session:
                 event("take-up eye top after needle top", lambda: (T.take_up_lag_deg(m, P),
                                                                    "deg"))
             try:
-                checks = [check_dict(c) for c in check_timing(m, P)]
+                checks = [check_dict(c) for c in check_timing(m, P, opening_speeds=False)]
                 error = None
             except (SewmechError, ValueError) as exc:
                 checks, error = [], error_dict(exc)
