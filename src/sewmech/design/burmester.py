@@ -266,18 +266,24 @@ def _pair_checks(K1, m1, K2, m2, poses, need_crank: bool, grid: int = 181):
             "crank": crank, "theta2": th, "a": a, "b": b, "c": cc, "d": d, "n": n}
 
 
-#: the longest link of a chosen four-bar at most this many times its shortest, where any pair
-#: allows it (a link of a millimetre beside one of a metre cannot be made)
+#: the longest link of a chosen four-bar at most this many times its shortest, and every link
+#: within this factor of the poses' spread, where any pair allows it (a link of a millimetre
+#: beside one of a metre, or a linkage far smaller than its motion, cannot be made)
 PROPORTION = 8.0
+#: ... and a least transmission angle over the motion of at least this, deg (the usual design
+#: rule: below it the coupler pushes the output more along it than round its pivot)
+MIN_TRANSMISSION_DEG = 30.0
 
 
 def choose_pair(dyads_K: np.ndarray, dyads_m: np.ndarray, poses, *, prefer_crank: bool = True,
                 max_pairs: int = 40000, where: str = "poses") -> tuple[int, int, dict, tuple]:
     """The best pair (input i, output j) of the candidate dyads (centre points (n, 2), circle
     points (n, 2) in the body frame): free of the branch and order defects, assembling over
-    the motion (the whole turn when its input is a crank), a crank input preferred, links within
-    :data:`PROPORTION` of one another where any pair has them, then the largest least
-    transmission angle. Returns (i, j, checks of that pair, (tried, usable))."""
+    the motion (the whole turn when its input is a crank); preferred in this order: a crank
+    input in proportion (links within :data:`PROPORTION` of one another and of the poses'
+    spread, a least transmission angle of :data:`MIN_TRANSMISSION_DEG`), a lever input so, a
+    crank, a lever; then the largest least transmission angle. Returns (i, j, the checks of
+    that pair, (pairs tried, pairs free of defects))."""
     K = np.asarray(dyads_K, dtype=float)
     M = np.asarray(dyads_m, dtype=float)
     n = len(K)
@@ -289,17 +295,24 @@ def choose_pair(dyads_K: np.ndarray, dyads_m: np.ndarray, poses, *, prefer_crank
     far = np.linalg.norm(K[ii] - K[jj], axis=-1) > 1e-6 * (1 + np.abs(K).max())
     ii, jj = ii[far], jj[far]
     best = None
-    usable = 0
-    for need in ((True, False) if prefer_crank else (False,)):
-        r = _pair_checks(K[ii], M[ii], K[jj], M[jj], poses, need)
-        usable = max(usable, int(r["ok"].sum()))
-        if r["ok"].any():
+    results = {need: _pair_checks(K[ii], M[ii], K[jj], M[jj], poses, need)
+               for need in ((True, False) if prefer_crank else (False,))}
+    usable = max(int(r["ok"].sum()) for r in results.values())
+    Pp = np.asarray(poses, dtype=float)
+    sp = max(float(np.ptp(Pp[:, 0])), float(np.ptp(Pp[:, 1])), 1e-9)
+    # preference: a crank input in proportion, a lever in proportion, a crank, a lever
+    for sane_only in (True, False):
+        for r in results.values():
             L = np.stack([r["a"], r["b"], r["c"], r["d"]], -1)
-            sane = r["ok"] & (L.max(-1) <= PROPORTION * L.min(-1))
-            pick = sane if sane.any() else r["ok"]
-            k = int(np.argmax(np.where(pick, r["mu_min"], -1.0)))
-            best = (int(ii[k]), int(jj[k]), {key: (v[k] if isinstance(v, np.ndarray) else v)
-                                             for key, v in r.items()})
+            sane = ((L.max(-1) <= PROPORTION * L.min(-1)) & (L.min(-1) >= sp / PROPORTION)
+                    & (L.max(-1) <= PROPORTION * sp) & (r["mu_min"] >= MIN_TRANSMISSION_DEG))
+            pick = r["ok"] & (sane | (not sane_only))
+            if pick.any():
+                k = int(np.argmax(np.where(pick, r["mu_min"], -1.0)))
+                best = (int(ii[k]), int(jj[k]), {key: (v[k] if isinstance(v, np.ndarray)
+                                                       else v) for key, v in r.items()})
+                break
+        if best is not None:
             break
     if best is None:
         raise SynthesisError(where, f"none of the {len(ii)} four-bars built from pairs of the"
@@ -396,9 +409,11 @@ def synthesize_motion(poses_deg, circle_points=None, *, samples: int = 720) -> M
     drive = "shaft" if chk["crank"] else "setting"
     notes.append(f"pair chosen: of {tried[0]} four-bars from pairs of dyads, {tried[1]} are free"
                  " of branch and order defects"
-                 + (" with an input that turns fully" if drive == "shaft" else "")
-                 + f"; this one has the largest least transmission angle of those whose longest"
-                   f" link is at most {PROPORTION:g} times the shortest (if any),"
+                 + "; preferred: a crank input with the links in proportion (the longest at"
+                   f" most {PROPORTION:g} times the shortest, each within {PROPORTION:g} times"
+                   f" the poses' spread) and transmitting at least {MIN_TRANSMISSION_DEG:g} deg,"
+                   " then a lever so, then a crank, then a lever; of"
+                   " those, the largest least transmission angle,"
                    f" {chk['mu_min']:.2f} deg over the motion")
     g = grashof(fb.a, fb.b, fb.c, fb.d)
     notes.append(f"Grashof: {g.text}; the input "
@@ -506,3 +521,105 @@ def _path_fourbar(A, B, C, D, P, phi1: float, branch: int) -> FourBar:
     return FourBar((float(A.real), float(A.imag)), (float(D.real), float(D.imag)), float(a),
                    float(abs(C - B)), float(abs(D - C)), float(a), float(abs(D - C)), branch,
                    (float(rel.real), float(rel.imag)), phase)
+
+
+@dataclass(frozen=True)
+class PathSynthesis:
+    """Timed path generation: the exact three-point start and the optimiser's answer over
+    every point. start, answer : the machine texts; start_rms_mm, answer_rms_mm, answer_max_mm :
+    the coupler point's distance from the points; variables : name -> (start, answer) in file
+    units; result : the optimiser's OptimizeResult; problem_text : the design problem (TOML)
+    the optimiser solved, for ``sewmech optimize``."""
+
+    start: PathStart
+    start_text: str
+    answer_text: str
+    start_rms_mm: float
+    answer_rms_mm: float
+    answer_max_mm: float
+    variables: dict
+    result: object
+    problem_text: str
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+
+#: the four-bar's parameters the optimiser moves in path generation
+PATH_VARIABLES = ("B.u", "dyad.length1", "dyad.length2", "A.x", "A.y", "D.x", "D.y", "P.u",
+                  "P.v", "input.phase")
+
+
+def synthesize_path(points, phi_deg, *, name: str = "path-generator", method: str = "slsqp"
+                    ) -> PathSynthesis:
+    """A four-bar whose coupler point P passes through ``points`` (n, 2) mm at the shaft angles
+    ``phi_deg`` (n,): the exact three-point start (:func:`path_start`), then the design problem
+    "P at each point at its angle" (every dimension a variable, within +-50 % of the start's
+    lengths and +-one path size of its pivots, the crank's phase +-45 deg) solved by
+    ``method`` of :func:`sewmech.design.optimize.optimize` (SLSQP: exact gradients)."""
+    from ..engine.kinematics import kinematics
+    from ..engine.machine import machine_from_toml
+    from .optimize import optimize
+    from .problem import Problem, ProblemSpec
+    from .synthesis import machine_text
+
+    Z = np.asarray(points, dtype=float)
+    phi = np.asarray(phi_deg, dtype=float)
+    st = path_start(Z, phi)
+    fb = st.fourbar
+    notes = [f"exact start through points {', '.join(str(i + 1) for i in st.exact)} with the"
+             f" coupler turning {math.degrees(st.alpha[0]):g}, {math.degrees(st.alpha[1]):g}"
+             f" deg and the output {math.degrees(st.gamma[0]):g},"
+             f" {math.degrees(st.gamma[1]):g} deg between them (free choices, the best of a"
+             f" 15 deg grid): rms {st.rms_mm:.4g} mm from all {len(Z)} points"]
+    text = machine_text(fb, name=name, title=f"Path generator through {len(Z)} points",
+                        notes=["A four-bar whose coupler point P follows a path at given shaft"
+                               " angles (sewmech synthesize path)."],
+                        phase_deg=math.degrees(fb.phase))
+    m = machine_from_toml(text, f"{name}.toml")
+    span = max(float(np.ptp(Z[:, 0])), float(np.ptp(Z[:, 1])), 1.0)
+    start = {n: float(m.defaults[m.parameter_index(n)]) for n in PATH_VARIABLES}
+    start["input.phase"] = math.degrees(start["input.phase"])
+    variables = []
+    for n, v in start.items():
+        if n in ("B.u", "dyad.length1", "dyad.length2"):
+            lo, hi = 0.5 * v, 1.5 * v
+        elif n == "input.phase":
+            lo, hi = v - 45.0, v + 45.0
+        else:
+            lo, hi = v - span, v + span
+        variables.append({"parameter": n, "lower": lo, "upper": hi})
+    parts = [{"metric": f"p_P_{c}", "phi_deg": float(a), "target": float(Z[k, i]),
+              "scale": 1.0} for k, a in enumerate(phi) for i, c in enumerate("xy")]
+    spec = ProblemSpec.model_validate({"problem": {"name": f"{name}: path", "machine": name},
+                                       "variables": variables,
+                                       "objective": {"form": "weighted_sum", "parts": parts}})
+    problem = Problem(spec, m)
+    r = optimize(problem, method, tol=1e-12)
+    x = {n: float(v) for n, v in zip(problem.names, r.x, strict=True)}
+    values = {n: (math.radians(v) if n == "input.phase" else v) for n, v in x.items()}
+    m2 = m.with_parameters(values)
+    rp = kinematics(m2, np.radians(phi), points=["P"], links=[], variables=[],
+                    on_failure="mask").point("P").p
+    dist = np.linalg.norm(rp - Z, axis=-1)
+    fb2 = FourBar((x["A.x"], x["A.y"]), (x["D.x"], x["D.y"]), x["B.u"], x["dyad.length1"],
+                      x["dyad.length2"], x["B.u"], x["dyad.length2"], fb.branch,
+                  (x["P.u"], x["P.v"]), math.radians(x["input.phase"]))
+    answer_text = machine_text(fb2, name=name, title=f"Path generator through {len(Z)} points"
+                               " (optimised)",
+                               notes=["A four-bar whose coupler point P follows a path at given"
+                                      " shaft angles, optimised from an exact three-point start"
+                                      " (sewmech synthesize path)."],
+                               phase_deg=x["input.phase"])
+    notes.append(f"{method}: objective {r.objective_start:.4g} -> {r.fun:.4g} (sum of squared"
+                 f" distances, mm^2) in {r.n_evaluations} designs ({r.status})")
+    lines = [f'[problem]\nname = "{name}: path"\nmachine = "{name}.toml"\n']
+    for v in variables:
+        lines.append(f'[[variables]]\nparameter = "{v["parameter"]}"\nlower = {v["lower"]!r}\n'
+                     f'upper = {v["upper"]!r}\n')
+    lines.append('[objective]\nform = "weighted_sum"\n')
+    for p in parts:
+        lines.append(f'[[objective.parts]]\nmetric = "{p["metric"]}"\nphi_deg = {p["phi_deg"]!r}'
+                     f'\ntarget = {p["target"]!r}\nscale = 1.0\n')
+    return PathSynthesis(st, text, answer_text, st.rms_mm,
+                         float(np.sqrt(np.mean(dist ** 2))), float(dist.max()),
+                         {n: (start[n], x[n]) for n in start}, r, "\n".join(lines),
+                         tuple(notes))
