@@ -216,3 +216,23 @@ def test_export_errors_keep_the_users_files(tmp_path):
     r = run(app, ["export", "fourbar-benchmark", "--phi-deg", "nan", "--out",
                   str(tmp_path / "c")])
     assert r.exit_code == 2 and "--phi-deg" in r.output
+
+
+def test_optimize_out_writes_the_answers_drawing(tmp_path):
+    import json
+
+    out = tmp_path / "opt"
+    from pathlib import Path
+
+    problem = Path(__file__).resolve().parents[1] / "examples" / "problems" / "fourbar-swing.toml"
+    r = CliRunner().invoke(app, ["optimize", str(problem), "--method", "slsqp", "--out",
+                                 str(out)])
+    assert r.exit_code == 0, r.output
+    crank = json.loads((out / "optimize.json").read_text())["x"]["B.u"]
+    doc = ezdxf.readfile(out / "answer.dxf")
+    assert not doc.audit().has_errors
+    centres = [np.array(a.dxf.center)[:2] for a in _by_layer(doc, "ARC", "crank")]
+    assert len(centres) == 2  # the crank's outline round A and B
+    assert abs(np.hypot(*(centres[0] - centres[1])) - crank) < TOL
+    assert (out / "answer.svg").is_file()
+    assert 'href="answer.dxf"' in (out / "index.html").read_text()
