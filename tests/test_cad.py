@@ -236,3 +236,57 @@ def test_optimize_out_writes_the_answers_drawing(tmp_path):
     assert abs(np.hypot(*(centres[0] - centres[1])) - crank) < TOL
     assert (out / "answer.svg").is_file()
     assert 'href="answer.dxf"' in (out / "index.html").read_text()
+
+
+def test_the_pages_drawing_is_the_commands(tmp_path):
+    """POST /api/sessions/TOKEN/drawing.dxf: the page's design at the page's angle, the same
+    file as sewmech export with those values; a bad angle is a located 400."""
+    import io
+
+    from serve_helpers import call, running_server
+
+    with running_server() as url:
+        status, body = call(f"{url}/api/sessions", {"machine": "jb1-3"})
+        assert status == 200
+        token = body["session"]
+        values = {"needle_bar.length": 45.5, "input.regulator": 12.0}
+        status, text = call(f"{url}/api/sessions/{token}/drawing.dxf",
+                            {"set": values, "phi_deg": 30})
+        assert status == 200 and "AC1024" in text  # R2010
+        status, svg = call(f"{url}/api/sessions/{token}/drawing.svg", {"set": values,
+                                                                       "phi_deg": 30})
+        assert status == 200 and svg.lstrip().startswith("<?xml")
+        status, err = call(f"{url}/api/sessions/{token}/drawing.dxf", {"phi_deg": "x"})
+        assert status == 400 and err["error"]["where"] == "phi_deg"
+    page = ezdxf.read(io.StringIO(text))
+    assert not page.audit().has_errors
+    m = sewmech.load_machine("jb1-3").with_parameters({"needle_bar.length": 45.5})
+    cli = ezdxf.read(io.StringIO(_export_dxf_text(m)))
+
+    def geometry(doc):
+        out = []
+        for e in doc.modelspace():
+            if e.dxftype() == "ARC":
+                out.append(("ARC", e.dxf.layer, *np.round(e.dxf.center, 9), round(e.dxf.radius, 9),
+                            round(e.dxf.start_angle, 9), round(e.dxf.end_angle, 9)))
+            elif e.dxftype() == "LWPOLYLINE":
+                out.append(("LW", e.dxf.layer, *np.round(np.array(list(e.get_points()))[:, :2],
+                                                         9).ravel()))
+        return sorted(map(str, out))
+
+    assert geometry(page) == geometry(cli)
+    texts = [t.dxf.text for t in page.modelspace().query("TEXT")]
+    assert "input regulator = 12 deg" in texts
+    assert any("needle_bar.length = 45.5" in t for t in texts)
+
+
+def _export_dxf_text(m) -> str:
+    """The DXF text sewmech export writes for ``m`` at 30 deg with the regulator at 12 deg."""
+    import io
+
+    from sewmech.app.files.cad import dxf_document
+
+    d = machine_drawing(m, phi_deg=30.0, inputs={"regulator": math.radians(12.0)})
+    buf = io.StringIO()
+    dxf_document(d).write(buf)
+    return buf.getvalue()

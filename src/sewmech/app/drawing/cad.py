@@ -213,10 +213,11 @@ def cam_arcs(machine, params: np.ndarray, name: str) -> dict:
 
 def machine_drawing(machine, *, phi_deg: float = 0.0, params=None, inputs=None,
                     part: str | None = None, style: CadStyle | None = None,
-                    version: str = "") -> Drawing:
+                    version: str = "", changes: dict | None = None) -> Drawing:
     """The drawing of ``machine`` (design ``params``, setting ``inputs`` rad) at the shaft angle
     ``phi_deg``. ``part``: a link or a cam: only it (its outline, joints, cam and pitch curve)
-    and the title block."""
+    and the title block. ``changes``: values changed from the file (internal units) for the
+    title block, besides the machine's own (``--set``)."""
     from ...engine.cams import support
     from ...engine.kinematics import kinematics
     from .mechanism import link_points
@@ -329,7 +330,7 @@ def machine_drawing(machine, *, phi_deg: float = 0.0, params=None, inputs=None,
             path = path[np.all(np.isfinite(path), axis=-1)]
             if len(path) > 1 and np.ptp(path, axis=0).max() > 1e-9:
                 d.add(Polyline(tuple(_pt(q) for q in path), True, f"path-{p}"))
-    d.title = title_lines(machine, phi_deg, inputs, part, version)
+    d.title = title_lines(machine, phi_deg, inputs, part, version, P, changes)
     return d
 
 
@@ -343,16 +344,23 @@ def _path_points(machine, names) -> list[str]:
             and machine.point_links[p] != ("frame",)]
 
 
-def title_lines(machine, phi_deg: float, inputs, part, version: str) -> list[str]:
+def title_lines(machine, phi_deg: float, inputs, part, version: str, params=None,
+                changes: dict | None = None) -> list[str]:
+    """The title block's lines: the machine (and part), its title, the angle and scale, every
+    setting input, the values changed from its file (mm, rad as the parameters), sewmech."""
     lines = [f"{machine.name}" + (f": {part}" if part else ""),
              machine.spec.machine.title or "",
              f"shaft angle phi = {phi_deg:g} deg; scale 1:1, mm"]
     settings = dict(inputs or {})
-    for name, spec in machine.spec.inputs.items():
-        v = settings.get(name, math.radians(spec.default_deg))
-        lines.append(f"input {name} = {math.degrees(v):g} deg")
-    if machine.changes:
+    for name in machine.spec.inputs:
+        v = settings.get(name)
+        if v is None:
+            P = machine.defaults if params is None else params
+            v = float(P[machine.parameter_index(f"input.{name}")])
+        lines.append(f"input {name} = {math.degrees(v):.6g} deg")
+    changed = {**machine.changes, **(changes or {})}
+    if changed:
         lines.append("design values changed from the file: " + ", ".join(
-            f"{k} = {v:.6g}" for k, v in machine.changes.items()))
+            f"{k} = {v:.6g}" for k, v in changed.items()))
     lines.append(f"drawn by sewmech {version}".rstrip())
     return [ln for ln in lines if ln]
