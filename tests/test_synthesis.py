@@ -381,3 +381,15 @@ def test_synthesize_errors_are_located_and_keep_the_users_files(tmp_path):
     assert r.exit_code == 2 and "error: --pose" in r.output
     r = _run(["synthesize", "motion", "--pose", "0,0,0", "--pose", "0,0,0", "--pose", "1,1,1"])
     assert r.exit_code == 2 and "coincide" in r.output
+
+
+def test_freudenstein_equals_pylinkages_independent_solver():
+    """pylinkage's function_generation (another implementation, installed with the benchmarks'
+    extra) gives the same four-bar for the same three angle pairs."""
+    fg = pytest.importorskip("pylinkage.synthesis.function_generation")
+    r = SY.synthesize_function("x**1.5", (1.0, 4.0), (60.0, 150.0), (90.0, 160.0))
+    pairs = list(zip(np.radians(r.theta2_deg), np.radians(r.theta4_deg), strict=True))
+    s = fg.function_generation(pairs, ground_length=100.0, require_grashof=False).raw_solutions
+    assert len(s) >= 1
+    np.testing.assert_allclose([s[0].crank_length, s[0].coupler_length, s[0].rocker_length],
+                               [r.fourbar.a, r.fourbar.b, r.fourbar.c], rtol=1e-12)
