@@ -22,6 +22,24 @@ Reported: each one's time and objective; the time sewmech's runs take to reach t
 pylinkage's swarm ends with (goal: 10x faster). The swarms draw from unseeded generators (as
 pylinkage's does), so each round is a new draw; medians over the rounds. Writes
 ``benchmarks/results/synthesis.json``; a missed target prints MISSED and exits 0.
+
+Then classical synthesis and the CAD files (issue 33; :func:`classical`, written to
+``benchmarks/results/synthesis-classical.json``), each timed alone (best and median of 7 after
+a warm-up) and checked while it is timed:
+
+- Freudenstein three points (x^1.5 on 1..4, input 60..150 deg, output 90..160 deg, AD 100 mm):
+  sewmech's whole ``synthesize_function`` (the branch and Grashof checks and the structural
+  error on 721 points) against pylinkage 1.3.0's ``function_generation`` on the same angle
+  pairs; the two answers' lengths must agree (two implementations of the same equations);
+- Burmester's curves of four poses (720 values of beta2) and the whole ``synthesize_motion``
+  (every pair of the dyads built and checked for defects);
+- timed path generation on this job's 12 points: the exact three-point start and SLSQP over
+  every dimension (``synthesize_path``), its rms distance;
+- the embroidery take-up by the paper's method (``synthesize_take_up``);
+- JB1-3's drawing: the geometry, the DXF written by ezdxf, read back and audited; the SVG;
+- ``influence-balance --solver minmax`` on the example file (two linear programmes of 256-gons)
+  against the least-squares solver.
+
 Run: ``.venv/bin/python benchmarks/bench_synthesis.py`` (``make bench`` installs pylinkage).
 """
 
@@ -140,7 +158,107 @@ def problem_file(T, root: Path) -> Path:
     return path
 
 
+def classical() -> dict:
+    """Classical synthesis, the CAD files and the min-max balancing, timed and checked."""
+    from _timing import best
+
+    from sewmech.design import burmester as BU
+    from sewmech.design import synthesis as SY
+    from sewmech.design.take_up_synthesis import synthesize_take_up
+
+    out: dict = {}
+
+    def row(name, fn, repeat=7, **extra):
+        b, med = best(fn, repeat=repeat)
+        out[name] = {"seconds_best": b, "seconds_median": med, **extra}
+        print(f"  {name:58s} {med * 1e3:10.2f} ms (best {b * 1e3:.2f})"
+              + "".join(f"; {k} {v:.3g}" if isinstance(v, float) else f"; {k} {v}"
+                        for k, v in extra.items()))
+
+    print("classical synthesis and CAD files (median of 7 after a warm-up):")
+    args = ("x**1.5", (1.0, 4.0), (60.0, 150.0), (90.0, 160.0))
+    r = SY.synthesize_function(*args)
+    pairs = list(zip(np.radians(r.theta2_deg), np.radians(r.theta4_deg), strict=True))
+    try:
+        from pylinkage.synthesis.function_generation import function_generation
+
+        pl = function_generation(pairs, ground_length=100.0, require_grashof=False)
+        s = pl.raw_solutions[0]
+        gap = max(abs(s.crank_length - r.fourbar.a), abs(s.coupler_length - r.fourbar.b),
+                  abs(s.rocker_length - r.fourbar.c))
+        row("pylinkage function_generation (3 points)",
+            lambda: function_generation(pairs, ground_length=100.0, require_grashof=False),
+            lengths_gap_mm=gap)
+        assert gap < 1e-9, f"the two Freudenstein answers differ by {gap} mm"
+    except ImportError:
+        print("  (pylinkage is not installed: `make bench` installs it)")
+    row("sewmech synthesize_function (3 points, checks, 721-point error)",
+        lambda: SY.synthesize_function(*args), max_error_deg=r.max_error_deg)
+    row("sewmech Freudenstein's K and the lengths alone",
+        lambda: SY.lengths_from_k(SY.freudenstein_k(*zip(*pairs, strict=True))[0], 100.0))
+    poses = [[0.0, 0.0, 0.0], [20.0, 5.0, 20.0], [35.0, 15.0, 45.0], [45.0, 30.0, 70.0]]
+    P = np.array(poses)
+    P[:, 2] = np.radians(P[:, 2])
+    c = BU.burmester_curves(P, 720)
+    row("sewmech Burmester curves, 4 poses (720 beta2)", lambda: BU.burmester_curves(P, 720),
+        dyads=len(c.beta2), worst_circle_mm=float(c.residual.max()))
+    m = BU.synthesize_motion(poses)
+    row("sewmech synthesize_motion, 4 poses (every pair checked)",
+        lambda: BU.synthesize_motion(poses), repeat=3, pairs=m.candidates[0],
+        free_of_defects=m.candidates[1])
+    mach = sewmech.load_machine("fourbar-benchmark")
+    T = targets(mach)
+    ps = BU.synthesize_path(T, ANGLES_DEG)
+    row("sewmech synthesize_path, 12 points (start + SLSQP)",
+        lambda: BU.synthesize_path(T, ANGLES_DEG), repeat=3, start_rms_mm=ps.start_rms_mm,
+        answer_rms_mm=ps.answer_rms_mm, designs=int(ps.result.n_evaluations))
+    row("sewmech path_start alone (the 9^4 free choices scanned)",
+        lambda: BU.path_start(T, ANGLES_DEG), repeat=3)
+    tu = synthesize_take_up()
+    row("sewmech synthesize_take_up (the paper's case)", synthesize_take_up, repeat=3,
+        bc=tu.bc, cd=tu.cd, ad=tu.ad)
+    import ezdxf
+
+    from sewmech.app.drawing.cad import machine_drawing
+    from sewmech.app.files.cad import svg_text, write_dxf
+
+    jb = sewmech.load_machine("jb1-3")
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "jb1-3.dxf"
+        d = machine_drawing(jb, phi_deg=30.0)
+        row("JB1-3 drawing's geometry (machine_drawing)",
+            lambda: machine_drawing(jb, phi_deg=30.0), entities=len(d.entities))
+        row("JB1-3 DXF written (ezdxf)", lambda: write_dxf(d, path))
+        row("JB1-3 DXF read back and audited (ezdxf)",
+            lambda: ezdxf.readfile(path).audit(), bytes=path.stat().st_size)
+        row("JB1-3 SVG text", lambda: svg_text(d))
+    from sewmech.design.minmax_balance import influence_minmax
+    from sewmech.design.vibration import influence_balance, phasor
+
+    rows = [ln.split(",") for ln in (HERE.parent / "examples" / "measurements"
+                                     / "trial-runs.csv").read_text().splitlines()
+            if ln and not ln.startswith(("#", "run"))]
+    places = list(dict.fromkeys(r_[1] for r_ in rows))
+    tab = {(r_[0], r_[1]): phasor(float(r_[2]), float(r_[3])) for r_ in rows}
+    V0 = np.array([tab["0", p] for p in places])
+    Vt = np.array([[tab[k, p] for p in places] for k in ("1", "2")])
+    mm = influence_minmax(V0, Vt, [30.0, 30.0], [0.0, 90.0])
+    row("influence-balance least squares (example file)",
+        lambda: influence_balance(V0, Vt, [30.0, 30.0], [0.0, 90.0]))
+    row("influence-balance minmax LP, K = 256 (example file)",
+        lambda: influence_minmax(V0, Vt, [30.0, 30.0], [0.0, 90.0]),
+        after_max_mm_s=mm.after_max)
+    row("influence-balance minmax LP with a limit (two LPs)",
+        lambda: influence_minmax(V0, Vt, [30.0, 30.0], [0.0, 90.0],
+                                 limits_gcm=[40.0, np.inf]))
+    return out
+
+
 def main() -> int:
+    classic = classical()
+    RESULTS.parent.mkdir(exist_ok=True)
+    (RESULTS.parent / "synthesis-classical.json").write_text(json.dumps(classic, indent=1),
+                                                             encoding="utf-8")
     try:
         from pylinkage.optimization import particle_swarm_optimization
         from pylinkage.optimization.particle_swarm import _local_best_pso

@@ -81,7 +81,8 @@ MODULES = {
                                   "embroidery", "gradients", "thread_gradients", "references")},
     **{m: f"design.{m}" for m in ("balancing", "vibration", "inserts", "tolerances",
                                   "tolerance_file", "methods", "problem", "evaluate", "optimize",
-                                  "sweep_file", "sweep")},
+                                  "sweep_file", "sweep", "synthesis", "burmester",
+                                  "take_up_synthesis", "minmax_balance")},
     # the application layer's rooms (app/cli/, app/report/, ...) under their earlier names
     "cli": "app.cli", "cli_common": "app.cli.common", "cli_balancing": "app.cli.balancing",
     "cli_accuracy": "app.cli.accuracy", "cli_design": "app.cli.design",

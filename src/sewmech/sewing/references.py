@@ -322,6 +322,42 @@ REFERENCES: tuple[Reference, ...] = (
        "Meriam J. L., Kraige L. G., Engineering Mechanics: Dynamics, appendix on mass moments of"
        " inertia. John Wiley & Sons.",
        "", "textbook", background=True),
+    _r("Freudenstein-1955",
+       "Freudenstein F., 'Approximate synthesis of four-bar linkages', Transactions of the ASME"
+       " 77:853-861, 1955 (reprinted in Resonance 15(8):740-767, 2010).",
+       "", "title",
+       ("K1 cos(theta4) - K2 cos(theta2) + K3 = cos(theta2 - theta4)", "the four-bar's"
+        " input-output equation, linear in K1, K2, K3: three precision points fix a function"
+        " generator, more give a least-squares fit; Chebyshev's spacing of the points",
+        "`sewmech synthesize function` (sewmech.design.synthesis)"), background=True),
+    _r("Burmester-1888",
+       "Burmester L., Lehrbuch der Kinematik. Erster Band: Die ebene Bewegung. A. Felix,"
+       " Leipzig, 1888.",
+       "", "textbook",
+       ("centre-point and circle-point curves", "the fixed and moving pivots of the dyads that"
+        " guide a body through four given positions", "`sewmech synthesize motion` with four"
+        " poses (sewmech.design.burmester)"), background=True),
+    _r("Sandor-Erdman-1984",
+       "Sandor G. N., Erdman A. G., Advanced Mechanism Design: Analysis and Synthesis, Volume 2."
+       " Prentice-Hall, Englewood Cliffs, 1984.",
+       "", "textbook",
+       ("W (e^{i beta} - 1) + Z (e^{i alpha} - 1) = delta", "the dyad's standard form and, for"
+        " four positions, its compatibility condition (a triangle closure); prescribed-timing"
+        " path generation by the same form", "sewmech.design.burmester: the Burmester curves"
+        " and the exact start of `sewmech synthesize path`"), background=True),
+    _r("Grashof-1883",
+       "Grashof F., Theoretische Maschinenlehre, Band 2. L. Voss, Leipzig, 1883.",
+       "", "textbook",
+       ("s + l <= p + q", "a four-bar has a link that turns fully relative to the others when"
+        " the shortest and longest lengths add up to no more than the other two",
+        "the Grashof type every synthesis reports and the crank inputs it prefers"),
+       background=True),
+    _r("Huangfu-Hall-2018",
+       "Huangfu Q., Hall J. A. J., 'Parallelizing the dual revised simplex method', Mathematical"
+       " Programming Computation 10:119-142, 2018 (HiGHS, scipy.optimize.linprog's solver).",
+       "https://doi.org/10.1007/s12532-017-0130-5", "title",
+       ("the dual revised simplex method", "the solver of the min-max balancing's linear"
+        " programme", "`sewmech influence-balance --solver minmax`"), background=True),
     _r("Berkof-Lowen-1969",
        "Berkof R. S., Lowen G. G., 'A new method for completely force balancing simple"
        " linkages', ASME Journal of Engineering for Industry 91(1):21-26, 1969.",

@@ -6,6 +6,8 @@
 - :mod:`.balancing`: ``balance``, ``trial-balance``, ``influence-balance``, ``level-change``;
 - :mod:`.accuracy`: ``sensitivity``, ``tolerance``;
 - :mod:`.design`: ``optimize``;
+- :mod:`.synthesis`: ``synthesize function|motion|path|embroidery-take-up``;
+- :mod:`.drawing`: ``export`` (DXF, SVG);
 - :mod:`.sweep`: ``sweep``, ``sweep-summary``;
 - :mod:`.serve`: ``serve``.
 
@@ -15,7 +17,7 @@ Importing this package registers every command on :data:`app`; :func:`main` is t
 from __future__ import annotations
 
 # each module registers its commands on the app; `sewmech --help` lists them in this order
-from . import analysis, balancing, accuracy, design, sweep, serve  # noqa: F401, I001
+from . import analysis, balancing, accuracy, design, synthesis, drawing, sweep, serve  # noqa: F401, I001
 from .common import (DEFAULT_MACHINE, EXIT_ERROR, EXIT_INTERNAL, EXIT_SIGINT, MIN_STEP_DEG,
                      Format, Terminated, app, err_console, run_as_process)
 

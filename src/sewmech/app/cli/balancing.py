@@ -338,6 +338,14 @@ def influence_balance_cmd(
                                    " against the sense of trial_angle_deg (most vibration"
                                    " analysers with a shaft mark): each is read as -phase_deg"),
     as_json: bool = typer.Option(False, "--json", help="print the result as JSON"),
+    solver: str = typer.Option("lsq", metavar="[lsq|minmax]", help="lsq: least squares over"
+                               " the readings; minmax: the smallest largest (weighted)"
+                               " residual, a linear programme (docs/balancing.md)"),
+    weight: list[str] = typer.Option(None, "--weight", help="minmax: PLACE=W, the weight of a"
+                                     " place's residual (default 1); repeatable"),
+    max_gcm: list[str] = typer.Option(None, "--max-gcm", help="minmax: RUN=S, the most static"
+                                      " moment the plane of trial run RUN can take, g cm;"
+                                      " repeatable"),
 ):
     """Correction masses for a built machine from trial runs (influence coefficients, least
     squares over the places and speeds measured).
@@ -399,6 +407,12 @@ def influence_balance_cmd(
     planes = [r for r in runs if r != "0"]
     V0 = np.array([table["0", p] for p in places])
     Vt = np.array([[table[r, p] for p in places] for r in planes])
+    solver = _choice("--solver", solver, ("lsq", "minmax"))
+    if solver == "minmax":
+        return _minmax(file, V0, Vt, planes, places, trial, weight, max_gcm, phase_lag, as_json)
+    if weight or max_gcm:
+        raise OptionError("--weight" if weight else "--max-gcm", "is for --solver minmax",
+                          "Give --solver minmax, or leave it out")
     try:
         res = influence_balance(V0, Vt, [trial[r][0] for r in planes],
                                 [trial[r][1] for r in planes])
@@ -423,6 +437,72 @@ def influence_balance_cmd(
         db = res.level_change_db
         console.print(f"vibration RMS over the places {res.before:.4g} -> {res.after:.4g} mm/s"
                       " predicted" + (f" ({db:+.2f} dB)" if db is not None else ""))
+
+
+def _named_values(option: str, items: list[str] | None, names: list[str], what: str,
+                  example: str) -> dict[str, float]:
+    """NAME=VALUE options (names from ``names``) -> {name: value >= 0}."""
+    out: dict[str, float] = {}
+    for item in items or ():
+        name, eq, text = (x.strip() for x in item.partition("="))
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not eq or not name:
+            raise OptionError(option, f"{item!r} is not {what}=VALUE", f"Write e.g. {option}"
+                              f" {example}")
+        if name not in names:
+            import difflib
+
+            near = difflib.get_close_matches(name, names, n=1)
+            raise OptionError(option, f"{item!r}: the file has no {what.lower()} '{name}'",
+                              f"Did you mean {near[0]}?" if near else
+                              f"The file's: {', '.join(names)}")
+        if not (value >= 0 and not math.isnan(value)):
+            raise OptionError(option, f"{item!r}: the value must be a number >= 0")
+        if name in out:
+            raise OptionError(option, f"{item!r}: '{name}' is given twice", "Give it once")
+        out[name] = value
+    return out
+
+
+def _minmax(file, V0, Vt, planes, places, trial, weight, max_gcm, phase_lag, as_json):
+    """influence-balance --solver minmax (sewmech.design.minmax_balance)."""
+    from ...design.minmax_balance import influence_minmax
+    from ...design.vibration import _count
+    from ...engine.errors import AnalysisError
+
+    w = _named_values("--weight", weight, places, "PLACE", f"{places[0]}=2")
+    lim = _named_values("--max-gcm", max_gcm, planes, "RUN", f"{planes[0]}=40")
+    weights = np.array([w.get(p, 1.0) for p in places])
+    limits = np.array([lim.get(r, np.inf) for r in planes]) if lim else None
+    try:
+        res = influence_minmax(V0, Vt, [trial[r][0] for r in planes],
+                               [trial[r][1] for r in planes], weights=weights,
+                               limits_gcm=limits)
+    except AnalysisError as exc:
+        raise AnalysisError(str(file), exc.message, exc.hint) from None
+    data = {**res.to_json([f"run {r}" for r in planes], places), "n_places": len(places),
+            "phase": "lag" if phase_lag else "same sense as trial_angle_deg"}
+    if as_json:
+        print_json(data)
+        return
+    t = Table(title=f"min-max correction masses from {_count(len(places), 'place')} and"
+                    f" {_count(len(planes), 'trial run')}")
+    for col in ("plane (trial run)", "static moment [g cm]", "angle [deg]", "limit [g cm]"):
+        t.add_column(escape(col))
+    for (name, v), r in zip(data["corrections"].items(), planes, strict=True):
+        t.add_row(name, f"{v['static_moment_gcm']:.4g}", f"{v['angle_deg']:.4g}",
+                  (f"{lim[r]:g}" + (" (reached)" if v["at_limit"] else "")) if r in lim
+                  else "none")
+    console.print(t)
+    console.print(f"largest weighted vibration over the places {res.before_max:.4g} ->"
+                  f" {res.after_max:.4g} mm/s predicted (no correction within the limits"
+                  f" gets below {res.lower_bound:.4g} mm/s); RMS {res.before_rms:.4g} ->"
+                  f" {res.after_rms:.4g} mm/s", highlight=False)
+    console.print(escape(f"(circles as {res.sides}-gons: the answer is within"
+                         f" {100 * res.accuracy:.2g} % of the true min-max)"), highlight=False)
 
 
 @command("level-change")

@@ -30,7 +30,8 @@ def optimize_cmd(
     out: Path = typer.Option(None, help="also write the problem's report here: index.html (the"
                              " variables, every metric before and after, the curves they are"
                              " read from, the mechanism before and after, the convergence),"
-                             " each figure as PNG, SVG and CSV, and the result as JSON"),
+                             " each figure as PNG, SVG and CSV, the result as JSON and the"
+                             " answer's drawing at phi = 0 as answer.dxf and answer.svg"),
 ):
     """Choose the dimensions of a design problem: the variables within their bounds that best
     meet the objective while every constraint holds."""
@@ -155,3 +156,19 @@ def _write(out: Path, problem, data: dict, problem_file: Path) -> None:
         problem_page(root, problem, data, problem_file)
         with atomic_write(root / "optimize.json") as fh:
             dump_json(data, fh, indent=1)
+        _drawing(root, problem, data)
+
+
+def _drawing(root: Path, problem, data: dict) -> None:
+    """The answer's workshop drawing at phi = 0 (answer.dxf, answer.svg: sewmech export's)."""
+    import sewmech
+
+    from ..drawing.cad import machine_drawing
+    from ..files.cad import write_dxf, write_svg
+
+    x = [data["x"][n] for n in problem.names]
+    values = {n: float(v * f) for n, v, f in zip(problem.names, x, problem.factor, strict=True)}
+    m = problem.machine.with_parameters(values, origin="the optimiser's answer")
+    d = machine_drawing(m, phi_deg=0.0, version=sewmech.__version__)
+    write_dxf(d, root / "answer.dxf")
+    write_svg(d, root / "answer.svg")

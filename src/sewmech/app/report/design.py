@@ -295,6 +295,8 @@ Data: <a href="problem-metrics.csv">metrics (CSV)</a>.</p>{table_html(metrics)}
 <h2>Constraints at the answer</h2>{table_html(cons)}
 <h2>Figures</h2>
 {''.join(blocks)}
+<p>The answer's workshop drawing at phi = 0 (<code>sewmech export</code>'s, mm, a layer per
+link and per cam): <a href="answer.dxf">DXF</a>, <a href="answer.svg">SVG</a>.</p>
 <details><summary>Problem file {e(file_name)}</summary><pre>{e(text)}</pre></details>
 <p class="sub">Written by sewmech.</p>
 </body></html>

@@ -192,6 +192,23 @@ class App:
     async def export_csv(self, request: Request):
         return await self._download(request, "curves_csv", "-curves.csv", "text/csv")
 
+    async def export_dxf(self, request: Request):
+        return await self._drawing(request, "dxf", "application/dxf")
+
+    async def export_svg(self, request: Request):
+        return await self._drawing(request, "svg", "image/svg+xml")
+
+    async def _drawing(self, request: Request, fmt: str, media: str):
+        """The session's design drawn at ``phi_deg`` (``{"set": {...}, "phi_deg": A}``) as a
+        download named after the machine's file and the angle."""
+        s = self.get(request.path_params["token"])
+        data = await _json(request)
+        phi = data.get("phi_deg", 0.0)
+        text = await run_in_threadpool(s.drawing, data.get("set"), phi, fmt)
+        name = f"{PurePath(s.file_name).stem}-phi{float(phi):g}.{fmt}"
+        return Response(text, media_type=f"{media}; charset=utf-8",
+                        headers={"Content-Disposition": content_disposition(name)})
+
     async def _download(self, request: Request, method: str, suffix: str, media: str):
         """A file of the session's current values (``Session.<method>``) as a download named
         after the machine's file."""
@@ -259,6 +276,8 @@ def create_app(extra: dict[str, tuple[str, str]] | None = None,
         Route("/api/sessions/{token}/export.toml", guarded(state.export_toml),
               methods=["POST"]),
         Route("/api/sessions/{token}/curves.csv", guarded(state.export_csv), methods=["POST"]),
+        Route("/api/sessions/{token}/drawing.dxf", guarded(state.export_dxf), methods=["POST"]),
+        Route("/api/sessions/{token}/drawing.svg", guarded(state.export_svg), methods=["POST"]),
         Mount("/static", StaticFiles(directory=str(STATIC)), name="static"),
     ]
 

@@ -508,6 +508,31 @@ class Session:
                                    "This is a bug in sewmech: please report it")
         return text
 
+    def drawing(self, values, phi_deg, fmt: str) -> str:
+        """The page's design as a workshop drawing at the shaft angle ``phi_deg`` (the frame the
+        page shows): DXF or SVG text, as ``sewmech export`` writes it."""
+        import io
+
+        import sewmech
+
+        from ..drawing.cad import machine_drawing
+        from ..files.cad import dxf_document, svg_text
+
+        if isinstance(phi_deg, bool) or not isinstance(phi_deg, int | float) or \
+                not math.isfinite(float(phi_deg)) or abs(float(phi_deg)) > 1e6:
+            raise PageError("phi_deg", f"must be a finite shaft angle in deg, got"
+                            f" {_shown(phi_deg)}", "Send e.g. {\"phi_deg\": 30}")
+        P, dims = self._design(values)
+        inputs = {n: float(P[self.machine.parameter_index(f"input.{n}")])
+                  for n in self.machine.spec.inputs}
+        d = machine_drawing(self.machine, phi_deg=float(phi_deg), params=P,
+                            inputs=inputs or None, changes=dims, version=sewmech.__version__)
+        if fmt == "svg":
+            return svg_text(d)
+        buf = io.StringIO()
+        dxf_document(d).write(buf)
+        return buf.getvalue()
+
     def curves_csv(self, values) -> str:
         """The current curves over the drawn turn as CSV (one row per shaft angle)."""
         import csv

@@ -64,6 +64,8 @@ async function init() {
   $("motion-kind").onchange = drawPlots;
   $("export-toml").onclick = () => download("export.toml");
   $("export-csv").onclick = () => download("curves.csv");
+  // the drawing at the angle the page shows
+  $("export-dxf").onclick = () => download("drawing.dxf", {phi_deg: S.turn ? S.turn.phi_deg[S.k] : 0});
   await openMachine({machine: list.initial});
   requestAnimationFrame(tick);
 }
@@ -218,11 +220,11 @@ function downloadName(header, fallback) {
   return plain && plain[1] ? plain[1] : fallback;
 }
 
-async function download(what) {
+async function download(what, extra = {}) {
   try {
     const r = await fetch(`/api/sessions/${S.token}/${what}`, {
       method: "POST", headers: {"Content-Type": "application/json"},
-      body: JSON.stringify({set: S.turnValues || {}})});
+      body: JSON.stringify({...extra, set: S.turnValues || {}})});
     if (!r.ok) throw Object.assign(new Error("export"), {info: (await r.json()).error});
     const blob = await r.blob();
     const a = document.createElement("a");
