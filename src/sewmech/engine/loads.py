@@ -13,8 +13,8 @@ kinematics channel (``p_feed_dog.tip_y``: the dog's tip height, mm; ``v_...``, `
 the needle thread between the file's ``[thread] take_up`` guides, mm: it grows while the take-up
 draws thread back). ``above``/``below`` compare the channel with a value; ``rising``/``falling``
 read the sign of its rate; ``within_of_max`` holds where the channel is within that much of its
-largest value over the whole turn (found on a 0.25 deg grid of its own and refined by a
-parabola, whatever grid the forces are asked on).
+largest value over the whole turn (found on a 5 deg grid of its own, then on a 0.25 deg grid
+around it and refined by a parabola, whatever grid the forces are asked on).
 
 Force laws: ``constant`` (``force_N`` along a fixed direction or the bisector toward points),
 ``elastic`` (``force_N`` plus ``rate_N_per_mm`` times the travel of its first above/below
@@ -44,7 +44,9 @@ if TYPE_CHECKING:
 
 #: the thread channels a condition may read (with a ``[thread]`` table)
 THREAD_CHANNELS = ("thread.take_up_mm",)
-#: the grid on which ``within_of_max`` finds a channel's largest value over the turn, deg
+#: the grids on which ``within_of_max`` finds a channel's largest value over the turn: a coarse
+#: one over the turn, then a fine one across the coarse steps around its largest value, deg
+MAX_COARSE_DEG = 5.0
 MAX_GRID_DEG = 0.25
 #: channel kind -> (kernel array of its value, of its rate)
 _KINDS = {"p": ("P", "V"), "v": ("V", "A"), "a": ("A", None), "theta": ("TH", "OM"),
@@ -266,24 +268,61 @@ class LoadTables:
 
     def _maxima(self, ref: ChannelRef, params: np.ndarray) -> np.ndarray:
         """The channel's largest value over the turn, (D,), for the designs ``params`` (the
-        same designs and settings the forces are asked for)."""
-        from .kinematics import KinematicsPlan
+        same designs and settings the forces are asked for): found on a 5 deg grid of its own,
+        then on a 0.25 deg grid across the steps around it, refined by a parabola through the
+        three best (the channels a condition reads are smooth where they peak). Kept per
+        design, on the machine (the counterweights, which move nothing, left out of its key)."""
+        from .kinematics import KinematicsPlan, kinematics
 
+        P = params.reshape(-1, params.shape[-1])
+        out = np.empty(P.shape[0])
+        cw = [i for c in self.machine.counterweights for i in c.params]
+        todo = []
+        for d in range(P.shape[0]):
+            key = P[d].copy()
+            key[cw] = 0.0
+            key = (ref.name, key.tobytes())
+            hit = self.machine._condition_maxima.get(key)
+            if hit is None:
+                todo.append((d, key))
+            else:
+                out[d] = hit
+        if not todo:
+            return out
         if self._max_plan is None:
-            n = round(360.0 / MAX_GRID_DEG)
+            n = round(360.0 / MAX_COARSE_DEG)
             self._max_plan = KinematicsPlan(self.machine, np.arange(n) * (2 * math.pi / n),
                                             on_failure="mask")
         plan = self._max_plan
-        plan.run(params.reshape(-1, params.shape[-1]))
-        v = channel_values(ref, plan.kernel_arrays(), self.thread)[0]  # (D, n)
-        k = np.nanargmax(np.where(np.isfinite(v), v, -np.inf), axis=1)
-        n = v.shape[1]
-        rows = np.arange(v.shape[0])
-        y0, y1, y2 = v[rows, (k - 1) % n], v[rows, k], v[rows, (k + 1) % n]
-        den = y0 - 2.0 * y1 + y2
-        with np.errstate(invalid="ignore", divide="ignore"):
-            peak = np.where(den < 0.0, y1 - 0.125 * (y2 - y0) ** 2 / den, y1)
-        return np.maximum(peak, y1)
+        rows = np.array([d for d, _ in todo])
+        plan.run(P[rows])
+        coarse = channel_values(ref, plan.kernel_arrays(), self.thread)[0]  # (m, n)
+        h = math.radians(MAX_COARSE_DEG)
+        offsets = np.linspace(-h, h, 2 * round(MAX_COARSE_DEG / MAX_GRID_DEG) + 1)
+        for j, (d, key) in enumerate(todo):
+            v = np.where(np.isfinite(coarse[j]), coarse[j], -np.inf)
+            k = int(np.argmax(v))
+            phi = k * h + offsets
+            r = kinematics(self.machine, phi, params=P[d], on_failure="mask")
+            if ref.kind == "thread":
+                fine = self.thread.length_and_rate(r.p[None], r.v[None])[0][0]
+            else:
+                fine = np.asarray(r.channel(ref.name)[0], dtype=float)
+            fine = np.where(np.isfinite(fine), fine, -np.inf)
+            i = int(np.argmax(fine))
+            y1 = fine[i]
+            peak = y1
+            if 0 < i < len(fine) - 1:
+                y0, y2 = fine[i - 1], fine[i + 1]
+                den = y0 - 2.0 * y1 + y2
+                if den < 0.0:
+                    peak = max(y1, y1 - 0.125 * (y2 - y0) ** 2 / den)
+            out[d] = peak
+            cache = self.machine._condition_maxima
+            if len(cache) >= 256:
+                cache.pop(next(iter(cache)))
+            cache[key] = peak
+        return out
 
     def masks(self, a: dict[str, np.ndarray], params: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray]:

@@ -358,6 +358,12 @@ class Machine:
         return {}
 
     @cached_property
+    def _condition_maxima(self) -> dict:
+        """The largest values over the turn of the channels that loads' conditions read
+        (``within_of_max``), per design (:mod:`sewmech.engine.loads`)."""
+        return {}
+
+    @cached_property
     def _evaluations(self) -> dict:
         """The shared evaluations of designs (:func:`sewmech.engine.evaluation.evaluation`)."""
         return {}
