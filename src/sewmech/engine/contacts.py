@@ -10,7 +10,7 @@ The opening speed: at a constant shaft speed omega the accelerations grow with o
 velocities with omega; gravity, springs and position-dependent loads do not change. So at each
 shaft angle N = a + b omega + c omega^2 exactly for a machine without friction and without
 velocity-dependent loads (b from dampers alone), and nearly so with them. The coefficients are
-fitted per angle from three speeds (half, once and twice the working speed); the least speed at
+fitted per angle from three speeds (once, 1.5 and twice the working speed); the least speed at
 which some angle's N reaches 0 is then bracketed and found by Brent's method on the full
 analysis (friction, the loads' smooth signs and all), the least force over the turn on a grid of
 ``n_phi`` angles, looked for again on a fine grid across the steps around the grid's least.
@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .kinematics import MIN_RPM
 from .machine import Machine
 
 #: the fastest speed sewmech looks for an opening at, as a multiple of the working speed
@@ -134,7 +135,8 @@ def contact_margins(machine: Machine, *, rpm: float | None = None,
             out.append(ContactMargin(p.name, _margin_of(machine, p.name), least, at, None,
                                      rpm0))
         return out
-    speeds = (0.5 * rpm0, rpm0, 2.0 * rpm0)
+    speeds = (rpm0, 1.5 * rpm0, 2.0 * rpm0)  # (none below the working speed: it may be the
+    # slowest sewmech takes)
     fit = [f1 if s == rpm0 else forces(s) for s in speeds]
     w = np.array([s * math.pi / 30.0 for s in speeds])
     V = np.stack([np.ones(3), w, w * w], axis=1)
@@ -189,7 +191,7 @@ def _refine(g, rpm0: float, guess: float, top: float) -> float | None:
         if hi > top:
             return None
     # the fit may overshoot: come down while the force at the lower end is still <= 0
-    while g(lo) <= 0.0 and lo > 1e-3:
+    while g(lo) <= 0.0 and lo * 0.8 >= MIN_RPM:
         hi, lo = lo, lo * 0.8
     return float(brentq(g, lo, hi, xtol=1e-9 * hi, rtol=1e-12))
 
@@ -202,6 +204,6 @@ def _bisect_down(g, rpm0: float) -> float | None:
     hi, lo = rpm0, rpm0
     while g(lo) <= 0.0:
         hi, lo = lo, lo * 0.5
-        if lo < 1e-3 * rpm0:
+        if lo < max(1e-3 * rpm0, MIN_RPM):
             return None
     return float(brentq(g, lo, hi, xtol=1e-9 * hi, rtol=1e-12))

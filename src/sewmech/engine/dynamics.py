@@ -34,8 +34,8 @@ from ._blocks import MAX_BLOCK
 from ._threads import run_chunks
 from .counterweights import CounterweightMotion, counterweight_values
 from .errors import AnalysisError, OptionError, SewmechError
-from .kinematics import KinematicsPlan, check_speed, kernel_input, kernel_params
 from .friction import ANDERSON_DEPTH, MAX_STEPS, TOLERANCE, FrictionTables
+from .kinematics import KinematicsPlan, check_speed, kernel_input, kernel_params
 from .loads import LoadTables, in_windows  # noqa: F401  (in_windows: sewmech.dynamics.in_windows)
 from .machine import Machine, Pair
 from .mass import MassProperties

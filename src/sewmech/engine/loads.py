@@ -32,26 +32,17 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .errors import MachineFileError
-from .spec import FRAME, Condition, LoadSpec
+from .channels import ChannelRef, channel_values, resolve_channel
+from .machine import Machine
+from .spec import Condition, LoadSpec
 
-if TYPE_CHECKING:
-    from .machine import Machine
-
-#: the thread channels a condition may read (with a ``[thread]`` table)
-THREAD_CHANNELS = ("thread.take_up_mm",)
 #: the grids on which ``within_of_max`` finds a channel's largest value over the turn: a coarse
 #: one over the turn, then a fine one across the coarse steps around its largest value, deg
 MAX_COARSE_DEG = 5.0
 MAX_GRID_DEG = 0.25
-#: channel kind -> (kernel array of its value, of its rate)
-_KINDS = {"p": ("P", "V"), "v": ("V", "A"), "a": ("A", None), "theta": ("TH", "OM"),
-          "omega": ("OM", "EP"), "epsilon": ("EP", None), "q": ("S", "SD"), "qd": ("SD", "SDD"),
-          "qdd": ("SDD", None)}
 
 
 def in_windows(phi_deg: np.ndarray, windows: Sequence[tuple[float, float]]) -> np.ndarray:
@@ -91,89 +82,6 @@ def add_couple(XB: np.ndarray, link: int, M: np.ndarray) -> None:
 def smooth_sign(x: np.ndarray, scale: float) -> np.ndarray:
     """x / sqrt(x^2 + scale^2): the sign of x, smooth where |x| is below ``scale``."""
     return x / np.sqrt(x * x + scale * scale)
-
-
-# ---- channels ---------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class ChannelRef:
-    """A channel resolved to kernel arrays: ``kind`` (p, v, ..., or thread), the index of its
-    point, link or variable, and its component (0 x, 1 y) for point channels."""
-
-    name: str
-    kind: str
-    index: int = -1
-    comp: int = 0
-
-
-def resolve_channel(name: str, points: Sequence[str], links: Sequence[str],
-                    variables: Sequence[str], has_thread: bool) -> ChannelRef | None:
-    """The channel ``name`` of a machine with these points, links and joint variables, or
-    None if it has no such channel."""
-    if name in THREAD_CHANNELS:
-        return ChannelRef(name, "thread") if has_thread else None
-    kind, _, rest = name.partition("_")
-    if kind not in _KINDS or not rest:
-        return None
-    if kind in ("p", "v", "a"):
-        pt, _, comp = rest.rpartition("_")
-        if comp not in ("x", "y") or pt not in points:
-            return None
-        return ChannelRef(name, kind, list(points).index(pt), "xy".index(comp))
-    if kind in ("theta", "omega", "epsilon"):
-        if rest not in links or rest == FRAME:
-            return None
-        return ChannelRef(name, kind, list(links).index(rest))
-    if rest not in variables:
-        return None
-    return ChannelRef(name, kind, list(variables).index(rest))
-
-
-def channel_examples(points: Sequence[str]) -> str:
-    ex = [f"p_{p}_y" for p in list(points)[:2]]
-    return ", ".join(ex + ["theta_LINK", "q_VARIABLE", *THREAD_CHANNELS])
-
-
-def check_conditions(machine_name: str, file: str, loads: Sequence[LoadSpec], points, links,
-                     variables, has_thread: bool) -> None:
-    """Raise :class:`MachineFileError` (file, load, ``when``) for a condition that names a
-    channel the machine does not have, or asks the rate of a channel that has none here."""
-    import difflib
-
-    for k, load in enumerate(loads):
-        table = f'loads[{k}] "{load.name}"'
-        for j, c in enumerate(load.when):
-            ref = resolve_channel(c.channel, points, links, variables, has_thread)
-            if ref is None:
-                known = [f"p_{p}_{x}" for p in points for x in "xy"] + list(THREAD_CHANNELS)
-                close = difflib.get_close_matches(c.channel, known, n=3)
-                why = (" (thread channels need a [thread] table)"
-                       if c.channel in THREAD_CHANNELS else "")
-                raise MachineFileError(file, table, f"when[{j}].channel", f"machine"
-                                       f" '{machine_name}' has no channel '{c.channel}'{why}",
-                                       f"Did you mean {', '.join(close)}?" if close else
-                                       f"Channels look like {channel_examples(points)}")
-            if (c.rising or c.falling) and ref.kind != "thread" and _KINDS[ref.kind][1] is None:
-                raise MachineFileError(file, table, f"when[{j}]", f"'{c.channel}' is an"
-                                       " acceleration: sewmech has no rate of it to read",
-                                       "Use the velocity's channel with above or below")
-
-
-def channel_values(ref: ChannelRef, a: dict[str, np.ndarray], thread=None
-                   ) -> tuple[np.ndarray, np.ndarray | None]:
-    """A channel's values and rates (D, n_phi) from the kinematics kernel arrays ``a`` (the
-    rate None where sewmech has none); ``thread``: a :class:`ThreadSection` for thread
-    channels."""
-    if ref.kind == "thread":
-        return thread.length_and_rate(a["P"], a["V"])
-    val, rate = _KINDS[ref.kind]
-    point = ref.kind in ("p", "v", "a")
-
-    def get(key: str) -> np.ndarray:
-        return a[key][:, :, ref.index, ref.comp] if point else a[key][:, :, ref.index]
-
-    return get(val), (get(rate) if rate is not None else None)
 
 
 @dataclass(frozen=True)
@@ -299,29 +207,32 @@ class LoadTables:
         coarse = channel_values(ref, plan.kernel_arrays(), self.thread)[0]  # (m, n)
         h = math.radians(MAX_COARSE_DEG)
         offsets = np.linspace(-h, h, 2 * round(MAX_COARSE_DEG / MAX_GRID_DEG) + 1)
-        for j, (d, key) in enumerate(todo):
-            v = np.where(np.isfinite(coarse[j]), coarse[j], -np.inf)
-            k = int(np.argmax(v))
-            phi = k * h + offsets
-            r = kinematics(self.machine, phi, params=P[d], on_failure="mask")
+        ks = np.argmax(np.where(np.isfinite(coarse), coarse, -np.inf), axis=1)
+        cache = self.machine._condition_maxima
+        for k in np.unique(ks):  # the designs whose coarse peak is at the same angle together
+            group = np.nonzero(ks == k)[0]
+            r = kinematics(self.machine, k * h + offsets, params=P[rows[group]],
+                           on_failure="mask")
             if ref.kind == "thread":
-                fine = self.thread.length_and_rate(r.p[None], r.v[None])[0][0]
+                fine = self.thread.length_and_rate(r.p, r.v)[0]
             else:
-                fine = np.asarray(r.channel(ref.name)[0], dtype=float)
+                fine = np.asarray(r.channel(ref.name)[0], dtype=float).reshape(len(group), -1)
             fine = np.where(np.isfinite(fine), fine, -np.inf)
-            i = int(np.argmax(fine))
-            y1 = fine[i]
-            peak = y1
-            if 0 < i < len(fine) - 1:
-                y0, y2 = fine[i - 1], fine[i + 1]
-                den = y0 - 2.0 * y1 + y2
-                if den < 0.0:
-                    peak = max(y1, y1 - 0.125 * (y2 - y0) ** 2 / den)
-            out[d] = peak
-            cache = self.machine._condition_maxima
-            if len(cache) >= 256:
-                cache.pop(next(iter(cache)))
-            cache[key] = peak
+            for j, g in enumerate(group):
+                f = fine[j]
+                i = int(np.argmax(f))
+                y1 = f[i]
+                peak = y1
+                if 0 < i < len(f) - 1:
+                    y0, y2 = f[i - 1], f[i + 1]
+                    den = y0 - 2.0 * y1 + y2
+                    if den < 0.0:
+                        peak = max(y1, y1 - 0.125 * (y2 - y0) ** 2 / den)
+                d, key = todo[g]
+                out[d] = peak
+                if len(cache) >= 4096:
+                    cache.pop(next(iter(cache)))
+                cache[key] = peak
         return out
 
     def masks(self, a: dict[str, np.ndarray], params: np.ndarray

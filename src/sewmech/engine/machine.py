@@ -25,11 +25,9 @@ from .cams import CONSTANT_WIDTH_KEYS, constant_width_arcs, constant_width_fault
 from .counterweights import PARAMETERS as CW_PARAMETERS
 from .counterweights import Counterweight
 from .errors import MachineFileError, ParameterError, name_index
-from .friction import check_friction
-from .loads import check_conditions
 from .mass import from_spec as mass_from_spec
 from .paths import user_path
-from .springs import check_springs
+from .physics_checks import check_conditions, check_friction, check_springs
 from .spec import (
     FRAME,
     SHAFT,

@@ -19,7 +19,6 @@ from __future__ import annotations
 import sys
 import time
 
-
 #: what is compiled, in order: (what the user is told, what calls it)
 STEPS = (
     ("the kinematics interpreter", "kinematics"),

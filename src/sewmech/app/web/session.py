@@ -37,7 +37,7 @@ DECIMALS = 6
 #: (measured: 64 keys of 64 parts 26 s, 2,000 points written `points.X.x = ...` 39 s, 128 keys
 #: of 4 parts in one table 2 s; within these limits at most about 1 s), so a file beyond any
 #: of them (its shape as :func:`~sewmech.engine.spec.check_toml_bounds` gives it) is written
-#: anew from its values. The shipped files: at most 1,655 items, no dotted keys, table names
+#: anew from its values. The shipped files: at most 1,696 items, no dotted keys, table names
 #: of 2 parts
 EXPORT_IN_PLACE = {"items": 10_000, "dotted_keys": 64, "dotted_key_parts": 3,
                    "table_parts": 8}
