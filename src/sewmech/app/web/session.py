@@ -324,9 +324,14 @@ class Session:
         if self._dyn is not None:
             d = self._dyn(P)
             kin = d.kin
+            # the turn's means (the page's angles are a whole turn in equal steps)
+            mean = (lambda x: float(np.mean(x)) if np.all(np.isfinite(x)) else None)
+            fl = mean(d.friction_power) if d.friction is not None else None
             out["dynamics"] = {"torque_Nmm": _finite(d.input_torque),
                                "shaking_force_N": _finite(d.shaking_force),
-                               "shaking_moment_Nmm": _finite(d.shaking_moment)}
+                               "shaking_moment_Nmm": _finite(d.shaking_moment),
+                               "mean_torque_Nmm": mean(d.input_torque),
+                               "friction_loss_W": None if fl is None else fl * 1e-3}
         else:
             kin = self._kin(P)
             out["dynamics"] = None
