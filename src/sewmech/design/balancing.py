@@ -539,16 +539,26 @@ def balance(machine: Machine, criterion: str = "delta-q",
         # linear basis cannot know (the shaking force and moment do not depend on it): solve
         # again with the basis moved by the friction's change at the answer, until the answer
         # stays (the friction of the answer, as it is)
+        # (the shift is the friction's change against the frictionless basis B, not against
+        # the last shifted one: shifts taken against that would drop the one before and
+        # alternate)
         passes = 0
         for passes in range(1, FRICTION_PASSES + 1):
-            shifted = replace(B, base={k: B.base[k] + (exact[k] - predicted[k]) for k in exact})
-            xy2, status, message = solve(shifted)
+            plain = B.quantities(xy)
+            shift = {k: exact[k] - plain[k] for k in exact}
+            shifted = replace(B, base={k: B.base[k] + shift[k] for k in exact})
+            # from the last answer (the weighted criterion's parts are scaled by the figures
+            # at the start, so it keeps its start): where the optimum is flat, a solve from
+            # afar may land elsewhere on it with every pass and never settle
+            xy2, status, message = solve(shifted if criterion == "weighted" else
+                                         replace(shifted, start=xy.copy()))
             moved = float(np.abs(xy2 - xy).max())
             xy = xy2
             exact = {k: v[0] for k, v in B.evaluate(xy[None]).items()}
             predicted = shifted.quantities(xy)
             B_used = shifted
-            if moved <= 1e-9 * max(1.0, float(np.abs(xy).max())):
+            if moved <= 1e-9 * max(1.0, float(np.abs(xy).max())) or \
+                    max(_difference(k, predicted[k], exact[k]) for k in exact) <= 1e-9:
                 break
         message += (f"; with the friction of the answer ({passes} pass"
                     f"{'es' if passes != 1 else ''}: the counterweights change the friction)")
@@ -572,8 +582,12 @@ def balance(machine: Machine, criterion: str = "delta-q",
     # nothing to propose: the machine stays as the file has it; the least Delta-Q is kept for
     # information, and the least peak shaking force is what this counterweight can achieve
     closest = {"xy": xy, "counterweights": B.describe(xy), "figures": after}
-    alt = balance(machine, "peak", basis=B)
-    message += _infeasible_advice(B, closest, alt, before)
+    if criterion == "equal-levels":  # the least vibration is what it can achieve instead
+        alt = balance(machine, "vibration", basis=B)
+        message += _unequal_advice(B, closest, alt, before)
+    else:
+        alt = balance(machine, "peak", basis=B)
+        message += _infeasible_advice(B, closest, alt, before)
     return BalanceResult(criterion, status, message, B.start.copy(), B.describe(B.start),
                          B.describe(B.start), before, dict(before), {}, err, B.rpm, w,
                          {"phi": B.phi, "before": curves["before"], "after": curves["before"]},
@@ -595,6 +609,26 @@ def _infeasible_advice(B: BalanceBasis, closest: dict, alt: BalanceResult, befor
             f" {a['static_moment_gcm']:.4g} g cm at {a['angle_deg']:.4g} deg: use --criterion"
             f" peak (or rms, weighted); or turn '{name}' (its angle_deg) to where Delta-Q has a"
             " root")
+    if math.isfinite(B.s_max[0]):
+        text += ", or allow it more static moment (max_static_moment_gcm)"
+    return text
+
+
+def _unequal_advice(B: BalanceBasis, closest: dict, alt: BalanceResult, before: dict
+                   ) -> str:
+    """What an equal-levels balancing without a crossing says besides: how close the levels
+    come, and the least vibration the counterweights achieve."""
+    (name, cw), = closest["counterweights"].items()
+    f = closest["figures"]
+    lx, ly = float(f["vibration_x_db"]), float(f["vibration_y_db"])
+    worst0 = max(float(before["vibration_x_db"]), float(before["vibration_y_db"]))
+    best = max(float(alt.after["vibration_x_db"]), float(alt.after["vibration_y_db"]))
+    where = ", ".join(f"{n} {c['static_moment_gcm']:.4g} g cm at {c['angle_deg']:.4g} deg"
+                      for n, c in alt.counterweights.items())
+    text = (f". No counterweight is proposed: the levels come closest with"
+            f" {cw['static_moment_gcm']:.4g} g cm, x {lx:.4g} dB and y {ly:.4g} dB. The least"
+            f" larger level the counterweights achieve is {best:.4g} dB against {worst0:.4g} dB"
+            f" now ({where}): use --criterion vibration; or turn '{name}' (its angle_deg)")
     if math.isfinite(B.s_max[0]):
         text += ", or allow it more static moment (max_static_moment_gcm)"
     return text
