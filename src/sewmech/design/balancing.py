@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -142,6 +143,30 @@ class BalanceBasis:
         from ..engine.housing import vibration
 
         return vibration(self.housing, W, self.rpm).rms_velocity[..., self.control, :2]
+
+    @cached_property
+    def _velocity_basis(self) -> tuple[np.ndarray, np.ndarray]:
+        """The control point's x and y velocity harmonics (complex, mm/s) of the base and of
+        each counterweight's four responses: (n_h, 2) and (n, 4, n_h, 2). The velocities are
+        linear in the wrench, so any design's are theirs combined as the wrench's are."""
+        from ..engine.housing import vibration
+
+        W0, R = self.base["W"], self.resp["W"]
+        stack = np.concatenate([W0[None], R.reshape(-1, *W0.shape)])
+        cv = vibration(self.housing, stack, self.rpm).control_v[..., self.control, :2]
+        return cv[0], cv[1:].reshape(R.shape[:2] + cv.shape[1:])
+
+    def velocities_at(self, xy: ArrayLike) -> np.ndarray:
+        """The control point's RMS velocity along x and y (mm/s), batch + (2,), for static
+        moments ``xy`` (batch + (n, 2), kg mm): :meth:`velocities` of their wrench, from the
+        velocity harmonics of the basis (no Fourier series or solve per design)."""
+        xy = np.asarray(xy, dtype=float)
+        x, y = xy[..., 0], xy[..., 1]
+        s = np.hypot(x, y)
+        coef = np.stack([s / self.radius, x, y, s * self.radius], axis=-1)  # batch + (n, 4)
+        v0, vr = self._velocity_basis
+        V = v0 + np.tensordot(coef, vr, axes=([-2, -1], [0, 1]))
+        return np.sqrt(2.0 * np.sum(np.abs(V) ** 2, axis=-2))
 
     def levels(self, W: np.ndarray) -> np.ndarray:
         """The control point's vibration levels along x and y, dB re 5e-8 m/s, batch + (2,)."""
