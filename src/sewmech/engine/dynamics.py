@@ -566,12 +566,14 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
     kin = res.kin
     names = machine.link_names
     bshape = kin.theta.shape[:-1]
-    S = np.zeros(bshape + (2,))  # sum of forces from outside the shaft (not the bearings)
-    Mx = np.zeros(bshape)  # their moments about the axis point, N mm
-    My = np.zeros(bshape)
-    dHx = np.zeros(bshape)
-    dHy = np.zeros(bshape)
-    mass_S = np.zeros(bshape + (2,))
+    # (complex for the complex step of sewmech.engine.dynamic_sensitivity)
+    dt = np.result_type(kin.theta, res.com_a)
+    S = np.zeros(bshape + (2,), dtype=dt)  # sum of forces from outside the shaft (not the
+    Mx = np.zeros(bshape, dtype=dt)  # bearings), their moments about the axis point, N mm
+    My = np.zeros(bshape, dtype=dt)
+    dHx = np.zeros(bshape, dtype=dt)
+    dHy = np.zeros(bshape, dtype=dt)
+    mass_S = np.zeros(bshape + (2,), dtype=dt)
     for lname, z in shaft.links.items():
         li = names.index(lname)
         # pairs of this crank with links that are not the frame (the frame's share is the
