@@ -50,6 +50,12 @@ GRAVITY = 9.80665
 _N_UNKNOWN = {"revolute": 2, "prismatic": 2, "cam": 1, "slot": 1, "driver": 1}
 
 
+def _machine_where(machine) -> str:
+    """The machine and its file, for an error's *where*: ``machine 'x' (path/x.toml)``."""
+    file = getattr(machine, "file", "")
+    return f"machine '{machine.name}' ({file})" if file else f"machine '{machine.name}'"
+
+
 class SingularForceSystem(SewmechError):
     """The equilibrium equations have no unique solution at some position."""
 
@@ -731,7 +737,7 @@ def force_structure(machine: Machine) -> ForceStructure:
     if n_unk != n_eq:
         kinds = {k: sum(1 for p in pairs if p.kind == k) for k in _N_UNKNOWN}
         raise SingularForceSystem(
-            f"machine '{machine.name}': {n_links - 1} moving links give {n_eq} equilibrium"
+            f"{_machine_where(machine)}: {n_links - 1} moving links give {n_eq} equilibrium"
             f" equations but the pairs give {n_unk} unknowns ({kinds}); declare the cam and"
             " slot contacts of loop units (units[].contacts) and pin shared points"
             " (point units' pins)")
@@ -751,7 +757,7 @@ def force_structure(machine: Machine) -> ForceStructure:
     if (match < 0).any():
         lame = sorted({names[1 + int(r) // 3] for r in np.flatnonzero(match < 0)})
         raise SingularForceSystem(
-            f"machine '{machine.name}': the equations of link(s) {', '.join(lame)} cannot be"
+            f"{_machine_where(machine)}: the equations of link(s) {', '.join(lame)} cannot be"
             " balanced by the pairs' unknowns (the force system is singular at every"
             " position); check which links the pairs, pins and contacts join")
     row_of_col = np.empty(n_eq, dtype=np.int64)
@@ -1055,7 +1061,7 @@ class DynamicsPlan:
             design = tuple(int(i) for i in np.unravel_index(d, batch)) if batch else ()
             at = f"design {design}, " if design else ""
             raise AnalysisError(
-                f"machine '{self.machine.name}' at {at}phi = {float(kin.phi_deg[k]):.6g}"
+                f"{_machine_where(self.machine)} at {at}phi = {float(kin.phi_deg[k]):.6g}"
                 " deg", f"the force analysis with friction did not settle in {MAX_STEPS} steps"
                 f" (a change of {change:.2g} of the largest force remained): the friction may"
                 " lock the mechanism there", "Lower the friction coefficients or pin radii"
@@ -1157,7 +1163,7 @@ class DynamicsPlan:
         design = tuple(int(i) for i in np.unravel_index(d, batch)) if batch else ()
         at = f"design {design}, " if design else ""
         raise SingularForceSystem(
-            f"machine '{self.machine.name}' at {at}phi = {float(kin.phi_deg[k]):.6g} deg: the"
+            f"{_machine_where(self.machine)} at {at}phi = {float(kin.phi_deg[k]):.6g} deg: the"
             " equilibrium equations are singular (a mechanism at a dead centre with respect"
             " to its driver, or a pair whose line passes through its link's pivot); step"
             " around this angle")
