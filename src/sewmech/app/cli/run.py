@@ -150,7 +150,11 @@ def _summary(r) -> Table:
 
     row("mean motor power, steady turn", _steady_power(r) * 1e-3, "W")
     if bool((r.phase == 1).any()):
-        row("time to stop (below 1 % of the working speed)", r.time_to_stop, "s")
+        if r.time_to_stop is not None:
+            row("time to stop (below 1 % of the working speed)", r.time_to_stop, "s")
+        else:
+            row("the stop: not below 1 % of the working speed after (nothing takes the"
+                " energy out)", float(r.time[-1] - r.stop_start), "s")
     for t, what in r.events:
         table.add_row(escape(what), format(t, ".4g"), "s")
     return table

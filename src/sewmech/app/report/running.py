@@ -64,8 +64,10 @@ def running_section(figs, machine: Machine, *, result: RunResult | None = None,
         ax.axvline(r.stop_start, color="C3", lw=0.9, ls=":")
         end = (f"stops in {r.time_to_stop:.3g} s" if r.time_to_stop is not None
                else "does not stop in the time given")
-        ax.annotate(f"motor off: {end}", (r.stop_start, 0.5 * rpm_t), textcoords="offset"
-                    " points", xytext=(6, 0), fontsize=8, color="C3")
+        how = {"clutch": "declutched and braked", "servo": "commanded to 0"}.get(mo.kind,
+                                                                             "motor off")
+        ax.annotate(f"{how}: {end}", (r.stop_start, 0.5 * rpm_t), textcoords="offset points",
+                    xytext=(6, 0), fontsize=8, color="C3")
     for when, what in r.events:
         ax.axvline(when, color="0.5", lw=0.6, ls="-.")
         ax.annotate(what, (when, 0.15 * rpm_t), rotation=90, fontsize=7, color="0.4",
