@@ -276,6 +276,18 @@ class DynamicsResult:
             raise ValueError(f"pair '{name}' is a driver: it transmits a torque, not a force")
         return x[..., :1] * self._geometry[1][..., self.pairs.index(pair), :]
 
+    def total_force(self, name: str) -> np.ndarray:
+        """The force (N) of a pair on its second link, the friction along a sliding pair's
+        tangent included (:meth:`force` is its normal force alone), batch + (n_phi, 2)."""
+        F = self.force(name)
+        fr = self._friction_at_pairs
+        c, pair = self._columns[name]
+        if name in fr and pair.kind != "revolute":
+            n = self._geometry[1][..., self.pairs.index(pair), :]
+            t = np.stack([n[..., 1], -n[..., 0]], axis=-1)  # the friction kernel's tangent
+            F = F + fr[name][..., None] * t
+        return F
+
     def magnitude(self, name: str) -> np.ndarray:
         """|force| (N) of a pair, or |torque| (N mm) of a driver, batch + (n_phi,)."""
         c, pair = self._columns[name]
@@ -318,17 +330,12 @@ class DynamicsResult:
         friction along a sliding pair's tangent included, and of each spring anchored to it
         (by the spring's name); where each acts: :attr:`frame_reaction_points`."""
         out = {}
-        fr = self._friction_at_pairs
         for name, (c, pair) in self._columns.items():
             if pair.kind == "driver":
                 continue
             if FRAME not in pair.links:
                 continue
-            F = self.force(name)
-            if name in fr and pair.kind != "revolute":
-                n = self._geometry[1][..., self.pairs.index(pair), :]
-                t = np.stack([n[..., 1], -n[..., 0]], axis=-1)  # the friction kernel's tangent
-                F = F + fr[name][..., None] * t
+            F = self.total_force(name)
             out[name] = -F if pair.links[0] == FRAME else F
         for spring, (end, F) in self._frame_springs.items():
             out[spring] = F
@@ -559,12 +566,14 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
     kin = res.kin
     names = machine.link_names
     bshape = kin.theta.shape[:-1]
-    S = np.zeros(bshape + (2,))  # sum of forces from outside the shaft (not the bearings)
-    Mx = np.zeros(bshape)  # their moments about the axis point, N mm
-    My = np.zeros(bshape)
-    dHx = np.zeros(bshape)
-    dHy = np.zeros(bshape)
-    mass_S = np.zeros(bshape + (2,))
+    # (complex for the complex step of sewmech.engine.dynamic_sensitivity)
+    dt = np.result_type(kin.theta, res.com_a)
+    S = np.zeros(bshape + (2,), dtype=dt)  # sum of forces from outside the shaft (not the
+    Mx = np.zeros(bshape, dtype=dt)  # bearings), their moments about the axis point, N mm
+    My = np.zeros(bshape, dtype=dt)
+    dHx = np.zeros(bshape, dtype=dt)
+    dHy = np.zeros(bshape, dtype=dt)
+    mass_S = np.zeros(bshape + (2,), dtype=dt)
     for lname, z in shaft.links.items():
         li = names.index(lname)
         # pairs of this crank with links that are not the frame (the frame's share is the
@@ -574,7 +583,7 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
                 continue
             if pair.links[0] in shaft.links and pair.links[1] in shaft.links:
                 continue
-            F = res.force(pair.name) * (1.0 if pair.links[1] == lname else -1.0)
+            F = res.total_force(pair.name) * (1.0 if pair.links[1] == lname else -1.0)
             S += F
             Mx += -z * F[..., 1]
             My += z * F[..., 0]

@@ -908,6 +908,65 @@ class FrictionSpec(_Spec):
     note: str = ""
 
 
+Vec3Pos = tuple[PosFloat, PosFloat, PosFloat]
+
+
+class MountSpec(_Spec):
+    """One mount of the housing (``[[housing.mounts]]``): where it holds the housing (machine
+    frame, mm), its stiffness along x, y, z (N/mm) and its damping along them (N s/mm; default:
+    the housing's ``loss_factor``)."""
+
+    name: str = Field(min_length=1, max_length=200)
+    at_mm: Vec3
+    stiffness_N_per_mm: tuple[NonNegFloat, NonNegFloat, NonNegFloat]
+    damping_N_s_per_mm: tuple[NonNegFloat, NonNegFloat, NonNegFloat] | None = None
+    note: str = ""
+
+
+class HousingSpec(_Spec):
+    """``[housing]``: the machine's housing (head, arm and bed) as a rigid body on elastic
+    mounts, excited by every force the mechanisms put on it (docs/vibration.md).
+
+    ``mass``: its mass properties in the machine frame (a ``[masses]``-style table without
+    ``origin``: measured ``mass``, ``com`` [x, y, z] and a full ``inertia`` tensor, or solids);
+    ``mounts``: at least one; ``loss_factor``: the mounts' structural damping where a mount
+    gives no damping; ``control_points``: name -> [x, y, z] mm, where the vibration is judged
+    (the operator's hands); ``bounds_mm``: the housing's extent [[x0, x1], [y0, y1], [z0, z1]],
+    inside which mounts and control points must lie; ``planes_mm``: the z of the plane in which
+    each frame pair (or a spring anchored to the frame) acts, by name, and ``default_plane_mm``
+    for the others (the upper shaft's cranks act through its bearings, at ``[shaft]``'s z)."""
+
+    mass: MassSpec
+    mounts: list[MountSpec] = Field(min_length=1)
+    loss_factor: NonNegFloat = Field(0.1, le=2.0)
+    control_points: dict[Name, Vec3] = Field(min_length=1)
+    bounds_mm: tuple[tuple[Float, Float], tuple[Float, Float], tuple[Float, Float]] | None = None
+    planes_mm: dict[str, Float] = Field(default_factory=dict)
+    default_plane_mm: Float = 0.0
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _housing(self):
+        if self.mass.origin is not None:
+            raise ValueHint("the housing's mass properties are in the machine frame: it has no"
+                            " origin point", "Leave out origin")
+        if self.mass.mass is not None and self.mass.inertia is None:
+            raise ValueHint("the housing turns in 3-D on its mounts: give its full inertia"
+                            " tensor (inertia = [[Ixx, Ixy, Ixz], ...], kg mm^2 about its centre"
+                            " of mass), not only inertia_zz", "Give inertia, or solids")
+        if self.mass.mass is not None and len(self.mass.com) != 3:
+            raise ValueHint("the housing's com needs x, y and z (mm)", "Write com = [x, y, z]")
+        names = [m.name for m in self.mounts]
+        if len(set(names)) != len(names):
+            raise ValueHint("two mounts share a name", "Give every mount its own name")
+        if self.bounds_mm is not None:
+            for lo, hi in self.bounds_mm:
+                if not lo < hi:
+                    raise ValueHint(f"bounds_mm: [{lo:g}, {hi:g}] is not a range (low < high)",
+                                    "Write [[x0, x1], [y0, y1], [z0, z1]] with x0 < x1, ...")
+        return self
+
+
 class LoadFile(_Spec):
     """A load file: ``[[loads]]`` tables that replace the machine file's loads."""
 
@@ -1044,6 +1103,7 @@ class MachineSpec(_Spec):
     springs: list[SpringSpec] = Field(default_factory=list)
     torsion_springs: list[TorsionSpringSpec] = Field(default_factory=list)
     friction: FrictionSpec | None = None
+    housing: HousingSpec | None = None
     shaft: ShaftSpec | None = None
     counterweights: dict[Name, CounterweightSpec] = Field(default_factory=dict)
     motor: MotorSpec | None = None
