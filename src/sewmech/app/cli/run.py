@@ -29,8 +29,9 @@ def run_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="shipped machine name or TOML file"),
     rpm: float = typer.Option(None, help="working speed, rev/min: the speed the start-up is"
                               " timed to and a servo's command (default: the file's)"),
-    motor: Path = typer.Option(None, help="a motor file (a TOML [motor] table, docs/running.md)"
-                               " instead of the machine file's [motor]"),
+    motor: Path = typer.Option(None, help="a motor file (TOML, with its motor table as a machine"
+                               " file has it; docs/running.md) instead of the machine file's"
+                               " motor"),
     time_s: float = typer.Option(None, "--time-s", help="run the motor this long, s, instead"
                                  " of until the steady state"),
     no_stop: bool = typer.Option(False, "--no-stop", help="end with the steady state (no"
@@ -40,8 +41,8 @@ def run_cmd(
                                   " angle, e.g. the needle at its top)"),
     inputs: list[str] = typer.Option(None, "--input", help="a setting input NAME=DEG, e.g."
                                      " regulator=30; repeatable (default: the file's)"),
-    loads: Path = typer.Option(None, help="a load file ([[loads]] tables) that replaces the"
-                               " machine file's loads"),
+    loads: Path = typer.Option(None, help="a load file (TOML, its loads as a machine file has"
+                               " them) that replaces the machine file's loads"),
     no_loads: bool = typer.Option(False, "--no-loads", help="no process loads (no-load run)"),
     gravity: bool = typer.Option(True, "--gravity/--no-gravity", help="weights of the links"),
     step_deg: float = typer.Option(1.0, help="shaft-angle grid of the force analysis' tables,"
@@ -177,7 +178,7 @@ def _write(r, out: Path, settings, load_specs, gravity) -> int:
     try:
         with output_dir(out, command="run") as root:
             figs = Figures(root, m.name, pool)
-            key = running_section(figs, m, result=r)
+            key = running_section(figs, m, result=r)["table"]
             _ = figs.blocks  # every figure written
             table = pd.DataFrame({
                 "time_s": r.time, "phi_rad": r.phi, "omega_rad_s": r.omega,

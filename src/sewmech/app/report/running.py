@@ -31,10 +31,13 @@ def running_left_out(machine: Machine) -> str | None:
 
 def running_section(figs, machine: Machine, *, result: RunResult | None = None,
                     inputs: Mapping[str, float] | None = None, rpm: float | None = None,
-                    loads: Sequence | None = None, gravity: bool = True) -> pd.DataFrame:
+                    loads: Sequence | None = None, gravity: bool = True) -> dict:
     """Add the run's figures to ``figs`` (:class:`~sewmech.app.drawing.figures.Figures`): the
     run-up curve, the motor's torque and power, the steady turn against the energy method;
-    return the key figures (quantity, value, unit).
+    return ``html`` (the part's heading, text and key-figure table, for the "Vibration and
+    running" section), ``table`` (the key figures: quantity, value, unit) and ``result`` (the
+    :class:`~sewmech.engine.running.RunResult`). A machine without a ``[motor]`` or
+    ``[masses]`` cannot run: :func:`running_left_out` says why (ask it first).
 
     result: a run made already (:func:`sewmech.engine.running.run`); else the machine is run
     with its ``[motor]`` at ``inputs`` (rad; default the file's settings), ``rpm`` (default the
@@ -157,7 +160,8 @@ def running_section(figs, machine: Machine, *, result: RunResult | None = None,
             ("mean motor power in the steady turn", _steady_power(r) * 1e-3, "W"),
             ("time to stop (below 1 % of the working speed)",
              r.time_to_stop if r.time_to_stop is not None else math.nan, "s")]
-    return pd.DataFrame(rows, columns=["quantity", "value", "unit"])
+    key = pd.DataFrame(rows, columns=["quantity", "value", "unit"])
+    return {"html": running_html(machine, key, r), "table": key, "result": r}
 
 
 def _steady_power(r: RunResult) -> float:
