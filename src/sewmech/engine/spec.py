@@ -995,6 +995,97 @@ class ShaftSpec(_Spec):
         return self
 
 
+#: the keys of each kind of motor (besides kind, the belt, the inertias and the note)
+MOTOR_KEYS = {
+    "table": ("speed_rpm", "torque_N_mm"),
+    "induction": ("synchronous_rpm", "rated_rpm", "rated_power_W", "breakdown_torque_ratio"),
+    "clutch": ("synchronous_rpm", "rated_rpm", "rated_power_W", "breakdown_torque_ratio",
+               "clutch_torque_N_mm", "brake_torque_N_mm"),
+    "servo": ("max_torque_N_mm", "bandwidth_hz"),
+}
+#: the keys a kind may leave out (the run takes 0 N mm of brake and a 10 Hz speed loop)
+_MOTOR_OPTIONAL = {"brake_torque_N_mm", "bandwidth_hz"}
+
+
+def _a(word: str) -> str:
+    """``word`` with its indefinite article."""
+    return ("an " if word[:1] in "aeiou" else "a ") + word
+
+
+class MotorSpec(_Spec):
+    """``[motor]``: the motor that drives the upper shaft, for the run in time
+    (docs/running.md). ``kind``: ``table`` (the torque at the motor's shaft against its speed,
+    ``speed_rpm`` from 0 increasing and ``torque_N_mm``), ``induction`` (Kloss's curve through
+    the rated point, ``rated_rpm`` and ``rated_power_W``, with the breakdown torque
+    ``breakdown_torque_ratio`` times the rated one, ``synchronous_rpm``), ``clutch`` (that
+    induction motor running before a dry clutch that passes at most ``clutch_torque_N_mm``; a
+    brake of ``brake_torque_N_mm`` stops the machine) or ``servo`` (a speed controller, PI with
+    the torque limit ``max_torque_N_mm`` and the speed loop's ``bandwidth_hz``). The motor
+    turns ``belt_ratio`` times as fast as the shaft; ``rotor_inertia_kg_mm2`` is its own turning
+    parts' (a clutch motor's rotor with its flywheel), ``hand_wheel_inertia_kg_mm2`` what turns
+    with the shaft and is not in ``[masses]``. Torques N mm at the motor's shaft."""
+
+    kind: str
+    belt_ratio: Annotated[Float, Field(gt=0.0, le=100.0)] = 1.0
+    rotor_inertia_kg_mm2: NonNegFloat = 0.0
+    hand_wheel_inertia_kg_mm2: NonNegFloat = 0.0
+    speed_rpm: list[Annotated[Float, Field(ge=0.0, le=1e5)]] | None = None
+    torque_N_mm: list[Float] | None = None
+    synchronous_rpm: Annotated[Float, Field(gt=0.0, le=1e5)] | None = None
+    rated_rpm: Annotated[Float, Field(gt=0.0, le=1e5)] | None = None
+    rated_power_W: Annotated[Float, Field(gt=0.0, le=1e6)] | None = None
+    breakdown_torque_ratio: Annotated[Float, Field(gt=1.0, le=20.0)] | None = None
+    clutch_torque_N_mm: PosFloat | None = None
+    brake_torque_N_mm: NonNegFloat | None = None
+    max_torque_N_mm: PosFloat | None = None
+    bandwidth_hz: Annotated[Float, Field(gt=0.0, le=1000.0)] | None = None
+    note: str = ""
+
+    @field_validator("kind", mode="before")
+    @classmethod
+    def _kind(cls, v):
+        if isinstance(v, str) and v in MOTOR_KEYS:
+            return v
+        import difflib
+
+        close = difflib.get_close_matches(str(v), list(MOTOR_KEYS), n=1, cutoff=0.6)
+        raise ValueHint(f"unknown motor kind; expected one of: {', '.join(MOTOR_KEYS)}",
+                        f"Did you mean kind = \"{close[0]}\"?" if close else
+                        "Write e.g. kind = \"induction\" (docs/running.md)")
+
+    @model_validator(mode="after")
+    def _keys_of_its_kind(self):
+        own = MOTOR_KEYS[self.kind]
+        others = [k for keys in MOTOR_KEYS.values() for k in keys if k not in own]
+        stray = [k for k in dict.fromkeys(others) if getattr(self, k) is not None]
+        if stray:
+            kinds = [k for k, keys in MOTOR_KEYS.items() if stray[0] in keys]
+            raise ValueHint(f"{stray[0]} is for {_a(' or '.join(kinds))} motor; this one is"
+                            f" {_a(self.kind)} motor", f"Leave {stray[0]} out, or write kind ="
+                            f" \"{kinds[0]}\"")
+        missing = [k for k in own if getattr(self, k) is None and k not in _MOTOR_OPTIONAL]
+        if missing:
+            needed = [k for k in own if k not in _MOTOR_OPTIONAL]
+            raise ValueHint(f"{_a(self.kind)} motor needs {', '.join(needed)}; missing:"
+                            f" {', '.join(missing)}", "Add them (docs/running.md)")
+        if self.kind == "table":
+            n, t = self.speed_rpm, self.torque_N_mm
+            if len(n) != len(t) or len(n) < 2:
+                raise ValueHint(f"speed_rpm and torque_N_mm must be lists of the same length,"
+                                f" at least 2 (got {len(n)} and {len(t)})",
+                                "Give the torque at each speed")
+            if n[0] != 0.0 or any(b <= a for a, b in zip(n[:-1], n[1:], strict=True)):
+                raise ValueHint(f"speed_rpm must start at 0 and increase, got {_short(n)}",
+                                "Give the torque from standstill (0 rpm) up")
+        if self.kind in ("induction", "clutch") and not (
+                self.rated_rpm < self.synchronous_rpm):
+            raise ValueHint(f"rated_rpm = {self.rated_rpm:g} must be below synchronous_rpm ="
+                            f" {self.synchronous_rpm:g}: an induction motor's torque comes from"
+                            " its slip", "Give the rated speed from the motor's plate (e.g."
+                            " 2800 for a 2-pole motor on 50 Hz, synchronous 3000)")
+        return self
+
+
 class MachineSpec(_Spec):
     """The whole machine file."""
 
@@ -1015,6 +1106,7 @@ class MachineSpec(_Spec):
     housing: HousingSpec | None = None
     shaft: ShaftSpec | None = None
     counterweights: dict[Name, CounterweightSpec] = Field(default_factory=dict)
+    motor: MotorSpec | None = None
 
     @field_validator("points")
     @classmethod
