@@ -276,6 +276,28 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+#: the most worker processes of a local cluster per core this process may use: each worker
+#: runs one thread, so more than one a core only share the cores, and each holds its own
+#: interpreter and kernels (about 150 MB). 1000 workers on 2 cores never finished starting
+#: (no progress in 120 s, about 150 GB asked of a 23 GB machine)
+WORKERS_PER_CORE = 4
+
+
+def check_workers(workers: int | None) -> None:
+    """``--workers``: 0 (this process) up to :data:`WORKERS_PER_CORE` a usable core."""
+    if workers is None:
+        return
+    cores = default_workers()
+    most = WORKERS_PER_CORE * cores
+    if not 0 <= workers <= most:
+        raise OptionError("--workers", f"must be in 0 .. {most} on this machine ({cores} usable"
+                          f" core{'s' if cores != 1 else ''}, at most {WORKERS_PER_CORE} worker"
+                          f" processes a core: each runs one thread and holds its own memory,"
+                          f" about 150 MB), got {workers}", f"Leave it out for one worker a"
+                          f" core ({cores}), give --workers 0 to run in this process, or run"
+                          " on a cluster of more machines with --scheduler")
+
+
 def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
               workers: int | None = None, chunk: int | None = None, retries: int = 2,
               on_chunk: Callable[[int, int], None] | None = None,
@@ -291,12 +313,10 @@ def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
     if chunk is not None and not 1 <= chunk <= 10_000_000:
         raise OptionError("--chunk", f"must be in 1 .. 10000000 designs, got {chunk}",
                           "Give e.g. --chunk 250")
-    if workers is not None and not 0 <= workers <= 4096:
-        raise OptionError("--workers", f"must be in 0 .. 4096, got {workers}",
-                          "Give --workers 0 to run in this process")
     if scheduler is not None and workers is not None:
         raise OptionError("--workers", "a cluster given by --scheduler has its own workers",
                           "Leave out --workers (start `dask worker` processes on the cluster)")
+    check_workers(workers)
     size = prepare_dir(root, sweep, chunk)  # a directory not this sweep's: before any work
     here = client is None and scheduler is None and workers == 0
     if (root / RECORD).is_file() and len(done_chunks(root)) >= len(

@@ -270,7 +270,9 @@ def scale_marks(machine: Machine, step_mm: float = 0.5, *, params=None,
     hi = math.floor(st_s[-1] / step_mm + 1e-9)
     targets = np.arange(lo, hi + 1) * step_mm
     g0 = np.interp(targets, st_s, rg_s)
-    g1 = g0 + 0.01
+    # the secant's second point 0.01 deg away, inside the travel (a mark at its end would
+    # otherwise be evaluated beyond the regulator's range, which is refused)
+    g1 = np.where(g0 + 0.01 <= travel[1], g0 + 0.01, g0 - 0.01)
     f0 = feed_cycles(machine, g0, params=params).stitch_mm - targets
     for _ in range(30):
         f1 = feed_cycles(machine, g1, params=params).stitch_mm - targets

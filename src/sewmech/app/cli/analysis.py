@@ -16,7 +16,7 @@ from ...engine.errors import AnalysisError, OptionError, SewmechError
 from ...engine.machine import Machine, file_value, load_machine, shipped_machines
 from ..display import is_round_off, number
 from .common import (DEFAULT_MACHINE, SET_HELP, Format, _bounded, _load, _phi, _phi_grid, _rpm,
-                     _settings, command, console, print_json, process_ends)
+                     _settings, command, console, print_json, process_ends, refuse_unused)
 
 
 @command("machines")
@@ -76,6 +76,11 @@ def check_cmd(
                                " joins; the margin says by how much")
         proofs.append((label, proof))
     ref = require_reference(m)
+    _variants(m, None)  # the file's variants: each a machine the report can compare
+    if m.spec.sewing is not None:  # the throat plate and the fabric within the needle's
+        from ...sewing.timing import needle_windows  # reach, as the report needs them
+
+        needle_windows(m)
     conv = m.spec.convention
     table = Table(title=f"{m.name}: valid", show_header=False)
     table.add_row("file", m.file)
@@ -263,6 +268,10 @@ def kinematics_cmd(
     from ..files.io import kinematics_to_dict, write_kinematics_csv, write_kinematics_json
     from ..files.outdir import output_dir
 
+    if out is None:
+        refuse_unused("format", "--format", "is the format of the file --out writes, and no"
+                      " --out is given: nothing would be written", "Give --out DIR, or leave"
+                      " --format out")
     m = _load(machine, sets)
     settings = _settings(m, inputs)
     phi = _phi(step_deg, phi_deg)
@@ -541,6 +550,10 @@ def embroidery_cmd(
     """Thread drawn L(phi) = l_max - l by the embroidery take-up for one (alpha, beta)."""
     from ...sewing import embroidery as EM
 
+    if as_json and out is not None:
+        raise OptionError("--out", f"{out} and --json contradict each other (the figure is"
+                          " drawn for the table; --json prints the numbers and writes"
+                          " nothing)", "Give one of them")
     _bounded("--alpha-deg", alpha_deg, -360.0, 360.0, "deg", "10")
     _bounded("--beta-deg", beta_deg, -360.0, 360.0, "deg", "35")
     _bounded("--points", points, 2, 3600, "positions", "12")
@@ -609,8 +622,8 @@ def report_cmd(
 
     _phi_grid(step_deg, min_step=0.1)  # validates the step
     m = _load(machine, sets)
-    variants = [_load(v) for v in (compare or m.spec.machine.variants)]
     roles(m)  # the machine's [sewing] roles, which the report reads
+    variants = _variants(m, compare)
     preflight(out, command="report")
     s = m.spec.sewing
     steps = ["kinematics", "timing checks", "figures"]
@@ -652,6 +665,51 @@ def demo_cmd(out: Path = typer.Option(Path("out/demo"), help="output directory (
              sets: list[str] = typer.Option(None, "--set", help=SET_HELP)):
     """Same as `sewmech report jb1-3 --out DIR` (the main job on the default machine)."""
     report_cmd.__wrapped__(DEFAULT_MACHINE, out, 1.0, None, sets)
+
+
+def _variants(m: Machine, compare: list[str] | None) -> list[Machine]:
+    """The machines a report compares with ``m``: --compare's (a shipped name or a file, as
+    every machine argument), else the file's ``[machine] variants`` (a file named relative to
+    the machine file, else a shipped name). Each is loaded and its ``[sewing]`` roles (which
+    the comparison reads) checked where it is named; comparing the machine with itself, or
+    with one machine twice, is refused."""
+    from ...sewing.timing import roles
+
+    if compare:
+        named = [(f"--compare {c}", c, c) for c in compare]
+    else:
+        base = Path(m.file).parent
+        named = []
+        for i, v in enumerate(m.spec.machine.variants):
+            where = f"{m.file}: [machine] variants[{i}]"
+            beside = base / Path(v).expanduser()
+            if not beside.is_file() and v not in shipped_machines():
+                raise SewmechError(where, f"{v}: no such file ({beside}) and no shipped machine"
+                                   " of that name", "Give a shipped machine's name ("
+                                   + ", ".join(sorted(shipped_machines())) + ") or a machine"
+                                   " file (a path relative to this file)")
+            named.append((where, v, beside if beside.is_file() else v))
+    out: list[Machine] = []
+    seen = {str(Path(m.file).resolve()): "the machine reported"} if not m.changes else {}
+    for where, name, source in named:
+        try:
+            v = load_machine(source)
+        except SewmechError as exc:
+            hint = ("Give a shipped machine's name or a machine file" +
+                    ("" if compare else " (a path relative to this file)"))
+            raise SewmechError(where, str(exc).rstrip("."), hint) from None
+        try:
+            roles(v)
+        except ValueError as exc:  # (its text says what to add)
+            raise SewmechError(where, f"cannot be compared: {exc}") from None
+        key = str(Path(v.file).resolve())
+        if key in seen:
+            raise SewmechError(where, f"{name!r} is {seen[key]} again ({v.file}): the"
+                               " comparison would show one machine twice", "Compare with"
+                               " another machine, or with a --set variant of this one")
+        seen[key] = f"the machine of {where}"
+        out.append(v)
+    return out
 
 
 def _keep_freed_memory() -> None:

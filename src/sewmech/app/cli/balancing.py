@@ -375,7 +375,10 @@ def influence_balance_cmd(
                             ranges={"amplitude_mm_s": (*VELOCITY_RANGE_MM_S, "mm/s"),
                                     "phase_deg": (*ANGLE_RANGE_DEG, "deg"),
                                     "trial_gcm": (*STATIC_MOMENT_RANGE_GCM, "g cm"),
-                                    "trial_angle_deg": (*ANGLE_RANGE_DEG, "deg")})
+                                    "trial_angle_deg": (*ANGLE_RANGE_DEG, "deg")},
+                            labels={"run": ("0|[1-9][0-9]*", "a run number", "Label the runs 0"
+                                            " (no trial mass),"
+                                            " 1, 2, ... (one run per correction plane)")})
     runs = list(dict.fromkeys(cols["run"]))
     places = list(dict.fromkeys(cols["place"]))
     if "0" not in runs or len(runs) < 2:
@@ -415,7 +418,7 @@ def influence_balance_cmd(
                           "Give --solver minmax, or leave it out")
     try:
         res = influence_balance(V0, Vt, [trial[r][0] for r in planes],
-                                [trial[r][1] for r in planes])
+                                [trial[r][1] for r in planes], [f"run {r}" for r in planes])
     except AnalysisError as exc:
         raise AnalysisError(str(file), exc.message, exc.hint) from None
     data = {**res.to_json([f"run {r}" for r in planes]), "n_places": len(places),
@@ -480,7 +483,7 @@ def _minmax(file, V0, Vt, planes, places, trial, weight, max_gcm, phase_lag, as_
     try:
         res = influence_minmax(V0, Vt, [trial[r][0] for r in planes],
                                [trial[r][1] for r in planes], weights=weights,
-                               limits_gcm=limits)
+                               limits_gcm=limits, names=[f"run {r}" for r in planes])
     except AnalysisError as exc:
         raise AnalysisError(str(file), exc.message, exc.hint) from None
     data = {**res.to_json([f"run {r}" for r in planes], places), "n_places": len(places),
