@@ -49,10 +49,29 @@ def main():
     reg = {"regulator": math.radians(30.0)}
     t_jb, t_jb_med = best(lambda: inverse_dynamics(m, phi72, inputs=reg))
     r = inverse_dynamics(m, phi72, inputs=reg)
-    bal = r.input_power - r.kinetic_energy_rate - r.potential_energy_rate + r.external_power
+    bal = r.power_balance  # friction and dampers included
 
     P = m.parameters({"needle_bar.length": np.linspace(42.0, 46.0, 1000)}, inputs=reg)
     t_batch, _ = best(lambda: inverse_dynamics(m, phi72, params=P), repeat=3)
+
+    # friction (issue 30): jb1-3 has [friction] at every pair; the same machine without it,
+    # one-off and through a prepared plan, interleaved
+    sys.path.insert(0, str(HERE.parent / "tests"))
+    from test_dynamics import without_friction
+
+    m0 = without_friction("jb1-3")
+    plans = {"friction": DynamicsPlan(m, phi72), "frictionless": DynamicsPlan(m0, phi72)}
+    fr_rounds = interleave({
+        "friction one-off": lambda: inverse_dynamics(m, phi72, inputs=reg),
+        "frictionless one-off": lambda: inverse_dynamics(m0, phi72, inputs=reg),
+        "friction plan": lambda: plans["friction"](inputs=reg),
+        "frictionless plan": lambda: plans["frictionless"](inputs=reg)},
+        rounds=9, number={k: 50 for k in ("friction one-off", "frictionless one-off",
+                                          "friction plan", "frictionless plan")})
+    fric = {k: fr_rounds.best(k) * 1e3 for k in ("friction one-off", "frictionless one-off",
+                                                 "friction plan", "frictionless plan")}
+    fric["ratio one-off"] = fr_rounds.ratio("friction one-off", "frictionless one-off")
+    fric["ratio plan"] = fr_rounds.ratio("friction plan", "frictionless plan")
 
     fb = sewmech.load_machine("fourbar-benchmark")
 
@@ -120,6 +139,12 @@ def main():
           " of the peak input power")
     print(f"JB1-3, 1000 designs x 72 positions (threads over designs): {t_batch:.2f} s"
           " (information: the balancing and optimisation issues call this)")
+    print(f"JB1-3 with friction at every pair against without, 72 positions: one-off"
+          f" {fric['friction one-off']:.2f} / {fric['frictionless one-off']:.2f} ms ="
+          f" {fric['ratio one-off']:.2f}x; prepared plan {fric['friction plan']:.2f} /"
+          f" {fric['frictionless plan']:.2f} ms = {fric['ratio plan']:.2f}x; target <= 3x:"
+          f" {mark(fric['ratio one-off'] <= 3.0)} (one-off), {mark(fric['ratio plan'] <= 3.0)}"
+          " (plan)")
     print(f"four-bar inverse dynamics, 360 positions, DynamicsPlan: {t_fb * 1e6:.0f} us"
           f" (median {t_fb_med * 1e6:.0f}); one-off inverse_dynamics(): {t_once * 1e6:.0f} us")
     if exu is None:
@@ -138,7 +163,7 @@ def main():
     RESULTS.write_text(json.dumps({
         "machine": platform.platform(), "cpus": os.cpu_count(),
         "jb_72_ms": t_jb * 1e3, "jb_1000x72_s": t_batch, "fourbar_360_us": t_fb * 1e6,
-        "fourbar_360_one_off_us": t_once * 1e6, "exudyn": exu,
+        "fourbar_360_one_off_us": t_once * 1e6, "exudyn": exu, "friction_ms": fric,
     }, indent=1))
 
 

@@ -181,10 +181,12 @@ def test_cli_report_writes_page_figures_and_tables(tmp_path):
     assert had_pyplot or "matplotlib.pyplot" not in sys.modules
     page = (out_dir / "index.html").read_text()
     checks = pd.read_csv(out_dir / "jb1-3-checks.csv")
-    assert f"All {len(checks)} checks pass" in page and len(checks) == 11
+    # 11 of the timing and the feed, 2 one-sided contacts, the process loads' energy
+    assert f"All {len(checks)} checks pass" in page and len(checks) == 14
     figures = ("mechanism", "motion", "eye-path", "timing-diagram", "feed-trajectories", "stitch-curve",
                "feed-sensitivity", "thread-balance", "take-up-adjustment", "thread-consumption",
-               "dyn-torque", "dyn-energy", "dyn-shaking", "dyn-bearings", "dyn-pairs",
+               "dyn-torque", "dyn-physics", "dyn-energy", "dyn-shaking", "dyn-bearings",
+               "dyn-pairs",
                "dyn-pressure", "dyn-regulator", "dyn-needle", "bal-components", "bal-hodograph",
                "bal-bearings", "bal-front", "accuracy-stitch", "comparison")
     assert page.count("data:image/png;base64,") == len(figures)

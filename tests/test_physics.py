@@ -18,9 +18,10 @@ from sewmech.machine import machine_from_toml
 
 import sewmech
 from sewmech.engine.contacts import contact_margins
-from test_dynamics import SC_TOML, W
+from test_dynamics import SC_TOML, W, text_without_friction
 
-JB_TEXT = open(sewmech.shipped_machines()["jb1-3"], encoding="utf-8").read()
+#: jb1-3 as shipped, its [friction] left out (the tests add their own)
+JB_TEXT = text_without_friction("jb1-3")
 
 
 def with_text(base: str, extra: str) -> sewmech.Machine:
@@ -127,7 +128,7 @@ def test_slider_crank_with_friction_against_its_equations_solved_by_scipy():
 
 def test_friction_of_zero_is_the_frictionless_analysis():
     phi = np.radians(np.arange(0.0, 360.0, 5.0))
-    m0 = sewmech.load_machine("jb1-3")
+    m0 = with_text(JB_TEXT, "")  # jb1-3 without its [friction]
     a = inverse_dynamics(m0, phi)
     b = inverse_dynamics(with_text(JB_TEXT, "[friction]\ncoefficient = 0.0\n"
                                    "pin_radius_mm = 3.0\n"), phi)

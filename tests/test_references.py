@@ -93,8 +93,13 @@ def test_every_check_cites_its_sources_by_key(name):
 
     m = sewmech.load_machine(name)
     checks = check_timing(m) + check_thread(m)
-    assert len(checks) == 14
+    assert len(checks) == 17
     for c in checks:
+        if c.source.startswith(("the force analysis", "the energy balance")):
+            # the machine's own dynamics (its one-sided contacts, its loads' energy): checked
+            # against its own analysis, which the docs describe, not against a published value
+            assert c.source.endswith("(docs/dynamics.md)"), c.source
+            continue
         keys = keys_in(c.source)
         assert keys, f"{c.name}: {c.source!r} cites no source"
         assert all(k in BY_KEY for k in keys), c.source

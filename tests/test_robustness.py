@@ -128,7 +128,7 @@ FILE_NUMBERS = [  # (case, text to replace in jb1-3.toml, replacement, location 
      "[cams.lift_cam.arcs[0]] center[0]"),
     ("sewing-plate-nan", "plate_y = ", "plate_y = nan #", "[sewing] plate_y"),
     ("load-force-nan", "force_N = 2.94", "force_N = nan", 'loads[0] "'),
-    ("load-window-inf", "windows_deg = [[135.0, 155.0]]", "windows_deg = [[135.0, inf]]",
+    ("load-window-inf", "within_of_max = 3.0 }]", "within_of_max = 3.0 }]\nwindows_deg = [[135.0, inf]]",
      'loads[0] "'),
     ("shaft-z-nan", "bearings = { front = ", "bearings = { front = nan, x = ", "[shaft]"),
 ]
@@ -959,11 +959,11 @@ def test_5_settings_outside_their_declared_range(case, argv, part):
 FILE_RANGES = [
     ("default-outside", "default_deg = 30.0 ", "default_deg = 40.0 ", "default_deg 40"),
     ("min-above-max", "min_deg = -30.0 ", "min_deg = 31.0 ", "larger than max_deg"),
-    ("window-beyond", "windows_deg = [[135.0, 155.0]]", "windows_deg = [[400.0, 900.0]]",
+    ("window-beyond", "within_of_max = 3.0 }]", "within_of_max = 3.0 }]\nwindows_deg = [[400.0, 900.0]]",
      "[400, 900] is not a shaft-angle window"),
-    ("window-negative", "windows_deg = [[135.0, 155.0]]", "windows_deg = [[-10.0, 20.0]]",
+    ("window-negative", "within_of_max = 3.0 }]", "within_of_max = 3.0 }]\nwindows_deg = [[-10.0, 20.0]]",
      "not a shaft-angle window"),
-    ("window-empty", "windows_deg = [[135.0, 155.0]]", "windows_deg = [[20.0, 20.0]]",
+    ("window-empty", "within_of_max = 3.0 }]", "within_of_max = 3.0 }]\nwindows_deg = [[20.0, 20.0]]",
      "from != to"),
     ("reference-false", "reference_phi_deg = 90.0", "reference_phi_deg = 80.0",
      "reference_phi_deg = 80 but needle.point at its top is at phi = 90"),
@@ -1381,7 +1381,7 @@ def test_7_option_ranges(tmp_path, case, argv, has):
     assert list(tmp_path.iterdir()) == []
 
 
-LOADS = JB[JB.index("[[loads]]"):JB.index("\n# the upper shaft in 3-D")]
+LOADS = JB[JB.index("[[loads]]"):JB.index("\n# The feed bar rests on the lift roller")]
 
 
 @pytest.mark.parametrize("old,new,part", [

@@ -18,11 +18,16 @@ from sewmech.sewing.gradients import METRICS
 
 
 def _designs(m, n, scale=1.0, seed=1):
-    """The file's design and ``n`` designs within ``scale`` x IT9 (normal, sigma = t / 3)."""
+    """The file's design and ``n`` designs within ``scale`` x IT9 (normal, sigma = t / 3);
+    each parameter's draws from a stream of its own (seeded by its name), so that a parameter
+    added to the file (a spring's anchor) changes no other parameter's draws."""
+    import zlib
+
     tol = tolerances_of(m, None)
-    rng = np.random.default_rng(seed)
     P = np.tile(np.asarray(m.defaults, dtype=float), (n + 1, 1))
-    P[1:] += rng.standard_normal((n, tol.size)) * (scale * tol / 3.0)
+    for j, name in enumerate(m.parameter_names):
+        rng = np.random.default_rng([seed, zlib.crc32(name.encode())])
+        P[1:, j] += rng.standard_normal(n) * (scale * tol[j] / 3.0)
     return P
 
 
@@ -64,8 +69,13 @@ def test_windowed_values_equal_the_whole_turn(machine, metric):
     P = _designs(m, 300, scale=3.0)
     g = METRICS[metric](m, reg)
     vals, found = samples.window_values(m, metric, reg, P, g)
-    # (near a cam's change of arc a start may not assemble: those go round the whole turn)
-    assert found[0] and found.mean() >= 0.98
+    # (near a cam's change of arc a start may not assemble: those go round the whole turn).
+    # The share located is a sample's: feed_lift's was 0.977-0.997 over seeds 1-6 of 300
+    # designs (about 0.983 on average, its binomial sigma 0.0075); 0.98, as this test had it,
+    # sat within one sigma of the mean and failed for a sample that drew a spring's anchor
+    # too. Three sigma below the mean: 0.96 (a fast path that stopped working would be far
+    # below it)
+    assert found[0] and found.mean() >= 0.96
     assert vals[0] == pytest.approx(g.value, abs=1e-9)
     dev = np.where(found, np.abs(vals - vals[0]), -1.0)
     some = [1, 2, 3] + list(np.argsort(dev)[-3:])  # the farthest too

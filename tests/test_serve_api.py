@@ -85,6 +85,12 @@ def test_a_turn_is_the_librarys_turn(url, jb, machine):
     d = inverse_dynamics(m, phi, params=P)
     assert np.allclose(t["dynamics"]["torque_Nmm"], d.input_torque, atol=2e-6)
     assert np.allclose(t["dynamics"]["shaking_force_N"], d.shaking_force, atol=2e-6)
+    # the turn's means: the mean torque, and the friction loss (W) the library gives
+    assert t["dynamics"]["mean_torque_Nmm"] == pytest.approx(float(d.input_torque.mean()),
+                                                             rel=1e-9)
+    assert t["dynamics"]["friction_loss_W"] == pytest.approx(
+        float(d.friction_power.mean()) * 1e-3, rel=1e-9)
+    assert t["dynamics"]["friction_loss_W"] > 1.0
     b = thread_balance(m, stitch_mm=abs(float(c.stitch_mm)), params=P)
     assert np.allclose(t["thread"]["overfeed_mm"], b.overfeed, atol=2e-6)
     needle = r.point("needle.point")

@@ -1445,7 +1445,7 @@ def friction_forces(fr_int, fr_f, X, CP, CN, OM, GP, GV, XB0, XB, FP, FF):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
-def anderson_step(X, Xold, HF, HG, k, feasible):
+def anderson_step(X, Xold, HF, HG, k, feasible, done, tol):
     """One step of Anderson acceleration (type II, depth HF.shape[0] - 1) of the fixed point
     x = g(x), at every design and position on its own: Xold (D, n_phi, n) is x_k, X holds
     g(x_k) on entry and x_{k+1} on return. HF, HG (depth + 1, D, n_phi, n): the residuals
@@ -1453,8 +1453,11 @@ def anderson_step(X, Xold, HF, HG, k, feasible):
     1)). x_{k+1} = g_k - sum_j gamma_j (g_{k-j} - g_{k-j-1}), gamma the least-squares
     combination of the residuals' differences that best cancels f_k (normal equations of at
     most depth unknowns per position, solved by Gaussian elimination, damped by 1e-12 of
-    their trace). Returns max |f_k| relative to each design's largest |g| over its assembled
-    positions (the change of the plain step)."""
+    their trace). A position whose |f_k| is at most ``tol`` of its design's largest |g| is
+    done (``done``, (D, n_phi) bool, kept across the steps): X keeps that g_k and later steps
+    leave it, so that a design's answer does not depend on the others of its batch. Returns
+    max |f_k| relative to each design's largest |g| over its assembled positions not yet done
+    (0 when all are)."""
     depth = HF.shape[0] - 1
     ring = depth + 1
     slot = k % ring
@@ -1470,6 +1473,10 @@ def anderson_step(X, Xold, HF, HG, k, feasible):
                 for e in range(n):
                     scale = max(scale, abs(X[d, kk, e]))
         for kk in range(n_phi):
+            if done[d, kk]:  # settled before: its forces stay as they were
+                for e in range(n):
+                    X[d, kk, e] = Xold[d, kk, e]
+                continue
             res = 0.0
             for e in range(n):
                 f = X[d, kk, e] - Xold[d, kk, e]
@@ -1477,6 +1484,9 @@ def anderson_step(X, Xold, HF, HG, k, feasible):
                 HG[slot, d, kk, e] = X[d, kk, e]
                 res = max(res, abs(f))
             if not feasible[d, kk]:
+                continue
+            if res / scale <= tol:  # settled now: X holds g_k, the forces of this solve
+                done[d, kk] = True
                 continue
             if not res / scale <= worst:
                 worst = res / scale

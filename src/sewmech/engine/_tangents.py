@@ -32,8 +32,20 @@ import math
 import numpy as np
 from numba import njit
 
-from ._kernels import (OP_CRANK, OP_FIXED, OP_LOOP, OP_POINT, OP_RPR, OP_RRP, OP_RRR, SRC_LINK,
-                       SRC_PARAM, TERM_POINT, TERM_VEC, arc_of)
+from ._kernels import (
+    OP_CRANK,
+    OP_FIXED,
+    OP_LOOP,
+    OP_POINT,
+    OP_RPR,
+    OP_RRP,
+    OP_RRR,
+    SRC_LINK,
+    SRC_PARAM,
+    TERM_POINT,
+    TERM_VEC,
+    arc_of,
+)
 
 _OPTS = dict(cache=True, error_model="numpy", fastmath={"contract"})
 

@@ -10,10 +10,10 @@ The opening speed: at a constant shaft speed omega the accelerations grow with o
 velocities with omega; gravity, springs and position-dependent loads do not change. So at each
 shaft angle N = a + b omega + c omega^2 exactly for a machine without friction and without
 velocity-dependent loads (b from dampers alone), and nearly so with them. The coefficients are
-fitted per angle from three speeds (half, once and twice the working speed); the least speed at
+fitted per angle from three speeds (once, 1.5 and twice the working speed); the least speed at
 which some angle's N reaches 0 is then bracketed and found by Brent's method on the full
 analysis (friction, the loads' smooth signs and all), the least force over the turn on a grid of
-``n_phi`` angles refined by a parabola.
+``n_phi`` angles, looked for again on a fine grid across the steps around the grid's least.
 
 Units: forces N, speeds rev/min (``*_rpm``), angles deg at the edges.
 """
@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .kinematics import MIN_RPM
 from .machine import Machine
 
 #: the fastest speed sewmech looks for an opening at, as a multiple of the working speed
@@ -69,18 +70,25 @@ def _margin_of(machine: Machine, name: str) -> float:
     return 1.0
 
 
-def _least(values: np.ndarray, phi_deg: np.ndarray) -> tuple[float, float]:
-    """Least value of a periodic sampled curve and its angle, refined by a parabola through
-    the grid minimum and its neighbours."""
+#: the least force of a contact is looked for again on this many angles across the grid
+#: steps on both sides of the grid's least (a load that starts or stops there makes the force
+#: jump, so no curve is fitted through the grid values)
+LOCAL_POINTS = 81
+
+
+def _least(force_at, values: np.ndarray, phi_deg: np.ndarray) -> tuple[float, float]:
+    """Least value of a periodic sampled curve and its angle (deg): the grid's least, looked
+    for again by evaluating ``force_at(phi_deg array)`` on LOCAL_POINTS angles across the two
+    grid steps around it."""
     n = values.shape[0]
     k = int(np.nanargmin(values))
-    y0, y1, y2 = values[(k - 1) % n], values[k], values[(k + 1) % n]
-    den = y0 - 2.0 * y1 + y2
     h = 360.0 / n
-    if den > 0.0:
-        t = 0.5 * (y0 - y2) / den
-        return float(y1 - 0.25 * (y0 - y2) * t), float((phi_deg[k] + t * h) % 360.0)
-    return float(y1), float(phi_deg[k])
+    local = phi_deg[k] + np.linspace(-h, h, LOCAL_POINTS)
+    fine = force_at(np.mod(local, 360.0))
+    j = int(np.nanargmin(fine))
+    if fine[j] < values[k]:
+        return float(fine[j]), float(local[j] % 360.0)
+    return float(values[k]), float(phi_deg[k])
 
 
 def contact_margins(machine: Machine, *, rpm: float | None = None,
@@ -113,20 +121,29 @@ def contact_margins(machine: Machine, *, rpm: float | None = None,
 
     f1 = forces(rpm0)
     out = []
+
+    def local(j: int):
+        def force_at(deg: np.ndarray) -> np.ndarray:
+            plan = DynamicsPlan(machine, np.radians(deg), rpm=rpm0, loads=loads,
+                                gravity=gravity)
+            return np.asarray(plan(params, inputs=inputs).pair(pairs[j].name))[..., 0]
+        return force_at
+
     if not opening:
         for j, p in enumerate(pairs):
-            least, at = _least(f1[:, j], phi_deg)
+            least, at = _least(local(j), f1[:, j], phi_deg)
             out.append(ContactMargin(p.name, _margin_of(machine, p.name), least, at, None,
                                      rpm0))
         return out
-    speeds = (0.5 * rpm0, rpm0, 2.0 * rpm0)
+    speeds = (rpm0, 1.5 * rpm0, 2.0 * rpm0)  # (none below the working speed: it may be the
+    # slowest sewmech takes)
     fit = [f1 if s == rpm0 else forces(s) for s in speeds]
     w = np.array([s * math.pi / 30.0 for s in speeds])
     V = np.stack([np.ones(3), w, w * w], axis=1)
     coef = np.linalg.solve(V, np.stack(fit, axis=0).reshape(3, -1)).reshape(3, n_phi, -1)
     top = min(OPENING_SEARCH_FACTOR * rpm0, 1e5)
     for j, p in enumerate(pairs):
-        least, at = _least(f1[:, j], phi_deg)
+        least, at = _least(local(j), f1[:, j], phi_deg)
         opens = None
         guess = _first_root(coef[:, :, j], top * math.pi / 30.0)
         def least_at(r: float, j: int = j) -> float:
@@ -174,7 +191,7 @@ def _refine(g, rpm0: float, guess: float, top: float) -> float | None:
         if hi > top:
             return None
     # the fit may overshoot: come down while the force at the lower end is still <= 0
-    while g(lo) <= 0.0 and lo > 1e-3:
+    while g(lo) <= 0.0 and lo * 0.8 >= MIN_RPM:
         hi, lo = lo, lo * 0.8
     return float(brentq(g, lo, hi, xtol=1e-9 * hi, rtol=1e-12))
 
@@ -187,6 +204,6 @@ def _bisect_down(g, rpm0: float) -> float | None:
     hi, lo = rpm0, rpm0
     while g(lo) <= 0.0:
         hi, lo = lo, lo * 0.5
-        if lo < 1e-3 * rpm0:
+        if lo < max(1e-3 * rpm0, MIN_RPM):
             return None
     return float(brentq(g, lo, hi, xtol=1e-9 * hi, rtol=1e-12))

@@ -34,8 +34,8 @@ from ._blocks import MAX_BLOCK
 from ._threads import run_chunks
 from .counterweights import CounterweightMotion, counterweight_values
 from .errors import AnalysisError, OptionError, SewmechError
-from .kinematics import KinematicsPlan, check_speed, kernel_input, kernel_params
 from .friction import ANDERSON_DEPTH, MAX_STEPS, TOLERANCE, FrictionTables
+from .kinematics import KinematicsPlan, check_speed, kernel_input, kernel_params
 from .loads import LoadTables, in_windows  # noqa: F401  (in_windows: sewmech.dynamics.in_windows)
 from .machine import Machine, Pair
 from .mass import MassProperties
@@ -276,6 +276,18 @@ class DynamicsResult:
             raise ValueError(f"pair '{name}' is a driver: it transmits a torque, not a force")
         return x[..., :1] * self._geometry[1][..., self.pairs.index(pair), :]
 
+    def total_force(self, name: str) -> np.ndarray:
+        """The force (N) of a pair on its second link, the friction along a sliding pair's
+        tangent included (:meth:`force` is its normal force alone), batch + (n_phi, 2)."""
+        F = self.force(name)
+        fr = self._friction_at_pairs
+        c, pair = self._columns[name]
+        if name in fr and pair.kind != "revolute":
+            n = self._geometry[1][..., self.pairs.index(pair), :]
+            t = np.stack([n[..., 1], -n[..., 0]], axis=-1)  # the friction kernel's tangent
+            F = F + fr[name][..., None] * t
+        return F
+
     def magnitude(self, name: str) -> np.ndarray:
         """|force| (N) of a pair, or |torque| (N mm) of a driver, batch + (n_phi,)."""
         c, pair = self._columns[name]
@@ -314,15 +326,86 @@ class DynamicsResult:
     # ---- the frame
     @cached_property
     def frame_reactions(self) -> dict[str, np.ndarray]:
-        """Force (N) on the frame at each of its pairs (revolute, prismatic, cam, slot)."""
+        """Force (N) on the frame at each of its pairs (revolute, prismatic, cam, slot), the
+        friction along a sliding pair's tangent included, and of each spring anchored to it
+        (by the spring's name); where each acts: :attr:`frame_reaction_points`."""
         out = {}
         for name, (c, pair) in self._columns.items():
             if pair.kind == "driver":
                 continue
-            if pair.links[0] == FRAME:
-                out[name] = -self.force(name)
-            elif pair.links[1] == FRAME:
-                out[name] = self.force(name)
+            if FRAME not in pair.links:
+                continue
+            F = self.total_force(name)
+            out[name] = -F if pair.links[0] == FRAME else F
+        for spring, (end, F) in self._frame_springs.items():
+            out[spring] = F
+        return out
+
+    @cached_property
+    def frame_reaction_points(self) -> dict[str, np.ndarray]:
+        """Where each force of :attr:`frame_reactions` acts on the frame, mm, batch + (n_phi,
+        2): a pair's point (a cam's contact), a spring's anchor."""
+        points, _ = self._geometry
+        out = {}
+        for name in self.frame_reactions:
+            if name in self._frame_springs:
+                out[name] = self.kin.point(self._frame_springs[name][0]).p
+            else:
+                out[name] = points[..., self.pair_names.index(name), :]
+        return out
+
+    @cached_property
+    def _frame_springs(self) -> dict[str, tuple[str, np.ndarray]]:
+        """The translational springs anchored to the frame: name -> (anchor point, force on
+        the frame N)."""
+        out = {}
+        sp = self.springs
+        if sp is None:
+            return out
+        for j, spec in enumerate(self.machine.spec.springs):
+            if FRAME not in spec.links:
+                continue
+            e = spec.links.index(FRAME)
+            pa = self.kin.point(spec.points[0]).p
+            pb = self.kin.point(spec.points[1]).p
+            d = pb - pa
+            u = d / np.linalg.norm(d, axis=-1, keepdims=True)
+            T = sp.force[..., j][..., None]
+            out[spec.name] = (spec.points[e], T * u if e == 0 else -T * u)
+        return out
+
+    @cached_property
+    def _friction_at_pairs(self) -> dict[str, np.ndarray]:
+        if self.friction is None:
+            return {}
+        return {name: self.friction.force[..., j] for j, name in enumerate(self.friction.pairs)}
+
+    @cached_property
+    def frame_couples(self) -> dict[str, np.ndarray]:
+        """Couples (N mm) on the frame at its pairs: a guide's couple, the friction moment at
+        a pin with the frame, a torsion spring's at such a pin (by the spring's name)."""
+        out = {}
+        fr = self._friction_at_pairs
+        for name, (c, pair) in self._columns.items():
+            if pair.kind == "driver" or FRAME not in pair.links:
+                continue
+            sign = -1.0 if pair.links[0] == FRAME else 1.0  # on the frame: minus its action
+            M = np.zeros(self.kin.phi.shape if not self.kin.batch_shape else
+                         self.kin.batch_shape + self.kin.phi.shape)
+            if pair.kind == "prismatic":
+                M = M + sign * self.unknowns[..., c + 1]
+            if pair.kind == "revolute" and name in fr:
+                M = M + sign * fr[name]
+            if pair.kind == "prismatic" or name in fr:
+                out[name] = M
+        sp = self.springs
+        if sp is not None:
+            n = sp.n_translational
+            for j, spec in enumerate(self.machine.spec.torsion_springs):
+                pair = self.pairs[self.pair_names.index(spec.pair)]
+                if FRAME in pair.links:  # its moment on the pair's second link; the first's
+                    M = sp.force[..., n + j]
+                    out[spec.name] = -M if pair.links[0] == FRAME else M
         return out
 
     @cached_property
@@ -498,7 +581,7 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
                 continue
             if pair.links[0] in shaft.links and pair.links[1] in shaft.links:
                 continue
-            F = res.force(pair.name) * (1.0 if pair.links[1] == lname else -1.0)
+            F = res.total_force(pair.name) * (1.0 if pair.links[1] == lname else -1.0)
             S += F
             Mx += -z * F[..., 1]
             My += z * F[..., 0]
@@ -872,6 +955,7 @@ class DynamicsPlan:
         friction = {} if fr is None else dict(
             FF=np.zeros((n_d, n_phi, len(fr))), FP=np.zeros((n_d, n_phi, len(fr))),
             XB0=np.empty((n_d, n_phi, n_eq)), Xold=np.empty((n_d, n_phi, n_eq)),
+            DONE=np.zeros((n_d, n_phi), dtype=bool),
             HF=np.zeros((ANDERSON_DEPTH + 1, n_d, n_phi, n_eq)),
             HG=np.zeros((ANDERSON_DEPTH + 1, n_d, n_phi, n_eq)),
             CP=np.zeros((n_d, n_phi, len(machine.pairs), 2)),
@@ -948,7 +1032,8 @@ class DynamicsPlan:
         XB0[...] = XB
         feasible = a["feasible"]
         ints, vals = kernel_input(fr.ints), kernel_input(fr.values)
-        HF, HG = out["HF"], out["HG"]
+        HF, HG, done = out["HF"], out["HG"], out["DONE"]
+        done[...] = False
         for step in range(MAX_STEPS):
             np.copyto(Xold, X)
             K.friction_forces(ints, vals, X, cp, cn, a["OM"], a["GP"], a["GV"], XB0, XB,
@@ -956,9 +1041,8 @@ class DynamicsPlan:
             solve(*head, kp_params, *tail, self._max_written)
             if cw_part is not None:
                 X += cw_part
-            change = K.anderson_step(X, Xold, HF, HG, step, feasible)
-            if change <= TOLERANCE:
-                np.copyto(X, HG[step % HG.shape[0]])  # the forces of the last solve
+            change = K.anderson_step(X, Xold, HF, HG, step, feasible, done, TOLERANCE)
+            if change <= TOLERANCE:  # every position settled (each keeps its own answer)
                 break
         else:
             from .errors import AnalysisError
@@ -1192,8 +1276,10 @@ def speed_fluctuation(machine: Machine, *, rpm: float | None = None, flywheel: f
 
     The machine is one degree of freedom: d/dphi (J(phi) omega^2 / 2) = M - Q(phi), where
     J(phi) is the reduced inertia (mechanisms plus ``flywheel``, kg mm^2), M the motor torque
-    and Q(phi) the load torque at rest (weights and process loads, by virtual work from the
-    motion at unit speed). A steady cycle needs M = mean Q; the energy integral then gives
+    and Q(phi) the torque everything but the inertia asks at the shaft (weights, springs and
+    process loads by virtual work; friction and dampers by the power they take), taken on the
+    motion at the nominal speed: friction, dampers and resistive loads depend on it, and the
+    fluctuation is small. A steady cycle needs M = mean Q; the energy integral then gives
     omega(phi), scaled so that its mean over the cycle is ``rpm``.
     """
     if not 0.0 <= flywheel <= 1e12:  # (a NaN fails too)
@@ -1204,6 +1290,7 @@ def speed_fluctuation(machine: Machine, *, rpm: float | None = None, flywheel: f
     if not 8 <= n_phi <= 100_000:
         raise OptionError("n_phi", f"must be in 8 .. 100000 positions, got {n_phi!r}")
     phi = np.linspace(0.0, 2 * math.pi, n_phi, endpoint=False)
+    w_nom = (machine.rpm if rpm is None else rpm) * 2 * math.pi / 60
     unit = inverse_dynamics(machine, phi, omega=1.0, inputs=inputs, loads=loads,
                             gravity=gravity, masses=masses)  # omega = 1 rad/s: rates = d/dphi
     J = unit.reduced_inertia + flywheel  # kg mm^2
@@ -1211,13 +1298,15 @@ def speed_fluctuation(machine: Machine, *, rpm: float | None = None, flywheel: f
         raise AnalysisError(machine.file, "the reduced inertia J(phi) is zero (no [masses] and"
                            " no flywheel): the speed cannot be computed", "Add [masses.LINK]"
                            " tables or give a flywheel")
-    Q = unit.potential_energy_rate - unit.external_power  # N mm per rad
+    nominal = inverse_dynamics(machine, phi, omega=w_nom, inputs=inputs, loads=loads,
+                               gravity=gravity, masses=masses)
+    Q = (nominal.potential_energy_rate - nominal.external_power + nominal.friction_power
+         + nominal.damping_power) / w_nom  # N mm per rad
     M = float(Q.mean())
     # work of M - Q from phi = 0, by the trapezoidal rule on the periodic grid (closed cycle)
     h = 2 * math.pi / n_phi
     f = M - Q
     W = np.concatenate([[0.0], np.cumsum(0.5 * h * (f[:-1] + f[1:]))])  # N mm
-    w_nom = (machine.rpm if rpm is None else rpm) * 2 * math.pi / 60
 
     def omega_for(w0):  # 1/2 J w^2 = 1/2 J0 w0^2 + W, in kg mm^2/s^2 (W in N mm = 1e3 kg mm^2/s^2)
         return np.sqrt(np.maximum(J[0] * w0 ** 2 + 2e3 * W, 0.0) / J)

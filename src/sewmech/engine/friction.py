@@ -19,17 +19,12 @@ mu = 0 everywhere (or no ``[friction]`` table) is the frictionless analysis, exa
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from . import _kernels as K
-from .errors import MachineFileError
-
-if TYPE_CHECKING:
-    from .machine import Machine, Pair
+from .machine import Machine
 
 #: unknowns per pair kind (as the force analysis lays them out)
 N_UNKNOWN = {"revolute": 2, "prismatic": 2, "cam": 1, "slot": 1, "driver": 1}
@@ -41,25 +36,6 @@ TOLERANCE = 1e-10
 MAX_STEPS = 60
 #: the steps Anderson's acceleration combines (:func:`sewmech._kernels.anderson_step`)
 ANDERSON_DEPTH = 3
-
-
-def check_friction(machine_name: str, file: str, friction, pairs: tuple[Pair, ...]) -> None:
-    """Raise :class:`MachineFileError` for a ``[friction.pairs]`` entry naming no pair of the
-    machine, or a pin radius given for a pair that has no pin."""
-    if friction is None:
-        return
-    kinds = {p.name: p.kind for p in pairs if p.kind != "driver"}
-    for name, pf in friction.pairs.items():
-        if name not in kinds:
-            close = difflib.get_close_matches(name, list(kinds), n=3)
-            raise MachineFileError(file, "friction.pairs", name, f"machine '{machine_name}' has"
-                                   f" no pair '{name}'",
-                                   f"Did you mean {', '.join(close)}?" if close else
-                                   "`sewmech check MACHINE --pairs` lists them")
-        if pf.pin_radius_mm is not None and kinds[name] != "revolute":
-            raise MachineFileError(file, f"friction.pairs.{name}", "pin_radius_mm", f"'{name}'"
-                                   f" is a {kinds[name]} pair, which has no pin",
-                                   "Give pin_radius_mm only for revolute pairs")
 
 
 @dataclass(frozen=True)

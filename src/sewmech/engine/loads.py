@@ -13,8 +13,8 @@ kinematics channel (``p_feed_dog.tip_y``: the dog's tip height, mm; ``v_...``, `
 the needle thread between the file's ``[thread] take_up`` guides, mm: it grows while the take-up
 draws thread back). ``above``/``below`` compare the channel with a value; ``rising``/``falling``
 read the sign of its rate; ``within_of_max`` holds where the channel is within that much of its
-largest value over the whole turn (found on a 0.25 deg grid of its own and refined by a
-parabola, whatever grid the forces are asked on).
+largest value over the whole turn (found on a 5 deg grid of its own, then on a 0.25 deg grid
+around it and refined by a parabola, whatever grid the forces are asked on).
 
 Force laws: ``constant`` (``force_N`` along a fixed direction or the bisector toward points),
 ``elastic`` (``force_N`` plus ``rate_N_per_mm`` times the travel of its first above/below
@@ -32,24 +32,17 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .errors import MachineFileError
-from .spec import FRAME, Condition, LoadSpec
+from .channels import ChannelRef, channel_values, resolve_channel
+from .machine import Machine
+from .spec import Condition, LoadSpec
 
-if TYPE_CHECKING:
-    from .machine import Machine
-
-#: the thread channels a condition may read (with a ``[thread]`` table)
-THREAD_CHANNELS = ("thread.take_up_mm",)
-#: the grid on which ``within_of_max`` finds a channel's largest value over the turn, deg
+#: the grids on which ``within_of_max`` finds a channel's largest value over the turn: a coarse
+#: one over the turn, then a fine one across the coarse steps around its largest value, deg
+MAX_COARSE_DEG = 5.0
 MAX_GRID_DEG = 0.25
-#: channel kind -> (kernel array of its value, of its rate)
-_KINDS = {"p": ("P", "V"), "v": ("V", "A"), "a": ("A", None), "theta": ("TH", "OM"),
-          "omega": ("OM", "EP"), "epsilon": ("EP", None), "q": ("S", "SD"), "qd": ("SD", "SDD"),
-          "qdd": ("SDD", None)}
 
 
 def in_windows(phi_deg: np.ndarray, windows: Sequence[tuple[float, float]]) -> np.ndarray:
@@ -89,89 +82,6 @@ def add_couple(XB: np.ndarray, link: int, M: np.ndarray) -> None:
 def smooth_sign(x: np.ndarray, scale: float) -> np.ndarray:
     """x / sqrt(x^2 + scale^2): the sign of x, smooth where |x| is below ``scale``."""
     return x / np.sqrt(x * x + scale * scale)
-
-
-# ---- channels ---------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class ChannelRef:
-    """A channel resolved to kernel arrays: ``kind`` (p, v, ..., or thread), the index of its
-    point, link or variable, and its component (0 x, 1 y) for point channels."""
-
-    name: str
-    kind: str
-    index: int = -1
-    comp: int = 0
-
-
-def resolve_channel(name: str, points: Sequence[str], links: Sequence[str],
-                    variables: Sequence[str], has_thread: bool) -> ChannelRef | None:
-    """The channel ``name`` of a machine with these points, links and joint variables, or
-    None if it has no such channel."""
-    if name in THREAD_CHANNELS:
-        return ChannelRef(name, "thread") if has_thread else None
-    kind, _, rest = name.partition("_")
-    if kind not in _KINDS or not rest:
-        return None
-    if kind in ("p", "v", "a"):
-        pt, _, comp = rest.rpartition("_")
-        if comp not in ("x", "y") or pt not in points:
-            return None
-        return ChannelRef(name, kind, list(points).index(pt), "xy".index(comp))
-    if kind in ("theta", "omega", "epsilon"):
-        if rest not in links or rest == FRAME:
-            return None
-        return ChannelRef(name, kind, list(links).index(rest))
-    if rest not in variables:
-        return None
-    return ChannelRef(name, kind, list(variables).index(rest))
-
-
-def channel_examples(points: Sequence[str]) -> str:
-    ex = [f"p_{p}_y" for p in list(points)[:2]]
-    return ", ".join(ex + ["theta_LINK", "q_VARIABLE", *THREAD_CHANNELS])
-
-
-def check_conditions(machine_name: str, file: str, loads: Sequence[LoadSpec], points, links,
-                     variables, has_thread: bool) -> None:
-    """Raise :class:`MachineFileError` (file, load, ``when``) for a condition that names a
-    channel the machine does not have, or asks the rate of a channel that has none here."""
-    import difflib
-
-    for k, load in enumerate(loads):
-        table = f'loads[{k}] "{load.name}"'
-        for j, c in enumerate(load.when):
-            ref = resolve_channel(c.channel, points, links, variables, has_thread)
-            if ref is None:
-                known = [f"p_{p}_{x}" for p in points for x in "xy"] + list(THREAD_CHANNELS)
-                close = difflib.get_close_matches(c.channel, known, n=3)
-                why = (" (thread channels need a [thread] table)"
-                       if c.channel in THREAD_CHANNELS else "")
-                raise MachineFileError(file, table, f"when[{j}].channel", f"machine"
-                                       f" '{machine_name}' has no channel '{c.channel}'{why}",
-                                       f"Did you mean {', '.join(close)}?" if close else
-                                       f"Channels look like {channel_examples(points)}")
-            if (c.rising or c.falling) and ref.kind != "thread" and _KINDS[ref.kind][1] is None:
-                raise MachineFileError(file, table, f"when[{j}]", f"'{c.channel}' is an"
-                                       " acceleration: sewmech has no rate of it to read",
-                                       "Use the velocity's channel with above or below")
-
-
-def channel_values(ref: ChannelRef, a: dict[str, np.ndarray], thread=None
-                   ) -> tuple[np.ndarray, np.ndarray | None]:
-    """A channel's values and rates (D, n_phi) from the kinematics kernel arrays ``a`` (the
-    rate None where sewmech has none); ``thread``: a :class:`ThreadSection` for thread
-    channels."""
-    if ref.kind == "thread":
-        return thread.length_and_rate(a["P"], a["V"])
-    val, rate = _KINDS[ref.kind]
-    point = ref.kind in ("p", "v", "a")
-
-    def get(key: str) -> np.ndarray:
-        return a[key][:, :, ref.index, ref.comp] if point else a[key][:, :, ref.index]
-
-    return get(val), (get(rate) if rate is not None else None)
 
 
 @dataclass(frozen=True)
@@ -266,24 +176,64 @@ class LoadTables:
 
     def _maxima(self, ref: ChannelRef, params: np.ndarray) -> np.ndarray:
         """The channel's largest value over the turn, (D,), for the designs ``params`` (the
-        same designs and settings the forces are asked for)."""
-        from .kinematics import KinematicsPlan
+        same designs and settings the forces are asked for): found on a 5 deg grid of its own,
+        then on a 0.25 deg grid across the steps around it, refined by a parabola through the
+        three best (the channels a condition reads are smooth where they peak). Kept per
+        design, on the machine (the counterweights, which move nothing, left out of its key)."""
+        from .kinematics import KinematicsPlan, kinematics
 
+        P = params.reshape(-1, params.shape[-1])
+        out = np.empty(P.shape[0])
+        cw = [i for c in self.machine.counterweights for i in c.params]
+        todo = []
+        for d in range(P.shape[0]):
+            key = P[d].copy()
+            key[cw] = 0.0
+            key = (ref.name, key.tobytes())
+            hit = self.machine._condition_maxima.get(key)
+            if hit is None:
+                todo.append((d, key))
+            else:
+                out[d] = hit
+        if not todo:
+            return out
         if self._max_plan is None:
-            n = round(360.0 / MAX_GRID_DEG)
+            n = round(360.0 / MAX_COARSE_DEG)
             self._max_plan = KinematicsPlan(self.machine, np.arange(n) * (2 * math.pi / n),
                                             on_failure="mask")
         plan = self._max_plan
-        plan.run(params.reshape(-1, params.shape[-1]))
-        v = channel_values(ref, plan.kernel_arrays(), self.thread)[0]  # (D, n)
-        k = np.nanargmax(np.where(np.isfinite(v), v, -np.inf), axis=1)
-        n = v.shape[1]
-        rows = np.arange(v.shape[0])
-        y0, y1, y2 = v[rows, (k - 1) % n], v[rows, k], v[rows, (k + 1) % n]
-        den = y0 - 2.0 * y1 + y2
-        with np.errstate(invalid="ignore", divide="ignore"):
-            peak = np.where(den < 0.0, y1 - 0.125 * (y2 - y0) ** 2 / den, y1)
-        return np.maximum(peak, y1)
+        rows = np.array([d for d, _ in todo])
+        plan.run(P[rows])
+        coarse = channel_values(ref, plan.kernel_arrays(), self.thread)[0]  # (m, n)
+        h = math.radians(MAX_COARSE_DEG)
+        offsets = np.linspace(-h, h, 2 * round(MAX_COARSE_DEG / MAX_GRID_DEG) + 1)
+        ks = np.argmax(np.where(np.isfinite(coarse), coarse, -np.inf), axis=1)
+        cache = self.machine._condition_maxima
+        for k in np.unique(ks):  # the designs whose coarse peak is at the same angle together
+            group = np.nonzero(ks == k)[0]
+            r = kinematics(self.machine, k * h + offsets, params=P[rows[group]],
+                           on_failure="mask")
+            if ref.kind == "thread":
+                fine = self.thread.length_and_rate(r.p, r.v)[0]
+            else:
+                fine = np.asarray(r.channel(ref.name)[0], dtype=float).reshape(len(group), -1)
+            fine = np.where(np.isfinite(fine), fine, -np.inf)
+            for j, g in enumerate(group):
+                f = fine[j]
+                i = int(np.argmax(f))
+                y1 = f[i]
+                peak = y1
+                if 0 < i < len(f) - 1:
+                    y0, y2 = f[i - 1], f[i + 1]
+                    den = y0 - 2.0 * y1 + y2
+                    if den < 0.0:
+                        peak = max(y1, y1 - 0.125 * (y2 - y0) ** 2 / den)
+                d, key = todo[g]
+                out[d] = peak
+                if len(cache) >= 4096:
+                    cache.pop(next(iter(cache)))
+                cache[key] = peak
+        return out
 
     def masks(self, a: dict[str, np.ndarray], params: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray]:

@@ -25,11 +25,9 @@ from .cams import CONSTANT_WIDTH_KEYS, constant_width_arcs, constant_width_fault
 from .counterweights import PARAMETERS as CW_PARAMETERS
 from .counterweights import Counterweight
 from .errors import MachineFileError, ParameterError, name_index
-from .friction import check_friction
-from .loads import check_conditions
 from .mass import from_spec as mass_from_spec
 from .paths import user_path
-from .springs import check_springs
+from .physics_checks import check_conditions, check_friction, check_springs
 from .spec import (
     FRAME,
     SHAFT,
@@ -355,6 +353,12 @@ class Machine:
     def _tangent_plans(self) -> dict:
         """The tangent layouts of sensitivities() calls, per output selection
         (:mod:`sewmech.engine.sensitivity`)."""
+        return {}
+
+    @cached_property
+    def _condition_maxima(self) -> dict:
+        """The largest values over the turn of the channels that loads' conditions read
+        (``within_of_max``), per design (:mod:`sewmech.engine.loads`)."""
         return {}
 
     @cached_property

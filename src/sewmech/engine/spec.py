@@ -912,6 +912,65 @@ class FrictionSpec(_Spec):
     note: str = ""
 
 
+Vec3Pos = tuple[PosFloat, PosFloat, PosFloat]
+
+
+class MountSpec(_Spec):
+    """One mount of the housing (``[[housing.mounts]]``): where it holds the housing (machine
+    frame, mm), its stiffness along x, y, z (N/mm) and its damping along them (N s/mm; default:
+    the housing's ``loss_factor``)."""
+
+    name: str = Field(min_length=1, max_length=200)
+    at_mm: Vec3
+    stiffness_N_per_mm: tuple[NonNegFloat, NonNegFloat, NonNegFloat]
+    damping_N_s_per_mm: tuple[NonNegFloat, NonNegFloat, NonNegFloat] | None = None
+    note: str = ""
+
+
+class HousingSpec(_Spec):
+    """``[housing]``: the machine's housing (head, arm and bed) as a rigid body on elastic
+    mounts, excited by every force the mechanisms put on it (docs/vibration.md).
+
+    ``mass``: its mass properties in the machine frame (a ``[masses]``-style table without
+    ``origin``: measured ``mass``, ``com`` [x, y, z] and a full ``inertia`` tensor, or solids);
+    ``mounts``: at least one; ``loss_factor``: the mounts' structural damping where a mount
+    gives no damping; ``control_points``: name -> [x, y, z] mm, where the vibration is judged
+    (the operator's hands); ``bounds_mm``: the housing's extent [[x0, x1], [y0, y1], [z0, z1]],
+    inside which mounts and control points must lie; ``planes_mm``: the z of the plane in which
+    each frame pair (or a spring anchored to the frame) acts, by name, and ``default_plane_mm``
+    for the others (the upper shaft's cranks act through its bearings, at ``[shaft]``'s z)."""
+
+    mass: MassSpec
+    mounts: list[MountSpec] = Field(min_length=1)
+    loss_factor: NonNegFloat = Field(0.1, le=2.0)
+    control_points: dict[Name, Vec3] = Field(min_length=1)
+    bounds_mm: tuple[tuple[Float, Float], tuple[Float, Float], tuple[Float, Float]] | None = None
+    planes_mm: dict[str, Float] = Field(default_factory=dict)
+    default_plane_mm: Float = 0.0
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _housing(self):
+        if self.mass.origin is not None:
+            raise ValueHint("the housing's mass properties are in the machine frame: it has no"
+                            " origin point", "Leave out origin")
+        if self.mass.mass is not None and self.mass.inertia is None:
+            raise ValueHint("the housing turns in 3-D on its mounts: give its full inertia"
+                            " tensor (inertia = [[Ixx, Ixy, Ixz], ...], kg mm^2 about its centre"
+                            " of mass), not only inertia_zz", "Give inertia, or solids")
+        if self.mass.mass is not None and len(self.mass.com) != 3:
+            raise ValueHint("the housing's com needs x, y and z (mm)", "Write com = [x, y, z]")
+        names = [m.name for m in self.mounts]
+        if len(set(names)) != len(names):
+            raise ValueHint("two mounts share a name", "Give every mount its own name")
+        if self.bounds_mm is not None:
+            for lo, hi in self.bounds_mm:
+                if not lo < hi:
+                    raise ValueHint(f"bounds_mm: [{lo:g}, {hi:g}] is not a range (low < high)",
+                                    "Write [[x0, x1], [y0, y1], [z0, z1]] with x0 < x1, ...")
+        return self
+
+
 class LoadFile(_Spec):
     """A load file: ``[[loads]]`` tables that replace the machine file's loads."""
 
@@ -957,6 +1016,7 @@ class MachineSpec(_Spec):
     springs: list[SpringSpec] = Field(default_factory=list)
     torsion_springs: list[TorsionSpringSpec] = Field(default_factory=list)
     friction: FrictionSpec | None = None
+    housing: HousingSpec | None = None
     shaft: ShaftSpec | None = None
     counterweights: dict[Name, CounterweightSpec] = Field(default_factory=dict)
 
@@ -1177,7 +1237,7 @@ def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpe
     return MachineFileError(file, table, key, msg, hint)
 
 
-#: the largest machine or load file sewmech reads, bytes (the shipped JB files are 40 kB)
+#: the largest machine or load file sewmech reads, bytes (the shipped JB files are 44 kB)
 MAX_FILE_BYTES = 4 * 1024 * 1024
 
 
@@ -1226,7 +1286,7 @@ def toml_text(data: bytes, file: str, what: str = "machine file") -> str:
 #: What any TOML file sewmech reads may hold (machine, load, problem, sweep and tolerance
 #: files, and uploads to ``sewmech serve``), checked by :func:`check_toml_bounds` before the
 #: text reaches Python's TOML parser (docs/machine-files.md). Each is far beyond the largest
-#: shipped file (jb1-3.toml: 40 kB, lines of at most 357 characters, 1,655 keys, tables and
+#: shipped file (jb1-3.toml: 44 kB, lines of at most 357 characters, 1,696 keys, tables and
 #: array items, table names of 2 parts, no dotted keys, arrays of 18 items) and together they
 #: bound the parser's time: tomllib's time and memory grow with the parts of a dotted key times
 #: the parts of its whole name (one 100 kB key of 50,000 parts took 51 s and 10 GB), it

@@ -17,80 +17,18 @@ or N mm s/rad, forces N, moments N mm, energies N mm, powers N mm/s.
 
 from __future__ import annotations
 
-import difflib
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .errors import AnalysisError, MachineFileError
+from .errors import AnalysisError
 from .loads import add_couple, add_point_force
-from .spec import SpringSpec, TorsionSpringSpec
-
-if TYPE_CHECKING:
-    from .machine import Machine, Pair
+from .machine import Machine
 
 #: how far a torsion spring may be wound from its free angle, rad (170 deg): beyond it the
 #: relative angle of its pair is not told apart from one a turn away
 WIND_LIMIT = math.radians(170.0)
-
-
-def check_springs(machine_name: str, file: str, springs: Sequence[SpringSpec],
-                  torsion: Sequence[TorsionSpringSpec], links: Sequence[str],
-                  points: Sequence[str], point_links: dict, pairs: Sequence[Pair]) -> None:
-    """Raise :class:`MachineFileError` (file, spring, key) for a spring that names a link or a
-    point the machine lacks, an end that is not on its link, both ends on one link, or a
-    torsion spring at a pair that is not a revolute pair."""
-    seen = set()
-    for k, s in enumerate(springs):
-        table = f'springs[{k}] "{s.name}"'
-        if s.name in seen:
-            raise MachineFileError(file, table, "name", f"a second spring named '{s.name}'",
-                                   "Give every spring its own name")
-        seen.add(s.name)
-        for e in range(2):
-            link, point = s.links[e], s.points[e]
-            if link not in links:
-                close = difflib.get_close_matches(link, list(links), n=3)
-                raise MachineFileError(file, table, f"links[{e}]", f"machine '{machine_name}'"
-                                       f" has no link '{link}'",
-                                       f"Did you mean {', '.join(close)}?" if close else
-                                       f"Links: {', '.join(links)}")
-            if point not in points:
-                close = difflib.get_close_matches(point, list(points), n=3)
-                raise MachineFileError(file, table, f"points[{e}]", f"machine '{machine_name}'"
-                                       f" has no point '{point}'",
-                                       f"Did you mean {', '.join(close)}?" if close else
-                                       "Name a point of [points] or of a unit")
-            if link not in point_links[point]:
-                on = [p for p in points if link in point_links.get(p, ())]
-                raise MachineFileError(file, table, f"points[{e}]", f"'{point}' is not a point"
-                                       f" of '{link}' (it is on:"
-                                       f" {', '.join(point_links[point])})",
-                                       f"The points of '{link}': {', '.join(on) or 'none'}")
-        if s.links[0] == s.links[1]:
-            raise MachineFileError(file, table, "links", f"both ends are on '{s.links[0]}': a"
-                                   " spring between two points of one link only stresses the"
-                                   " link, it puts no force on the mechanism",
-                                   "Join two different links (or a link and the frame)")
-    revolute = {p.name: p for p in pairs if p.kind == "revolute"}
-    for k, s in enumerate(torsion):
-        table = f'torsion_springs[{k}] "{s.name}"'
-        if s.name in seen:
-            raise MachineFileError(file, table, "name", f"a second spring named '{s.name}'",
-                                   "Give every spring its own name")
-        seen.add(s.name)
-        if s.pair not in revolute:
-            others = [p.name for p in pairs if p.name == s.pair]
-            what = (f"'{s.pair}' is a {next(p.kind for p in pairs if p.name == s.pair)} pair:"
-                    " a torsion spring sits at a pin" if others else
-                    f"machine '{machine_name}' has no pair '{s.pair}'")
-            close = difflib.get_close_matches(s.pair, list(revolute), n=3)
-            raise MachineFileError(file, table, "pair", what,
-                                   f"Did you mean {', '.join(close)}?" if close else
-                                   "`sewmech check MACHINE --pairs` lists the revolute pairs")
 
 
 @dataclass(frozen=True)

@@ -19,12 +19,12 @@ from __future__ import annotations
 import sys
 import time
 
-
 #: what is compiled, in order: (what the user is told, what calls it)
 STEPS = (
     ("the kinematics interpreter", "kinematics"),
     ("the force solver and its block solvers", "dynamics"),
     ("the force directions of the pairs", "pairs"),
+    ("friction in the pairs", "friction"),
     ("the design sensitivities' tangent kernel (positions)", "sensitivities"),
     ("the design sensitivities' tangent kernel (rates)", "rates"),
 )
@@ -55,6 +55,8 @@ def warm(progress=None) -> float:
             inverse_dynamics(m, phi)
         elif step == "pairs":
             pair_geometry(m, kin)
+        elif step == "friction":  # jb1-3 has [friction]: its kernels and Anderson's steps
+            inverse_dynamics(m, phi)
         elif step == "sensitivities":
             sensitivities(m, phi)  # every level of positions, every unit type
         else:

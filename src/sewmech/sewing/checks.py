@@ -53,6 +53,32 @@ def check_contacts(machine: Machine, params=None, *, opening_speeds: bool = True
     return out
 
 
+def check_loads_take_energy_out(machine: Machine, params=None) -> list[Check]:
+    """A check on a machine with process loads: over a turn at the working speed and setting
+    they must take energy out of the machine (a process resists the machine: the presser foot
+    gives back what it takes, the fabric and the thread take), or their windows and conditions
+    do not follow the process. Tolerance: 1e-6 of the peak motor power (the grid's mean of a
+    conservative load's power is not exactly 0)."""
+    if not machine.spec.loads:
+        return []
+    import math
+
+    import numpy as np
+
+    from ..engine.dynamics import inverse_dynamics
+
+    phi = np.radians(np.arange(0.0, 360.0, 0.5))
+    r = inverse_dynamics(machine, phi, params=None if params is None else np.asarray(params))
+    put_in = float(np.mean(r.external_power)) * 1e-3  # W
+    tol = 1e-6 * float(np.abs(r.input_power).max()) * 1e-3
+    ok = put_in <= tol
+    rpm = r.kin.omega_shaft.reshape(-1)[0] * 30.0 / math.pi
+    return [Check(f"process loads take energy out at {rpm:g} rpm", -put_in, "W",
+                  ">= 0 (what they take over a turn; below 0 they would drive the machine:"
+                  " give them conditions that follow the process)", ok,
+                  "the energy balance (docs/dynamics.md)")]
+
+
 def check_timing(machine: Machine, params=None, *, opening_speeds: bool = True
                  ) -> list[Check]:
     """The stitch-formation checks that the machine's roles allow, as numbers with pass/fail,
@@ -85,4 +111,5 @@ def check_timing(machine: Machine, params=None, *, opening_speeds: bool = True
     if s.feed_dog is not None and s.regulator is not None:
         out += check_feed(machine, params)
     out += check_contacts(machine, params, opening_speeds=opening_speeds)
+    out += check_loads_take_energy_out(machine, params)
     return out

@@ -349,6 +349,12 @@ def dynamics_cmd(
     console.print(_pair_table(res))
     if contacts:
         console.print(_contact_table(contacts))
+    drive = data["load_dissipation_W"]
+    if drive is not None and drive < -1e-6 * float(np.abs(res.input_power).max()) * 1e-3:
+        console.print("[yellow]note:[/] " + escape(
+            f"the process loads put {-drive:.4g} W into the machine over the turn: a process"
+            " resists the machine, so their windows or conditions do not follow it. Give them"
+            " conditions (`when`, docs/dynamics.md) that hold while their process acts"))
     if out is not None:
         with output_dir(out, command="dynamics") as root:
             written = write_dynamics_csv(res, root)

@@ -156,19 +156,37 @@ def _write(out: Path, problem, data: dict, problem_file: Path) -> None:
         problem_page(root, problem, data, problem_file)
         with atomic_write(root / "optimize.json") as fh:
             dump_json(data, fh, indent=1)
-        _drawing(root, problem, data)
+        why = _drawing(root, problem, data)
+    if why:
+        console.print(f"[yellow]note:[/] no drawing of the answer: {escape(why)}")
 
 
-def _drawing(root: Path, problem, data: dict) -> None:
-    """The answer's workshop drawing at phi = 0 (answer.dxf, answer.svg: sewmech export's)."""
+def _drawing(root: Path, problem, data: dict) -> str | None:
+    """The answer's workshop drawing (answer.dxf, answer.svg: sewmech export's) at phi = 0, or
+    at the first whole degree where it assembles; returns why there is none (the answer does
+    not assemble anywhere, or lies outside a parameter's domain), else None."""
+    import numpy as np
+
     import sewmech
 
+    from ...engine.errors import SewmechError
+    from ...engine.kinematics import kinematics
     from ..drawing.cad import machine_drawing
     from ..files.cad import write_dxf, write_svg
 
     x = [data["x"][n] for n in problem.names]
+    if any(v is None for v in x):
+        return "the optimiser gave no answer to draw"
     values = {n: float(v * f) for n, v, f in zip(problem.names, x, problem.factor, strict=True)}
-    m = problem.machine.with_parameters(values, origin="the optimiser's answer")
-    d = machine_drawing(m, phi_deg=0.0, version=sewmech.__version__)
+    try:
+        m = problem.machine.with_parameters(values, origin="the optimiser's answer")
+        ok = kinematics(m, np.radians(np.arange(360.0)), on_failure="mask").feasible
+        if not np.any(ok):
+            return "it assembles at no whole degree of the turn"
+        phi = float(np.argmax(ok))
+        d = machine_drawing(m, phi_deg=phi, version=sewmech.__version__)
+    except SewmechError as exc:
+        return str(exc)
     write_dxf(d, root / "answer.dxf")
     write_svg(d, root / "answer.svg")
+    return None

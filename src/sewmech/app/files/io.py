@@ -246,7 +246,9 @@ def write_dynamics_csv(res, out_dir: str | Path) -> list[Path]:
     for r in data["positions"]:
         row = {}
         for key, value in r.items():
-            if isinstance(value, list):
+            if key == "loads_acting":
+                row[key] = "; ".join(value)
+            elif isinstance(value, list):
                 row[key.replace("_N", "_x_N")] = value[0]
                 row[key.replace("_N", "_y_N")] = value[1]
             elif value is None and key.startswith("bearing"):

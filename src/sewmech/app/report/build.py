@@ -201,7 +201,14 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
                           inputs={s.regulator: math.radians(reg_max)})
         dog = fres.point(s.feed_dog).p
         dog_up = dog[:, 1] > s.plate_y
-    rows = 1 + bool(s.shuttle_link) + bool(s.take_up_eye) + 2 * has_feed
+    load_on = None
+    if machine.spec.loads:  # where each process load acts, at the diagram's setting
+        from ...engine.dynamics import inverse_dynamics
+
+        at = {s.regulator: math.radians(reg_max)} if has_feed else None
+        load_on = inverse_dynamics(machine, np.radians(phi_deg), inputs=at).load_on > 0.5
+    rows = 1 + bool(s.shuttle_link) + bool(s.take_up_eye) + 2 * has_feed + (
+        load_on is not None)
     fig, axs = subplots(rows, 1, figsize=(9, 2.3 * rows + 0.6), sharex=True,
                             constrained_layout=True, squeeze=False)
     axs = axs[:, 0]
@@ -235,6 +242,19 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
         tdata[f"dog_x_mm_at_regulator_{reg_max:g}deg"] = dog[:, 0]
         tdata[f"dog_y_mm_at_regulator_{reg_max:g}deg"] = dog[:, 1]
         tdata["dog_above_plate"] = dog_up
+        i += 2
+    if load_on is not None:
+        ax = axs[i]
+        names = [ld.name for ld in machine.spec.loads]
+        for j, name in enumerate(names):
+            on = load_on[:, j]
+            ax.fill_between(phi_deg, j - 0.35, j + 0.35, where=on, step="mid",
+                            color=f"C{(j + 6) % 10}", alpha=0.8, label=name)
+            tdata[f"load_acts: {name}"] = on
+        ax.set_yticks(range(len(names)), [n if len(n) <= 28 else n[:27] + "…" for n in names],
+                      fontsize=7)
+        ax.set_ylim(-0.7, len(names) - 0.3)
+        ax.set_ylabel("process loads")
     inside = w_in.contains(phi_deg)
     tdata["needle_in_fabric"] = inside
     for ax in axs:
@@ -257,7 +277,10 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
              "Needle height with the throat plate and the fabric top, shuttle angle,"
              " take-up eye height and the feed dog's fore-aft and vertical motion (at the"
              " longest forward stitch) over one revolution; shaded: needle in the fabric"
-             " and dog above the plate; dashed: the shuttle point meets the needle.",
+             " and dog above the plate; dashed: the shuttle point meets the needle."
+             + (" Last row: where each process load of the machine file acts (its windows"
+                " and its conditions on the motion, at the working speed)."
+                if load_on is not None else ""),
              pd.DataFrame(tdata))
     step("figures")
     blocks = figs.blocks

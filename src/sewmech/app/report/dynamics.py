@@ -11,7 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from ...engine.dynamics import in_windows, inverse_dynamics, speed_fluctuation
+from ...engine.dynamics import inverse_dynamics, speed_fluctuation
 from ...engine.machine import Machine
 from ...sewing import feed as FD
 from ...sewing.transmission import needle_force, pressure_angles, regulator_torques
@@ -57,10 +57,10 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
     ax.plot(phi_deg, full.input_torque * 1e-3, lw=1.6, label="with the process loads")
     ax.plot(phi_deg, noload.input_torque * 1e-3, lw=1.2, ls="--", label="no load")
     ax.plot(phi_deg, rest.input_torque * 1e-3, lw=1.0, ls=":", label="at rest (loads, weights)")
-    for k, load in enumerate(machine.spec.loads if loads is None else loads):
-        on = in_windows(phi_deg, load.windows_deg)
+    for k, name in enumerate(full.load_names):
+        on = full.load_on[:, k] > 0.5  # its windows and its conditions on the motion
         ax.fill_between(phi_deg, 0, 1, where=on, transform=ax.get_xaxis_transform(),
-                        color=f"C{k + 3}", alpha=0.12, step="mid", label=load.name)
+                        color=f"C{k + 3}", alpha=0.12, step="mid", label=name)
     ax.axhline(0.0, color="k", lw=0.6)
     ax.set_xlabel("shaft angle phi [deg]")
     ax.set_ylabel("driving torque [N m]")
@@ -70,8 +70,10 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
     ax.set_title(f"{machine.name}: torque on the upper shaft at {rpm:g} rpm{at}")
     figs.add(fig, "dyn-torque", "Driving torque",
              "The motor's torque on the upper shaft over one revolution with the process loads"
-             " of the machine file (shaded: their windows), without them (the no-load torque at"
-             " working speed), and at rest (what the weights and loads alone ask)." + kinks,
+             " of the machine file (shaded: where each acts, its windows and its conditions on"
+             " the motion), without them (the no-load torque at working speed: inertia, weights,"
+             " springs and friction), and at rest (what the weights, springs and loads alone"
+             " ask)." + kinks,
              pd.DataFrame({"phi_deg": phi_deg, "torque_Nm": full.input_torque * 1e-3,
                            "no_load_torque_Nm": noload.input_torque * 1e-3,
                            "static_torque_Nm": rest.input_torque * 1e-3}))
@@ -79,10 +81,16 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
     rows += [("peak driving torque", float(np.abs(tq).max()), "N m"),
              ("RMS driving torque", float(np.sqrt(np.mean(tq ** 2))), "N m"),
              ("mean driving torque (with loads)", float(tq.mean()), "N m"),
+             ("mean no-load torque at working speed (friction)",
+              float(noload.input_torque.mean() * 1e-3), "N m"),
              ("peak no-load torque at working speed",
               float(np.abs(noload.input_torque).max() * 1e-3), "N m"),
              ("peak power", float(np.abs(full.input_power).max() * 1e-3), "W"),
-             ("mean power with loads", float(full.input_power.mean() * 1e-3), "W")]
+             ("mean power with loads", float(full.input_power.mean() * 1e-3), "W"),
+             ("friction loss (mean)", float(full.friction_power.mean() * 1e-3), "W"),
+             ("dampers' loss (mean)", float(full.damping_power.mean() * 1e-3), "W"),
+             ("loads' dissipation (mean)", float(-full.external_power.mean() * 1e-3), "W")]
+    rows += _physics_figure(figs, machine, full, settings, rpm, loads, gravity, phi_deg)
 
     # ---- energy, reduced inertia, speed fluctuation -------------------------------------------
     sf = speed_fluctuation(machine, rpm=rpm, n_phi=720, loads=loads, **common)
@@ -178,13 +186,6 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
         peak.append({"pair": pair.name, "kind": pair.kind, "links": " -> ".join(pair.links),
                      "peak": float(mag[k] * scale), "unit": unit, "at_phi_deg": phi_deg[k],
                      "mean": float(mag.mean() * scale)})
-    for pair in full.pairs:  # a contact that can only push must not pull
-        if pair.one_sided:
-            n = full.pair(pair.name)[..., 0]
-            k = int(np.argmin(n))
-            rows.append((f"least force in the one-sided contact {pair.name}"
-                         f" ({'opens' if n[k] < 0 else 'stays closed'}; at phi {phi_deg[k]:g} deg)",
-                         float(n[k]), "N"))
     peak_df = pd.DataFrame(peak)
     forces = peak_df[peak_df.unit == "N"].sort_values("peak")
     fig, ax = subplots(figsize=(9, 0.28 * len(forces) + 1.2), constrained_layout=True)
@@ -273,3 +274,71 @@ def dynamics_section(figs, machine: Machine, variants: Sequence[Machine] = (), *
                  pd.DataFrame({"phi_deg": nf.phi_deg, "depth_mm": nf.depth, "force_N": nf.force}))
         rows.append((f"needle depth reached against {PENETRATION_RESISTANCE_N:g} N", limit, "mm"))
     return pd.DataFrame(rows, columns=["quantity", "value", "unit"])
+
+
+def _physics_figure(figs, machine: Machine, full, settings, rpm, loads, gravity,
+                    phi_deg) -> list[tuple]:
+    """The machine's own physics: the friction each pair takes, the springs' forces and the
+    one-sided contacts' forces with their margins and opening speeds (a figure when the
+    machine has any of them); returns its key-figure rows."""
+    from ...engine.contacts import contact_margins
+    from ..drawing.figures import subplots
+
+    contacts = contact_margins(machine, rpm=rpm, inputs=settings, loads=loads, gravity=gravity)
+    fr, sp = full.friction, full.springs
+    panels = [p for p, have in (("friction", fr is not None), ("springs", bool(sp and sp.names)),
+                                ("contacts", bool(contacts))) if have]
+    rows = []
+    for c in contacts:
+        rows.append((f"least force in the one-sided contact {c.name} (at phi"
+                     f" {c.at_phi_deg:.1f} deg; margin {c.margin_N:g} N:"
+                     f" {'holds' if c.ok else 'FAILS'})", c.least_force_N, "N"))
+        rows.append((f"speed above which {c.name} opens", c.opens_above_rpm
+                     if c.opens_above_rpm is not None else float("nan"), "rpm"))
+    if not panels:
+        return rows
+    fig, axs = subplots(len(panels), 1, figsize=(9, 3.2 * len(panels) + 0.6),
+                        constrained_layout=True, squeeze=False)
+    data = {"phi_deg": phi_deg}
+    for ax, panel in zip(axs[:, 0], panels):
+        if panel == "friction":
+            loss = fr.power.mean(axis=0) * 1e-3
+            order = np.argsort(loss)
+            ax.barh([fr.pairs[i] for i in order], loss[order], color="C3")
+            ax.set_xlabel("friction loss, mean over the turn [W]")
+            ax.set_title(f"friction in the pairs: {loss.sum():.3g} W in all")
+            ax.tick_params(axis="y", labelsize=7)
+            for j, name in enumerate(fr.pairs):
+                data[f"friction_W: {name}"] = fr.power[:, j] * 1e-3
+        elif panel == "springs":
+            for j, name in enumerate(sp.names):
+                torsion = j >= sp.n_translational
+                ax.plot(phi_deg, sp.force[:, j] * (1e-3 if torsion else 1.0),
+                        label=f"{name} [{'N m' if torsion else 'N'}]")
+                data[f"spring: {name}"] = sp.force[:, j] * (1e-3 if torsion else 1.0)
+            ax.set_ylabel("spring force")
+            ax.set_xlabel("shaft angle phi [deg]")
+            ax.legend(fontsize=7)
+        else:
+            for j, c in enumerate(contacts):
+                n = full.pair(c.name)[..., 0]
+                opens = ("never below 100 x" if c.opens_above_rpm is None
+                         else f"opens above {c.opens_above_rpm:.0f} rpm")
+                ax.plot(phi_deg, n, color=f"C{j}", label=f"{c.name} ({opens})")
+                ax.axhline(c.margin_N, color=f"C{j}", lw=0.8, ls="--")
+                ax.plot([c.at_phi_deg], [c.least_force_N], "o", color=f"C{j}", ms=4)
+                data[f"contact_N: {c.name}"] = n
+            ax.axhline(0.0, color="k", lw=0.6)
+            ax.set_ylabel("contact force [N]")
+            ax.set_xlabel("shaft angle phi [deg]")
+            ax.set_title("one-sided contacts (dashed: the margin each must keep)")
+            ax.legend(fontsize=7)
+        ax.grid(True, alpha=0.3)
+    fig.suptitle(f"{machine.name}: friction, springs and contacts at {rpm:g} rpm")
+    figs.add(fig, "dyn-physics", "Friction, springs and one-sided contacts",
+             "The machine's own physics (docs/dynamics.md): the power friction takes in each"
+             " pair (mean over the turn), the springs' forces, and the force in every one-sided"
+             " contact with the margin it must keep; the speed above which each contact opens"
+             " is found on the whole analysis (the inertia forces grow with the square of the"
+             " speed, springs, weights and loads do not).", pd.DataFrame(data))
+    return rows

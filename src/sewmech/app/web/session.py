@@ -37,7 +37,7 @@ DECIMALS = 6
 #: (measured: 64 keys of 64 parts 26 s, 2,000 points written `points.X.x = ...` 39 s, 128 keys
 #: of 4 parts in one table 2 s; within these limits at most about 1 s), so a file beyond any
 #: of them (its shape as :func:`~sewmech.engine.spec.check_toml_bounds` gives it) is written
-#: anew from its values. The shipped files: at most 1,655 items, no dotted keys, table names
+#: anew from its values. The shipped files: at most 1,696 items, no dotted keys, table names
 #: of 2 parts
 EXPORT_IN_PLACE = {"items": 10_000, "dotted_keys": 64, "dotted_key_parts": 3,
                    "table_parts": 8}
@@ -324,9 +324,14 @@ class Session:
         if self._dyn is not None:
             d = self._dyn(P)
             kin = d.kin
+            # the turn's means (the page's angles are a whole turn in equal steps)
+            mean = (lambda x: float(np.mean(x)) if np.all(np.isfinite(x)) else None)
+            fl = mean(d.friction_power) if d.friction is not None else None
             out["dynamics"] = {"torque_Nmm": _finite(d.input_torque),
                                "shaking_force_N": _finite(d.shaking_force),
-                               "shaking_moment_Nmm": _finite(d.shaking_moment)}
+                               "shaking_moment_Nmm": _finite(d.shaking_moment),
+                               "mean_torque_Nmm": mean(d.input_torque),
+                               "friction_loss_W": None if fl is None else fl * 1e-3}
         else:
             kin = self._kin(P)
             out["dynamics"] = None

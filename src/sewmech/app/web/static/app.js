@@ -245,8 +245,12 @@ function updateNumbers() {
     const T = t.dynamics.torque_Nmm, F = t.dynamics.shaking_force_N;
     $("torque-max").textContent = `${fmt(Math.max(...T.map((x) => Math.abs(x ?? 0))) / 1000, 3)} N m`;
     $("shake-max").textContent = `${fmt(Math.max(...F.map((v) => Math.hypot(v[0] ?? 0, v[1] ?? 0))), 1)} N`;
+    const mt = t.dynamics.mean_torque_Nmm, fl = t.dynamics.friction_loss_W;
+    $("torque-mean").textContent = mt === null ? "–" : `${fmt(mt / 1000, 3)} N m`;
+    $("friction-loss").textContent = fl === null ? "– (no [friction])" : `${fmt(fl, 2)} W`;
   } else {
     $("torque-max").textContent = $("shake-max").textContent = "– (no masses)";
+    $("torque-mean").textContent = $("friction-loss").textContent = "– (no masses)";
   }
 }
 
