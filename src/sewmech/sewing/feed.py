@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike
 from ..engine._events import at_rows as _at_rows
 from ..engine._events import crossing_rows as _crossing_rows
 from ..engine._events import extreme_rows as _extreme_rows
-from ..engine.errors import OptionError
+from ..engine.errors import AnalysisError, OptionError
 from ..engine.evaluation import evaluation
 from ..engine.kinematics import kinematics
 from ..engine.machine import Machine
@@ -332,7 +332,13 @@ def set_feed_timing(machine: Machine, mid_feed_after_top_deg: float = 0.0, *,
             break
         p[i] += math.radians(err)  # x(phi) ~ x0(phi + phase): a later mid-feed needs more phase
     else:
-        raise ValueError("the feed timing did not settle; check the feed mechanism")
+        raise AnalysisError(f"machine '{machine.name}' ({machine.file}) [sewing] feed_cam",
+                            f"no phase of the feed cam puts the middle of the feed stroke"
+                            f" {mid_feed_after_top_deg:g} deg after the top of lift at regulator"
+                            f" {reg:g} deg: 20 steps left it {abs(err):.3g} deg off (the"
+                            " middle of the stroke does not move with the cam's phase as a"
+                            " shift of the shaft angle)", "Check the feed and lift cams'"
+                            " dimensions against the machine's")
     return FeedTiming({f"{s.feed_cam}.phase": float(p[i])}, math.degrees(p[i]) % 360.0, c)
 
 

@@ -302,6 +302,30 @@ def shuttle_swing_gradient(machine: Machine, regulator_deg: float | None = None,
                     {"max": sw.max_phi_deg, "min": sw.min_phi_deg})
 
 
+#: the [sewing] roles each metric reads, besides the needle point every [sewing] table names
+METRIC_ROLES = {"stitch_length": ("feed_dog", "regulator"),
+                "feed_lift": ("feed_dog", "regulator"),
+                "dog_height_at_needle_plate": ("feed_dog", "regulator"),
+                "needle_top_deg": (), "take_up_lag_deg": ("take_up_eye",),
+                "needle_descent_at_take_up_top": ("take_up_eye",),
+                "loop_lift": ("shuttle_link", "shuttle_point"),
+                "shuttle_swing_deg": ("shuttle_link",)}
+
+
+def missing_roles(machine: Machine, metric: str) -> str | None:
+    """What the machine lacks to give ``metric`` (a key of :data:`METRICS`), in words, or None:
+    files that name a metric (sweeps, problems) are refused where they name it, not after
+    every design has failed on it."""
+    s = machine.spec.sewing
+    if s is None:
+        return (f"{metric} needs a [sewing] table (the needle point and the parts of stitch"
+                f" formation); '{machine.name}' has none")
+    lack = [r for r in METRIC_ROLES[metric] if getattr(s, r) is None]
+    if lack:
+        return f"{metric} needs [sewing] {' and '.join(lack)}, which '{machine.name}' does not name"
+    return None
+
+
 #: the metrics with exact derivatives: name -> function(machine, regulator_deg, params=)
 METRICS = {"stitch_length": stitch_length_gradient, "feed_lift": feed_lift_gradient,
            "dog_height_at_needle_plate": dog_height_at_needle_plate_gradient,

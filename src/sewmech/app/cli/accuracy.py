@@ -240,7 +240,8 @@ def tolerance_cmd(
         from ..files.outdir import preflight
 
         preflight(out, command="tolerance")
-    with Progress(console=console, transient=True) as progress:
+    with Progress(console=console, transient=True,
+                  disable=not console.is_terminal) as progress:
         progress.add_task(f"tolerance analysis of {output} ({samples} designs)", total=None)
         how = (_setting_option(m, regulator_deg is None, "--regulator-deg",
                                "--regulator-deg {deg:g}")
@@ -315,7 +316,7 @@ def _write_tolerance(m, out: Path, res, data: dict) -> None:
     from ..files.outdir import output_dir
 
     u = res.unit
-    with output_dir(out, command="tolerance") as root:
+    with output_dir(out, command="tolerance", machine=m.name) as root:
         stem = f"{m.name}-tolerance-{res.metric}"
         fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
         ax.hist(res.deviations, bins=80, density=True, color="C0", alpha=0.6,

@@ -81,6 +81,10 @@ def check_cmd(
         from ...sewing.timing import needle_windows  # reach, as the report needs them
 
         needle_windows(m)
+    if m.spec.thread is not None:  # a thread path whose guides never overlap over the turn
+        from ...sewing.thread import thread_path
+
+        thread_path(m, phi)
     conv = m.spec.convention
     table = Table(title=f"{m.name}: valid", show_header=False)
     table.add_row("file", m.file)
@@ -277,7 +281,7 @@ def kinematics_cmd(
     phi = _phi(step_deg, phi_deg)
     rpm = _rpm(rpm)
     if out is not None:
-        with output_dir(out, command="kinematics") as root:
+        with output_dir(out, command="kinematics", machine=m.name) as root:
             res = kinematics(m, phi, rpm=rpm, inputs=settings or None)
             path = root / f"{m.name}-kinematics.{format.value}"
             (write_kinematics_csv if format is Format.csv else write_kinematics_json)(res, path)
@@ -356,7 +360,7 @@ def dynamics_cmd(
             " resists the machine, so their windows or conditions do not follow it. Give them"
             " conditions (`when`, docs/dynamics.md) that hold while their process acts"))
     if out is not None:
-        with output_dir(out, command="dynamics") as root:
+        with output_dir(out, command="dynamics", machine=m.name) as root:
             written = write_dynamics_csv(res, root)
             n_figs = 0
             if m.spec.sewing is not None:
@@ -383,7 +387,8 @@ def _dynamics_figures(m, out, settings, rpm, load_specs, gravity) -> int:
     pool = figure_pool()
     try:
         figs = Figures(out, m.name, pool)
-        with Progress(console=console, transient=True) as progress:
+        with Progress(console=console, transient=True,
+                      disable=not console.is_terminal) as progress:
             progress.add_task("dynamics figures", total=None)
             # the command's settings (the file's defaults unless --input), as its tables
             inputs = {n: math.radians(i.default_deg) for n, i in m.spec.inputs.items()}
@@ -496,21 +501,28 @@ def feed_cmd(
     lo, hi = FD.regulator_range_deg(m)
     cyc = FD.feed_cycles(m, [lo, FD.ZERO_MARK_DEG, hi]).to_pandas()  # reverse, zero, forward
     marks = FD.scale_marks(m, step_mm)
-    timing = FD.set_feed_timing(m, 0.0) if m.spec.sewing.feed_cam else None
-    phase_now = next((u.phase_deg for u in m.spec.units if timing and
-                      u.name == m.spec.sewing.feed_cam), None)
+    timing, timing_note = None, None
+    if m.spec.sewing.feed_cam:
+        try:
+            timing = FD.set_feed_timing(m, 0.0)
+        except AnalysisError as exc:  # the figures above stand; the phase is not defined
+            timing_note = f"not defined: {exc.message}"
+    phase_now = next((u.phase_deg for u in m.spec.units
+                      if m.spec.sewing.feed_cam and u.name == m.spec.sewing.feed_cam), None)
     if as_json:
         rows = cyc.astype(object).where(cyc.notna(), None).to_dict(orient="records")
         for row in rows:  # JSON has no NaN: null, and why beside it
             for key in list(row):
                 if row[key] is None and key in FEED_UNDEFINED:
                     row[f"{key}_note"] = "not defined: " + FEED_UNDEFINED[key]
-        print_json({"machine": m.name, "settings": rows,
-                    "scale_marks": [{"stitch_mm": k.stitch_mm,
-                                     "regulator_deg": k.regulator_deg} for k in marks],
-                    "feed_cam_phase_deg": phase_now,
-                    "feed_cam_phase_for_mid_feed_at_top_deg":
-                        timing.phase_deg if timing else None})
+        data = {"machine": m.name, "settings": rows,
+                "scale_marks": [{"stitch_mm": k.stitch_mm,
+                                 "regulator_deg": k.regulator_deg} for k in marks],
+                "feed_cam_phase_deg": phase_now,
+                "feed_cam_phase_for_mid_feed_at_top_deg": timing.phase_deg if timing else None}
+        if timing_note is not None:
+            data["feed_cam_phase_for_mid_feed_at_top_deg_note"] = timing_note
+        print_json(data)
         return
     table = Table(title=f"{m.name}: feed dog (angles in deg of shaft, lengths mm)")
     cols = ("regulator_deg", "stitch_mm", "lift_mm", "rise_deg", "top_deg", "mid_feed_deg",
@@ -540,6 +552,11 @@ def feed_cmd(
     if timing is not None:
         console.print(f"feed cam phase: {phase_now:g} deg in the file; {timing.phase_deg:.4f}"
                       " deg puts the middle of the feed stroke at the top of lift")
+    elif timing_note is not None:
+        console.print(escape(f"feed cam phase: {phase_now:g} deg in the file; the phase that"
+                             " puts the middle of the feed stroke at the top of lift is"
+                             f" undefined ({timing_note.removeprefix('not defined: ')})"),
+                      highlight=False)
 
 
 @command("embroidery-take-up")
@@ -648,7 +665,8 @@ def report_cmd(
     steps += ["tables", "page"]
     if process_ends():
         _keep_freed_memory()
-    with Progress(console=console, transient=True) as progress:
+    with Progress(console=console, transient=True,
+                  disable=not console.is_terminal) as progress:
         task = progress.add_task(f"report {m.name}", total=len(steps))
         index = write_report(m, out, step_deg=step_deg, variants=variants,
                              advance=lambda name: progress.update(task, advance=1,
