@@ -155,6 +155,9 @@ def test_balancing_on_vibration_against_brute_force():
     curves = np.array(curves)
     pred = B.velocities(B.quantities(S[:, None, None] * np.array([-1.0, 0.0]))["W"])
     np.testing.assert_allclose(pred, curves, rtol=1e-9)
+    # the criteria's fast route (the basis' velocity harmonics combined) is the same
+    fast = B.velocities_at(S[:, None, None] * np.array([-1.0, 0.0]))
+    np.testing.assert_allclose(fast, curves, rtol=1e-9)
     res = balance(m, "vibration", basis=B)
     xy = np.array([[res.counterweights["extra"]["static_moment_gcm"] / 100 * math.cos(
         math.radians(res.counterweights["extra"]["angle_deg"])),
@@ -248,3 +251,53 @@ def test_negative_mount_values_are_refused(text, key):
     bad[field] = eval(value)  # noqa: S307 (a literal list)
     with pytest.raises(Exception, match=key):
         spec(mounts=[bad])
+
+
+def test_balance_on_the_housing_from_the_command_line(tmp_path):
+    """balance --criterion equal-levels/vibration: the answer is the library's, the levels
+    before and after are reported, the predicted v_x(S), v_y(S) figure is written, and the
+    options that do not fit are located."""
+    import json
+
+    from sewmech.design.balancing import balance
+    from sewmech.engine.machine import load_machine
+    from test_balancing_cli import run
+
+    code, text = run("balance", "bartack-1820", "--criterion", "equal-levels", "--json")
+    assert code == 0, text
+    data = json.loads(text)
+    lib = balance(load_machine("bartack-1820"), "equal-levels", ["extra"])
+    S = data["counterweights"]["extra"]["static_moment_gcm"]
+    assert S == pytest.approx(lib.counterweights["extra"]["static_moment_gcm"], rel=1e-9)
+    assert data["after"]["vibration_x_db"] == pytest.approx(data["after"]["vibration_y_db"],
+                                                            abs=1e-6)
+    code, text = run("balance", "bartack-1820", "--criterion", "vibration", "--out",
+                     tmp_path / "b")
+    assert code == 0, text
+    assert "vibration level at the control point along x" in text and " dB " in text
+    levels = (tmp_path / "b" / "bartack-1820-bal-levels.csv").read_text()
+    assert levels.startswith("S_gcm,vx_mm_s,vy_mm_s")
+    code, text = run("balance", "bartack-1820", "--criterion", "peak", "--control-point",
+                     "hands")
+    assert code == 2 and "--control-point" in text
+    code, text = run("balance", "bartack-1820", "--criterion", "vibration",
+                     "--control-point", "elbow")
+    assert code == 2 and "--control-point" in text and "hands" in text
+    code, text = run("balance", "fourbar-benchmark", "--criterion", "vibration")
+    assert code == 2 and "[housing]" in text and "Traceback" not in text
+
+
+def test_a_plane_for_a_pair_the_machine_lacks_is_located():
+    """planes_mm names frame pairs and springs: a misspelt one would act in the default plane
+    without a word, so it is refused with the names there are."""
+    from importlib import resources
+
+    from sewmech.engine.machine import machine_from_toml
+
+    text = resources.files("sewmech.data.machines").joinpath("jb1-3.toml").read_text("utf-8")
+    text = text.replace('planes_mm = { "needle_bar.guide" = 0.0,',
+                        'planes_mm = { "needle_bar.guid" = 0.0,', 1)
+    assert "needle_bar.guid\"" in text
+    m = machine_from_toml(text)
+    with pytest.raises(MachineFileError, match=r"planes_mm.*needle_bar\.guid.*needle_bar\.guide"):
+        Housing.of(m)

@@ -57,7 +57,7 @@ def level_curves(B, n: int = 201) -> dict:
                           " --counterweight NAME")
     beta, e = _direction(B)
     S = np.linspace(0.0, _span(B), n)
-    v = B.velocities(B.quantities(S[:, None, None] * e)["W"])
+    v = B.velocities_at(S[:, None, None] * e)
     return {"S_gcm": S * 100.0, "vx_mm_s": v[:, 0], "vy_mm_s": v[:, 1],
             "beta_deg": math.degrees(beta)}
 
@@ -76,11 +76,11 @@ def solve_equal_levels(B) -> tuple[np.ndarray, str, str]:
     hi = _span(B)
 
     def diff(S):
-        v = B.velocities(B.quantities((S * e)[None, :])["W"])
+        v = B.velocities_at((S * e)[None, :])
         return float(v[0] - v[1])
 
     grid = np.linspace(0.0, hi, 401)
-    v = B.velocities(B.quantities(grid[:, None, None] * e)["W"])
+    v = B.velocities_at(grid[:, None, None] * e)
     d = v[:, 0] - v[:, 1]
     roots = []
     for k in np.nonzero(np.sign(d[:-1]) * np.sign(d[1:]) <= 0)[0]:
@@ -91,7 +91,7 @@ def solve_equal_levels(B) -> tuple[np.ndarray, str, str]:
     where = f"along {math.degrees(beta):.6g} deg at control point '{B.control_name}'"
     if roots:
         def level(S):
-            return float(B.velocities(B.quantities((S * e)[None, :])["W"]).max())
+            return float(B.velocities_at((S * e)[None, :]).max())
 
         best = min(roots, key=level)
         more = f" (the one of lowest level among {len(roots)})" if len(roots) > 1 else ""
@@ -112,7 +112,7 @@ def solve_vibration(B) -> tuple[np.ndarray, str, str]:
 
     def worst(z):
         xy = (z * scale).reshape(n, 2)
-        return float(B.velocities(B.quantities(xy[None])["W"])[0].max())
+        return float(B.velocities_at(xy[None])[0].max())
 
     limit = np.where(np.isfinite(B.s_max), B.s_max / scale, np.inf)
     cons = [{"type": "ineq", "fun": (lambda z, i=i: limit[i] ** 2 - z[2 * i] ** 2
@@ -131,7 +131,7 @@ def solve_vibration(B) -> tuple[np.ndarray, str, str]:
 
         def vel(zt):
             xy = (zt[:-1] * scale).reshape(n, 2)
-            return B.velocities(B.quantities(xy[None])["W"])[0]
+            return B.velocities_at(xy[None])[0]
 
         c2 = [{"type": "ineq", "fun": (lambda zt: zt[-1] - vel(zt))}]
         for c in cons:

@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -142,6 +143,30 @@ class BalanceBasis:
         from ..engine.housing import vibration
 
         return vibration(self.housing, W, self.rpm).rms_velocity[..., self.control, :2]
+
+    @cached_property
+    def _velocity_basis(self) -> tuple[np.ndarray, np.ndarray]:
+        """The control point's x and y velocity harmonics (complex, mm/s) of the base and of
+        each counterweight's four responses: (n_h, 2) and (n, 4, n_h, 2). The velocities are
+        linear in the wrench, so any design's are theirs combined as the wrench's are."""
+        from ..engine.housing import vibration
+
+        W0, R = self.base["W"], self.resp["W"]
+        stack = np.concatenate([W0[None], R.reshape(-1, *W0.shape)])
+        cv = vibration(self.housing, stack, self.rpm).control_v[..., self.control, :2]
+        return cv[0], cv[1:].reshape(R.shape[:2] + cv.shape[1:])
+
+    def velocities_at(self, xy: ArrayLike) -> np.ndarray:
+        """The control point's RMS velocity along x and y (mm/s), batch + (2,), for static
+        moments ``xy`` (batch + (n, 2), kg mm): :meth:`velocities` of their wrench, from the
+        velocity harmonics of the basis (no Fourier series or solve per design)."""
+        xy = np.asarray(xy, dtype=float)
+        x, y = xy[..., 0], xy[..., 1]
+        s = np.hypot(x, y)
+        coef = np.stack([s / self.radius, x, y, s * self.radius], axis=-1)  # batch + (n, 4)
+        v0, vr = self._velocity_basis
+        V = v0 + np.tensordot(coef, vr, axes=([-2, -1], [0, 1]))
+        return np.sqrt(2.0 * np.sum(np.abs(V) ** 2, axis=-2))
 
     def levels(self, W: np.ndarray) -> np.ndarray:
         """The control point's vibration levels along x and y, dB re 5e-8 m/s, batch + (2,)."""
@@ -539,16 +564,26 @@ def balance(machine: Machine, criterion: str = "delta-q",
         # linear basis cannot know (the shaking force and moment do not depend on it): solve
         # again with the basis moved by the friction's change at the answer, until the answer
         # stays (the friction of the answer, as it is)
+        # (the shift is the friction's change against the frictionless basis B, not against
+        # the last shifted one: shifts taken against that would drop the one before and
+        # alternate)
         passes = 0
         for passes in range(1, FRICTION_PASSES + 1):
-            shifted = replace(B, base={k: B.base[k] + (exact[k] - predicted[k]) for k in exact})
-            xy2, status, message = solve(shifted)
+            plain = B.quantities(xy)
+            shift = {k: exact[k] - plain[k] for k in exact}
+            shifted = replace(B, base={k: B.base[k] + shift[k] for k in exact})
+            # from the last answer (the weighted criterion's parts are scaled by the figures
+            # at the start, so it keeps its start): where the optimum is flat, a solve from
+            # afar may land elsewhere on it with every pass and never settle
+            xy2, status, message = solve(shifted if criterion == "weighted" else
+                                         replace(shifted, start=xy.copy()))
             moved = float(np.abs(xy2 - xy).max())
             xy = xy2
             exact = {k: v[0] for k, v in B.evaluate(xy[None]).items()}
             predicted = shifted.quantities(xy)
             B_used = shifted
-            if moved <= 1e-9 * max(1.0, float(np.abs(xy).max())):
+            if moved <= 1e-9 * max(1.0, float(np.abs(xy).max())) or \
+                    max(_difference(k, predicted[k], exact[k]) for k in exact) <= 1e-9:
                 break
         message += (f"; with the friction of the answer ({passes} pass"
                     f"{'es' if passes != 1 else ''}: the counterweights change the friction)")
@@ -572,8 +607,12 @@ def balance(machine: Machine, criterion: str = "delta-q",
     # nothing to propose: the machine stays as the file has it; the least Delta-Q is kept for
     # information, and the least peak shaking force is what this counterweight can achieve
     closest = {"xy": xy, "counterweights": B.describe(xy), "figures": after}
-    alt = balance(machine, "peak", basis=B)
-    message += _infeasible_advice(B, closest, alt, before)
+    if criterion == "equal-levels":  # the least vibration is what it can achieve instead
+        alt = balance(machine, "vibration", basis=B)
+        message += _unequal_advice(B, closest, alt, before)
+    else:
+        alt = balance(machine, "peak", basis=B)
+        message += _infeasible_advice(B, closest, alt, before)
     return BalanceResult(criterion, status, message, B.start.copy(), B.describe(B.start),
                          B.describe(B.start), before, dict(before), {}, err, B.rpm, w,
                          {"phi": B.phi, "before": curves["before"], "after": curves["before"]},
@@ -595,6 +634,26 @@ def _infeasible_advice(B: BalanceBasis, closest: dict, alt: BalanceResult, befor
             f" {a['static_moment_gcm']:.4g} g cm at {a['angle_deg']:.4g} deg: use --criterion"
             f" peak (or rms, weighted); or turn '{name}' (its angle_deg) to where Delta-Q has a"
             " root")
+    if math.isfinite(B.s_max[0]):
+        text += ", or allow it more static moment (max_static_moment_gcm)"
+    return text
+
+
+def _unequal_advice(B: BalanceBasis, closest: dict, alt: BalanceResult, before: dict
+                   ) -> str:
+    """What an equal-levels balancing without a crossing says besides: how close the levels
+    come, and the least vibration the counterweights achieve."""
+    (name, cw), = closest["counterweights"].items()
+    f = closest["figures"]
+    lx, ly = float(f["vibration_x_db"]), float(f["vibration_y_db"])
+    worst0 = max(float(before["vibration_x_db"]), float(before["vibration_y_db"]))
+    best = max(float(alt.after["vibration_x_db"]), float(alt.after["vibration_y_db"]))
+    where = ", ".join(f"{n} {c['static_moment_gcm']:.4g} g cm at {c['angle_deg']:.4g} deg"
+                      for n, c in alt.counterweights.items())
+    text = (f". No counterweight is proposed: the levels come closest with"
+            f" {cw['static_moment_gcm']:.4g} g cm, x {lx:.4g} dB and y {ly:.4g} dB. The least"
+            f" larger level the counterweights achieve is {best:.4g} dB against {worst0:.4g} dB"
+            f" now ({where}): use --criterion vibration; or turn '{name}' (its angle_deg)")
     if math.isfinite(B.s_max[0]):
         text += ", or allow it more static moment (max_static_moment_gcm)"
     return text

@@ -92,6 +92,14 @@ class Housing:
                                 " no [housing] table: its vibration is not known", "Add"
                                 " [housing] (its mass, mounts and control points:"
                                 " docs/vibration.md)")
+        known = [p.name for p in machine.pairs if FRAME in p.links and p.kind != "driver"]
+        known += [sp.name for sp in machine.spec.springs if FRAME in sp.links]
+        for name in h.planes_mm:
+            if name not in known:
+                raise MachineFileError(machine.file or machine.name, "housing", "planes_mm",
+                                       f"'{name}' is not a pair with the frame nor a spring"
+                                       " anchored to it", "Name one of: "
+                                       + ", ".join(known))
         return build_housing(machine.name, machine.file, h)
 
     # ---- the free housing ----------------------------------------------------------------
@@ -134,7 +142,7 @@ def build_housing(name: str, file: str, h) -> Housing:
     K = np.zeros((6, 6))
     K_eta = np.zeros((6, 6))
     C = np.zeros((6, 6))
-    for j, m in enumerate(h.mounts):
+    for j in range(len(h.mounts)):
         T = point_map(at[j])
         Km = T.T @ np.diag(k[j]) @ T
         if np.isnan(cc[j]).any():
