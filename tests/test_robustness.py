@@ -2257,3 +2257,20 @@ def test_8_mass_tables_no_part_can_have(tmp_path, old, new, part):
         text = mutated("\ninertia_zz = 3.0\n", "\n", text)
     run_file(tmp_path, "m.toml", text, ["check", "FILE"], (part,))
     run_file(tmp_path, "m.toml", text, ["dynamics", "FILE", "--step-deg", "30"], (part,))
+
+
+def test_8_a_librarys_value_error_is_a_bug_not_a_users_mistake(monkeypatch, tmp_path):
+    """B10 (the point behind it): a ValueError of numpy or scipy that reached the command was
+    printed as a user's mistake, `error: Singular matrix` with exit 2: no place, nothing to do.
+    It is a bug of sewmech's (it should have refused the input first): exit 70, said so; a
+    ValueError sewmech raises itself stays a located user error."""
+    from sewmech.design import vibration
+
+    monkeypatch.setattr(vibration, "crossing",
+                        lambda *a, **k: np.linalg.inv(np.zeros((2, 2))))
+    path = tmp_path / "v.csv"
+    path.write_text(VIBRATION, encoding="utf-8")
+    out = run(["trial-balance", path], code=70)
+    assert "internal error (LinAlgError: Singular matrix)" in out.stderr
+    run(["feed", "fourbar-benchmark"], has=("error: machine 'fourbar-benchmark'",
+                                            "the feed analyses need"))

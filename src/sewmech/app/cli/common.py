@@ -314,7 +314,9 @@ def _guard():
     except MemoryError:
         _print_error(_out_of_memory_text())
         raise typer.Exit(EXIT_ERROR) from None
-    except (ValueError, KeyError) as exc:  # the library's argument checks
+    except (ValueError, KeyError) as exc:  # the library's argument checks ...
+        if not _raised_by_sewmech(exc):  # ... but not numpy's "Singular matrix" (a bug)
+            return _internal_error(exc)
         text = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
         _print_error(str(text))
         raise typer.Exit(EXIT_ERROR) from None
@@ -323,15 +325,36 @@ def _guard():
         _print_error(f"{where}{exc.strerror or exc}")
         raise typer.Exit(EXIT_ERROR) from None
     except Exception as exc:
-        if os.environ.get("SEWMECH_DEBUG"):
-            raise
-        _print_error(f"internal error ({type(exc).__name__}: {exc}). This is a bug in sewmech:"
-                     " please report it with the command line; SEWMECH_DEBUG=1 shows the"
-                     " traceback")
-        raise typer.Exit(EXIT_INTERNAL) from None
+        _internal_error(exc)
     finally:
         for sig, handler in old.items():
             signal.signal(sig, handler)
+
+
+def _internal_error(exc: BaseException):
+    """Anything sewmech did not expect: exit 70, one line (SEWMECH_DEBUG=1: the traceback)."""
+    if os.environ.get("SEWMECH_DEBUG"):
+        raise exc
+    _print_error(f"internal error ({type(exc).__name__}: {exc}). This is a bug in sewmech:"
+                 " please report it with the command line; SEWMECH_DEBUG=1 shows the"
+                 " traceback")
+    raise typer.Exit(EXIT_INTERNAL) from None
+
+
+_PACKAGE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def _raised_by_sewmech(exc: BaseException) -> bool:
+    """Whether sewmech's own code raised ``exc`` (a check of an argument, a name, a file),
+    not a library it calls: a ValueError of numpy, scipy or pyarrow that reaches the command
+    (numpy's "Singular matrix" from trial-balance's fit) is a bug of sewmech's, which should
+    have refused the input first, not a user error without a place."""
+    tb = exc.__traceback__
+    if tb is None:
+        return True
+    while tb.tb_next is not None:
+        tb = tb.tb_next
+    return os.path.abspath(tb.tb_frame.f_code.co_filename).startswith(_PACKAGE + os.sep)
 
 
 #: what to do when a command runs out of memory: the options it has that size its work
