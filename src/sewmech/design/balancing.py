@@ -833,7 +833,8 @@ def paper_workflow(machine: Machine, counterweight: str, *, rpm: float | None = 
                    basis: BalanceBasis | None = None, result: BalanceResult | None = None
                    ) -> dict:
     """The balancing paper's method on ``counterweight`` (an extra counterweight on the upper
-    shaft, static moment 0 in the file): S_add from Delta-Q = 0 along its angle, S_1 the
+    shaft, usually of static moment 0 in the file): S_add, its static moment from Delta-Q = 0
+    along its angle (whatever the file gives it), S_1 the
     static moment the shaft's crank has (:func:`link_static_moment`, all its solids), S_opt =
     |S_1 + S_add| (as vectors: the net static moment of the crank with the extra
     counterweight), and the extra counterweight built ``factor`` times stronger (default: the
@@ -864,16 +865,17 @@ def paper_workflow(machine: Machine, counterweight: str, *, rpm: float | None = 
         out["build_refused"] = (f"{where}: Delta-Q has no root along its angle, so there is no"
                                 " S_add and nothing to build")
         return out
-    before = res.counterweights_before[counterweight]
-    add = cw["static_moment_gcm"] - before["static_moment_gcm"]
+    # S_add is the extra counterweight's static moment Delta-Q asks for (>= 0, at its angle),
+    # whatever the file gave it: the difference from the file's (1000 g cm in the file, 135
+    # proposed) printed as "S_add -865 g cm", a static moment no counterweight has
+    add = cw["static_moment_gcm"]
     v1 = s1 * np.exp(1j * math.radians(a1))
     v_opt = v1 + cw["static_moment_gcm"] * np.exp(1j * math.radians(cw["angle_deg"]))
     out.update(s_add_gcm=add, s_add_angle_deg=cw["angle_deg"], s_opt_gcm=float(abs(v_opt)),
                s_opt_angle_deg=float(np.degrees(np.angle(v_opt))))
-    if not add > 1e-9 * (abs(s1) + cw["static_moment_gcm"]):
-        out["build_refused"] = (f"{where}: Delta-Q needs no more static moment than the file"
-                                f" gives ({before['static_moment_gcm']:.4g} g cm): nothing to"
-                                " build")
+    if not add > 1e-9 * abs(s1):
+        out["build_refused"] = (f"{where}: Delta-Q needs no extra counterweight here (S_add ="
+                                " 0): nothing to build")
         return out
     bore, source = counterweight_bore(machine, counterweight)
     if bore is None:

@@ -71,7 +71,6 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
             return math.inf
         return f if ok and math.isfinite(f) else math.inf
 
-    f0 = f_of(problem.start)
     converged = True
     message = ""
     history: list[float] = []
@@ -112,27 +111,55 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
         x, converged = _slsqp(problem, problem.start, lo, hi, tol, history)
         message = "SLSQP " + ("converged" if converged else "did not converge")
     x = np.clip(x, lo, hi)
-    fx = f_of(x)
+    # the answer and the start are judged by the exact proof of assembly (the constraints'
+    # report), not by the searches' clearance of ASSEMBLY_CLEARANCE_MM on a grid: SLSQP stops
+    # on its margin constraint to within its tolerance (2e-10 mm inside the clearance), and
+    # the answer, proved to assemble, was called undefined while its own table said it
+    # assembles
     report = problem.report(x)
+    fx = _answer_value(problem, x, report)
+    start_report = problem.report(problem.start)
+    f0 = _answer_value(problem, problem.start, start_report)
     ok = converged and math.isfinite(fx) and all(c["satisfied"] for c in report.values())
     res = OptimizeResult(x=x, fun=fx, objective_start=f0, constraints=report,
                          status="success" if ok else "failed", success=ok, message=message,
                          n_evaluations=problem.evaluations, history=history, method=method,
-                         fun_note=None if math.isfinite(fx) else undefined_objective(problem, x),
+                         fun_note=None if math.isfinite(fx) else
+                         undefined_objective(problem, x, report),
                          objective_start_note=None if math.isfinite(f0) else
-                         undefined_objective(problem, problem.start))
+                         undefined_objective(problem, problem.start, start_report))
     if method == "nsga2":
         res.front = front
     return res
 
 
-def undefined_objective(problem: Problem, x: np.ndarray) -> str:
-    """Why the objective is not defined at the design x (file units), in words."""
+def _assembles(report: dict) -> bool:
+    return bool(report["assembles over the whole turn"]["satisfied"])
+
+
+def _answer_value(problem: Problem, x: np.ndarray, report: dict) -> float:
+    """The objective at a design the searches return (or start from): defined where the
+    design is proved to assemble over the whole turn (``report``: :meth:`Problem.report`) and
+    every metric can be formed, else infinite."""
+    if not _assembles(report):
+        return math.inf
     try:
-        if not problem.design_ok(x):
-            return ("not defined: the design does not assemble over the whole turn (every"
-                    f" closed-form unit {ASSEMBLY_CLEARANCE_MM:g} mm from failing, on a 1 deg"
-                    " grid at both ends of every setting input)")
+        return float(problem.objective(x)[0])
+    except SewmechError:
+        return math.inf
+
+
+def undefined_objective(problem: Problem, x: np.ndarray, report: dict | None = None) -> str:
+    """Why the objective is not defined at the design x (file units), in words; ``report``:
+    :meth:`Problem.report` of x (computed if not given), whose exact proof says whether x
+    assembles."""
+    report = problem.report(x) if report is None else report
+    if not _assembles(report):
+        failures = report["assembles over the whole turn"]["failures"]
+        return ("not defined: the design does not assemble over the whole turn (proved at both"
+                " ends of every setting input" + (f": {failures[0]}" if failures else "")
+                + ")")
+    try:
         problem.objective(x)
     except SewmechError as exc:
         return f"not defined: a metric cannot be formed on the design ({exc.message})"

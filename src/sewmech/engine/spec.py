@@ -618,6 +618,10 @@ class MassSpec(_Spec):
                 raise ValueError("measured mass properties need com and exactly one of"
                                  " inertia_zz, inertia")
         else:
+            if not self.solids:  # (mass.compose() refused it later, by its own name)
+                raise ValueHint("solids = [] holds no solid: a part is made of at least one",
+                                "List its solids (box, cylinder, ...; docs/machine-files.md),"
+                                " or give its measured mass, com and inertia_zz")
             if (self.material is None) == (self.density is None):
                 raise ValueError("solids need exactly one of material, density")
             from .mass import MATERIALS
@@ -1312,8 +1316,16 @@ def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpe
             hint = cause.hint
     elif etype in ("dict_type", "model_type", "model_attributes_type"):
         msg = f"must be a table ({{ key = value, ... }} or [{'.'.join(path)}]), got {_short(got)}"
-    else:
-        msg = f"{err['msg']} (got {_short(got)})"
+    elif etype == "literal_error":  # one of a few words or numbers
+        expected = str((err.get("ctx") or {}).get("expected", "")) or "one of its values"
+        msg = f"must be {expected}, got {_short(got)}"
+        hint = f"Give {'one of them' if ' or ' in expected else expected} ({doc})"
+    elif etype == "string_type":
+        msg = f"must be a string, got {_short(got)}"
+        hint = "Write it in quotes, e.g. name = \"my-machine\""
+    else:  # pydantic's wording, without its "Input should be"
+        msg = f"{err['msg'].replace('Input should be', 'should be')} (got {_short(got)})"
+        hint = f"See {doc} for what it takes"
     return MachineFileError(file, table, key, msg, hint)
 
 

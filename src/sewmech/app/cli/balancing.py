@@ -173,9 +173,16 @@ def balance_cmd(
                   moment_point=point, control_point=control_point)
     data = {"machine": m.name, **res.to_json()}
     if criterion is Criterion.delta_q:
-        paper = paper_workflow(m, next(iter(res.counterweights)), rpm=rpm, step_deg=step_deg,
-                               result=res)
-        data["paper"] = {k: v for k, v in paper.items() if k != "result"}
+        chosen = next(iter(res.counterweights))
+        link = next(c.link for c in m.counterweights if c.name == chosen)
+        if link in _shaft_cranks(m):
+            paper = paper_workflow(m, chosen, rpm=rpm, step_deg=step_deg, result=res)
+            data["paper"] = {k: v for k, v in paper.items() if k != "result"}
+        else:  # S_1 is the shaft's crank's: of a coupler it was called "the shaft's crank"
+            data["paper_note"] = (f"the balancing paper's method (S_1, S_add, the built"
+                                  f" counterweight) is for a counterweight on a crank that"
+                                  f" turns with the upper shaft; '{chosen}' is on"
+                                  f" '{link}'")
     if out is not None:
         _write_balance(m, out, res, data, names, rpm, point)
     if as_json:
@@ -201,6 +208,8 @@ def balance_cmd(
     if "paper" in data:
         for line in paper_lines(data["paper"]):
             console.print(escape(line))
+    elif "paper_note" in data:
+        console.print(escape(f"note: {data['paper_note']}"), highlight=False)
     agree = ("it agrees to round-off" if is_round_off(res.basis_error,
                                                         res.before["peak_force_N"])
              else f"largest difference {res.basis_error:.2g} (N, N m)")
@@ -208,6 +217,12 @@ def balance_cmd(
     if out is not None:
         console.print(f"written: figures, {m.name}-balance.json and"
                       f" {m.name}-balance-criteria.csv in {out}")
+
+
+def _shaft_cranks(m) -> set[str]:
+    """The links that turn with the upper shaft at its speed (the paper's S_1 is of one)."""
+    return {u.link or u.name for u in m.spec.units
+            if u.type == "crank" and u.input == "shaft" and u.ratio == 1.0}
 
 
 def paper_lines(p: dict) -> list[str]:
@@ -265,7 +280,7 @@ def _write_balance(m, out: Path, res, data: dict, names, rpm, point) -> None:
     from ..files.outdir import output_dir
     from ..report.balancing import balancing_section, results_frame
 
-    with output_dir(out, command="balance") as root:
+    with output_dir(out, command="balance", machine=m.name) as root:
         figs = Figures(root, m.name)
         sec = balancing_section(figs, m, criterion=res.criterion, counterweights=names,
                                 rpm=rpm, weights=res.weights or None, moment_point=point)
@@ -528,7 +543,10 @@ def influence_balance_cmd(
                             ranges={"amplitude_mm_s": (*VELOCITY_RANGE_MM_S, "mm/s"),
                                     "phase_deg": (*ANGLE_RANGE_DEG, "deg"),
                                     "trial_gcm": (*STATIC_MOMENT_RANGE_GCM, "g cm"),
-                                    "trial_angle_deg": (*ANGLE_RANGE_DEG, "deg")})
+                                    "trial_angle_deg": (*ANGLE_RANGE_DEG, "deg")},
+                            labels={"run": ("0|[1-9][0-9]*", "a run number", "Label the runs 0"
+                                            " (no trial mass),"
+                                            " 1, 2, ... (one run per correction plane)")})
     runs = list(dict.fromkeys(cols["run"]))
     places = list(dict.fromkeys(cols["place"]))
     if "0" not in runs or len(runs) < 2:
@@ -568,7 +586,7 @@ def influence_balance_cmd(
                           "Give --solver minmax, or leave it out")
     try:
         res = influence_balance(V0, Vt, [trial[r][0] for r in planes],
-                                [trial[r][1] for r in planes])
+                                [trial[r][1] for r in planes], [f"run {r}" for r in planes])
     except AnalysisError as exc:
         raise AnalysisError(str(file), exc.message, exc.hint) from None
     data = {**res.to_json([f"run {r}" for r in planes]), "n_places": len(places),
@@ -633,7 +651,7 @@ def _minmax(file, V0, Vt, planes, places, trial, weight, max_gcm, phase_lag, as_
     try:
         res = influence_minmax(V0, Vt, [trial[r][0] for r in planes],
                                [trial[r][1] for r in planes], weights=weights,
-                               limits_gcm=limits)
+                               limits_gcm=limits, names=[f"run {r}" for r in planes])
     except AnalysisError as exc:
         raise AnalysisError(str(file), exc.message, exc.hint) from None
     data = {**res.to_json([f"run {r}" for r in planes], places), "n_places": len(places),

@@ -69,7 +69,7 @@ def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0
     import matplotlib.backends.backend_svg
     import matplotlib.figure
 
-    with output_dir(out_dir, command="report") as root, _few_collections(collect_garbage):
+    with output_dir(out_dir, command="report", machine=machine.name) as root, _few_collections(collect_garbage):
         pool = figure_pool(workers)
         try:
             _build_report(machine, root, step_deg, step=advance or (lambda name: None),
