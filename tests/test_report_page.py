@@ -200,6 +200,7 @@ def test_the_vibration_section_is_the_librarys(reports):
     setting (as the file has it, and with the counterweights the vibration criterion chose),
     its modes the housing's; a machine without counterweights gets the section on its own."""
     from sewmech.design.balancing import balance
+    from sewmech.engine.dynamics import inverse_dynamics
     from sewmech.engine.housing import Housing, housing_vibration
 
     d, page, _ = reports["jb1-3"]
@@ -228,3 +229,15 @@ def test_the_vibration_section_is_the_librarys(reports):
     assert speed["x_db_before"][k] == pytest.approx(float(v.level_db[0, 0]), abs=0.2)
     _, page82, _ = reports["jb8-2"]
     assert '<h2 id="vibration">Vibration and running</h2><p>' in page82
+    # the run in time follows: its steady turn's mean motor power is what the force analysis
+    # at that speed takes from the shaft over the turn (the energy balance of the run)
+    assert '<h3 id="running">Running: start-up, steady state, stop</h3>' in page
+    key = pd.read_csv(d / "jb1-3-vibration-key-figures.csv").set_index("figure")["value"]
+    rpm = key["steady speed (mean over the turn)"]
+    assert rpm > m.rpm and key["time to reach the working speed"] > 0  # full pedal: above it
+    phi = np.radians(np.arange(0.0, 360.0, 1.0))
+    dyn = inverse_dynamics(m, phi, rpm=rpm)
+    shaft_w = float(np.mean(dyn.input_torque)) * rpm * np.pi / 30.0 * 1e-3
+    assert key["mean motor power in the steady turn"] == pytest.approx(shaft_w, rel=0.02)
+    for stem in ("run-up", "run-motor", "run-steady"):
+        assert (d / f"jb1-3-{stem}.png").stat().st_size > 5000

@@ -189,5 +189,18 @@ def vibration_section(figs, machine: Machine, balanced=None) -> dict:
             " frame's origin (ux, uy, uz mm) and rotation (rx, ry, rz rad), scaled to a largest"
             " of 1; components below 0.001 of the largest shown as 0, all of them in the"
             " CSV).</p>" + table_html(shown_modes))
-    return {"html": text, "table": pd.DataFrame(key, columns=["figure", "value", "unit"]),
-            "levels": levels, "modes": modes}
+    table = pd.DataFrame(key, columns=["figure", "value", "unit"])
+    # the machine run in time on its motor: its part follows the housing's figures
+    from .running import running_left_out, running_section
+
+    why = running_left_out(machine)
+    if why is None:
+        at = len(figs.blocks)
+        run_part = running_section(figs, machine)
+        figs.insert_html(at, run_part["html"])
+        table = pd.concat([table, run_part["table"].set_axis(list(table.columns), axis=1)],
+                          ignore_index=True)
+    else:
+        figs.insert_html(len(figs.blocks), '<h3 id="running">Running: start-up, steady state,'
+                         f" stop</h3><p>{html.escape(why)}</p>")
+    return {"html": text, "table": table, "levels": levels, "modes": modes}
