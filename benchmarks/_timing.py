@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import datetime
 import json
+import os
 import statistics
 import subprocess
 import time
@@ -113,7 +114,7 @@ RATIO_KINDS = ("faster", "time")  # anchor / sewmech ("5x faster"), sewmech / an
 def figure(job: str, value: float, unit: str, *, target: float | None = None, op: str = "<=",
            on: str = "figure", anchor: str | None = None, anchor_value: float | None = None,
            ratio: float | None = None, ratio_kind: str = "faster",
-           condition: bool | None = None) -> dict:
+           condition: tuple[str, bool] | None = None) -> dict:
     """One row of the table of current figures.
 
     ``value`` is sewmech's figure in ``unit``; ``anchor`` names what it is measured against
@@ -121,7 +122,8 @@ def figure(job: str, value: float, unit: str, *, target: float | None = None, op
     in the same unit. ``ratio`` is read as ``ratio_kind``: "faster" (the anchor's time over
     sewmech's, the bigger the better) or "time" (sewmech's time over the anchor's). The target
     is ``op target`` on the figure or on the ratio (``on``); ``condition`` is a further
-    requirement of the verdict that is not a number (e.g. "to a smaller objective"). ``met`` is
+    requirement of the verdict that is not a number, (what it asks, whether it holds), e.g.
+    ("a smaller objective than pylinkage's", True). ``met`` is
     computed here, by :func:`meets`, the same way the table recomputes it."""
     if op not in OPS:
         raise ValueError(f"op must be one of {sorted(OPS)}, not {op!r}")
@@ -135,7 +137,7 @@ def figure(job: str, value: float, unit: str, *, target: float | None = None, op
            "target": None if target is None else float(target), "target_op": op,
            "target_on": on}
     if condition is not None:
-        row["condition"] = bool(condition)
+        row["condition_text"], row["condition"] = str(condition[0]), bool(condition[1])
     row["met"] = meets(row)
     return row
 
@@ -152,23 +154,31 @@ def meets(row: dict) -> bool | None:
 
 
 def run_stamp(root=None) -> dict:
-    """The date (UTC) of a run and the commit it measured: ``git rev-parse --short HEAD``, with
-    a ``+`` when ``src/`` or ``benchmarks/`` differ from it (uncommitted code was measured)."""
+    """The date (UTC) of a run, the commit it measured (``git rev-parse --short HEAD``, with a
+    ``+`` when ``src/`` or ``benchmarks/*.py`` differ from it: uncommitted code was measured)
+    and the machine's load average over the last minute at the end of the run (the machine is
+    shared: a figure measured under a load above its core count is suspect)."""
     root = Path(root) if root is not None else Path(__file__).resolve().parent.parent
-    date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d")
+    stamp = {"date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d"),
+             "commit": None, "load_1min": None}
+    try:
+        stamp["load_1min"] = round(os.getloadavg()[0], 2)
+    except (AttributeError, OSError):
+        pass
     try:
         commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root,
                                 capture_output=True, text=True, check=True).stdout.strip()
         changed = subprocess.run(["git", "diff", "--quiet", "HEAD", "--", "src",
                                   "benchmarks/*.py"], cwd=root).returncode != 0
     except (OSError, subprocess.CalledProcessError):
-        return {"date": date, "commit": None}
-    return {"date": date, "commit": commit + ("+" if changed else "")}
+        return stamp
+    stamp["commit"] = commit + ("+" if changed else "")
+    return stamp
 
 
 def write_results(path, payload: dict, figures: list[dict], *, indent: int = 1) -> None:
     """Write a benchmark's results: its own ``payload`` keys unchanged, plus ``figures`` (rows
-    of :func:`figure`) and the run's ``date`` and ``commit`` (:func:`run_stamp`)."""
+    of :func:`figure`) and the run's ``date``, ``commit`` and load (:func:`run_stamp`)."""
     path = Path(path)
     out = dict(payload)
     out["figures"] = figures

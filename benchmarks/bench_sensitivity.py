@@ -40,16 +40,16 @@ def current_figures(out: dict) -> list[dict]:
     worst_one = max(v["evaluations"] for v in out["one_channel"].values())
     target = out["target_evaluations"]
     rows = [
-        figure(f"JB1-3 gradient of every position channel by all {n} parameters, {worst}"
-               " angle(s) (the worse of 1 and 360)", out[worst]["evaluations"],
-               "kinematics", anchor="central differences",
+        figure(f"JB1-3 gradient of every position channel by all {n} parameters, in"
+               " kinematics evaluations (the worse of 1 and 360 angles)",
+               out[worst]["evaluations"], "evaluations", anchor="central differences",
                anchor_value=out[worst]["central_differences_evaluations"],
                ratio=out[worst]["central_differences_evaluations"] / out[worst]["evaluations"],
                target=target),
-        figure("JB1-3 the same with the rates and accelerations", worst_rates, "kinematics",
+        figure("JB1-3 the same with the rates and accelerations", worst_rates, "evaluations",
                target=target),
         figure(f"JB1-3 gradient of one channel by all {n} parameters, 360 angles (the worst"
-               " of three)", worst_one, "kinematics", target=target),
+               " of three)", worst_one, "evaluations", target=target),
     ]
     mc = out.get("monte_carlo")
     if mc is not None:
