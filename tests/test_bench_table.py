@@ -119,3 +119,17 @@ def test_every_results_file_has_a_benchmark_writing_it():
         writers = [n for n, s in scripts.items() if path.name in s]
         assert writers, f"no bench_*.py names {path.name}"
         assert all("write_results(" in scripts[n] for n in writers), writers
+
+
+def test_write_results_keeps_the_keys_and_stamps_the_run(table, timing, tmp_path):
+    path = tmp_path / "results" / "x.json"
+    timing.write_results(path, {"best_s": 1.5, "rows": {"a": 1}},
+                         [timing.figure("x", 1.5, "s", target=2.0)])
+    data = json.loads(path.read_text(encoding="utf-8"))
+    assert data["best_s"] == 1.5 and data["rows"] == {"a": 1}
+    assert data["figures"][0]["met"] is True
+    assert len(data["date"]) == 10 and data["date"][4] == "-"
+    assert data["commit"] is None or data["commit"].rstrip("+").isalnum()
+    assert "load_1min" in data
+    rows, problems = table.load(path.parent)
+    assert problems == [] and rows[0].commit == str(data["commit"])
