@@ -7,7 +7,9 @@
 #                      and the suite run in it: a break from a new release found on purpose
 #   make lock          regenerate requirements.lock from pyproject.toml (uv pip compile), with
 #                      the newest releases it allows
-#   make bench         the benchmarks (BENCHMARKS.md)
+#   make bench         the benchmarks, then the table of current figures (printed, and
+#                      rewritten at the top of BENCHMARKS.md)
+#   make bench-table   the table of current figures from benchmarks/results/*.json (runs nothing)
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
@@ -19,7 +21,7 @@ LOCK   := requirements.lock
 LATEST := .venv-latest
 UV     := uv==0.13.9
 
-.PHONY: demo test test-latest lock bench install clean
+.PHONY: demo test test-latest lock bench bench-table install clean
 
 $(STAMP): pyproject.toml $(LOCK)
 	@echo "sewmech: creating $(VENV) and installing the locked versions of $(LOCK)"
@@ -56,8 +58,14 @@ lock:
 	    --python-version 3.11 --extra test --extra bench --extra dev --generate-hashes --upgrade \
 	    --quiet -o $(LOCK)
 
+# the table is printed and written even when a benchmark failed (the others' figures are new);
+# the exit status is the benchmarks'
 bench: $(STAMP)
-	$(BIN)/python benchmarks/run_all.py
+	$(BIN)/python benchmarks/run_all.py; rc=$$?; \
+	    $(BIN)/python benchmarks/table.py --write; exit $$rc
+
+bench-table: $(STAMP)
+	$(BIN)/python benchmarks/table.py
 
 clean:
 	rm -rf $(VENV) $(LATEST) out .pytest_cache

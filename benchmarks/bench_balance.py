@@ -23,13 +23,12 @@ target prints MISSED and exits 0.
 
 from __future__ import annotations
 
-import json
 import platform
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
-from _timing import best
+from _timing import best, figure, write_results
 
 import sewmech
 from sewmech.design.balancing import CRITERIA, balance, balance_basis, figures
@@ -37,6 +36,19 @@ from sewmech.design.balancing import CRITERIA, balance, balance_basis, figures
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results" / "balance.json"
 TARGET_MS = 50.0
+
+
+def current_figures(out: dict) -> list[dict]:
+    """The rows of the table of current figures (BENCHMARKS.md) from this script's results."""
+    rows = [figure("JB1-3 balancing, each criterion from the basis, 1 deg grid (the slowest)",
+                   out["slowest_solve_ms"], "ms", target=out["target_ms"])]
+    peer = out["grids"]["1"].get("peer_peak")
+    if peer is not None:
+        rows.append(figure("JB1-3 balancing, peak force, 1 deg grid", peer["sewmech_ms"], "ms",
+                           anchor="Nelder-Mead on the whole machine's dynamics",
+                           anchor_value=peer["nelder_mead_s"] * 1e3,
+                           ratio=peer["nelder_mead_s"] * 1e3 / peer["sewmech_ms"]))
+    return rows
 
 EXTRA = """
 [counterweights.front_cw]
@@ -114,8 +126,7 @@ def main():
           f" slowest {worst:.1f} ms, {verdict}")
     out["slowest_solve_ms"] = worst
     out["verdict"] = verdict
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text(json.dumps(out, indent=1))
+    write_results(RESULTS, out, current_figures(out))
 
 
 if __name__ == "__main__":

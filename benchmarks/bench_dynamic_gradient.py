@@ -14,13 +14,12 @@ MISSED).
 
 from __future__ import annotations
 
-import json
 import os
 import platform
 from pathlib import Path
 
 import numpy as np
-from _timing import interleave, table
+from _timing import figure, interleave, table, write_results
 
 import sewmech
 from sewmech.engine.dynamic_sensitivity import dynamics_sensitivities
@@ -29,6 +28,15 @@ from sewmech.engine.dynamics import inverse_dynamics
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results" / "dynamic-gradient.json"
 TARGET_RATIO = 4.0
+
+
+def current_figures(out: dict) -> list[dict]:
+    """The rows of the table of current figures (BENCHMARKS.md) from this script's results."""
+    return [figure(f"JB1-3 exact derivatives of the inverse dynamics by all {out['parameters']}"
+                   " parameters, 72 positions", out["exact_gradient_s"] * 1e3, "ms",
+                   anchor="one inverse dynamics", anchor_value=out["inverse_dynamics_s"] * 1e3,
+                   ratio=out["ratio"], ratio_kind="time", target=out["target_ratio"],
+                   on="ratio")]
 
 
 def main():
@@ -68,13 +76,13 @@ def main():
     print(table(rows, ("job", "best", "median", "ratio")))
     print(f"exact against central differences (h = 1e-5, 4 parameters): largest relative"
           f" difference {worst:.2g} (the differences' own truncation and round-off)")
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text(json.dumps({
+    out = {
         "machine": platform.machine(), "cpus": os.cpu_count(), "parameters": n_p,
         "inverse_dynamics_s": t.best("inverse dynamics"),
         "exact_gradient_s": t.best("exact gradient"), "ratio": ratio,
         "target_ratio": TARGET_RATIO, "met": ok, "finite_differences_s": fd_cost,
-        "agreement": worst}, indent=1))
+        "agreement": worst}
+    write_results(RESULTS, out, current_figures(out))
 
 
 if __name__ == "__main__":

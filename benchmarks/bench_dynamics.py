@@ -19,7 +19,6 @@ Best of several repeats after a warm-up. Prints a table and writes
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import platform
@@ -27,7 +26,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from _timing import Own, best, interleave
+from _timing import Own, best, figure, interleave, write_results
 
 import sewmech
 from sewmech.dynamics import DynamicsPlan, inverse_dynamics
@@ -39,6 +38,28 @@ from exudyn_fourbar import TEST_LINKS as FB_MASS
 RESULTS = HERE / "results" / "dynamics.json"
 TARGET_JB_MS = 10.0
 TARGET_EXUDYN_RATIO = 100.0
+TARGET_FRICTION_RATIO = 3.0
+
+
+def current_figures(out: dict) -> list[dict]:
+    """The rows of the table of current figures (BENCHMARKS.md) from this script's results."""
+    rows = [figure("JB1-3 kinematics + inverse dynamics, 72 positions", out["jb_72_ms"], "ms",
+                   target=TARGET_JB_MS)]
+    exu = out.get("exudyn")
+    if exu is not None:
+        rows.append(figure("four-bar inverse dynamics, 360 positions (DynamicsPlan)",
+                           out["fourbar_360_us"], "us",
+                           anchor=f"Exudyn {exu['exudyn_version']}, one step per degree",
+                           anchor_value=exu["exudyn_revolution_ms"] * 1e3, ratio=exu["ratio"],
+                           target=TARGET_EXUDYN_RATIO, op=">=", on="ratio"))
+    fric = out["friction_ms"]
+    for how, key in (("prepared plan", "plan"), ("one-off call", "one-off")):
+        rows.append(figure(f"JB1-3 inverse dynamics with friction at every pair, 72 positions"
+                           f" ({how})", fric[f"friction {key}"], "ms",
+                           anchor="the same without friction",
+                           anchor_value=fric[f"frictionless {key}"], ratio=fric[f"ratio {key}"],
+                           ratio_kind="time", target=TARGET_FRICTION_RATIO, on="ratio"))
+    return rows
 
 
 def main():
@@ -142,8 +163,10 @@ def main():
     print(f"JB1-3 with friction at every pair against without, 72 positions: one-off"
           f" {fric['friction one-off']:.2f} / {fric['frictionless one-off']:.2f} ms ="
           f" {fric['ratio one-off']:.2f}x; prepared plan {fric['friction plan']:.2f} /"
-          f" {fric['frictionless plan']:.2f} ms = {fric['ratio plan']:.2f}x; target <= 3x:"
-          f" {mark(fric['ratio one-off'] <= 3.0)} (one-off), {mark(fric['ratio plan'] <= 3.0)}"
+          f" {fric['frictionless plan']:.2f} ms = {fric['ratio plan']:.2f}x;"
+          f" target <= {TARGET_FRICTION_RATIO:g}x:"
+          f" {mark(fric['ratio one-off'] <= TARGET_FRICTION_RATIO)} (one-off),"
+          f" {mark(fric['ratio plan'] <= TARGET_FRICTION_RATIO)}"
           " (plan)")
     print(f"four-bar inverse dynamics, 360 positions, DynamicsPlan: {t_fb * 1e6:.0f} us"
           f" (median {t_fb_med * 1e6:.0f}); one-off inverse_dynamics(): {t_once * 1e6:.0f} us")
@@ -159,12 +182,12 @@ def main():
               f" {exu['max_rel_difference_1_step']:.2e} at one step per degree,"
               f" {exu['max_rel_difference_16_substeps']:.2e} at 16 substeps"
               f" ({exu['exudyn_16_substeps_solve_ms']:.0f} ms for two revolutions)")
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text(json.dumps({
+    out = {
         "machine": platform.platform(), "cpus": os.cpu_count(),
         "jb_72_ms": t_jb * 1e3, "jb_1000x72_s": t_batch, "fourbar_360_us": t_fb * 1e6,
         "fourbar_360_one_off_us": t_once * 1e6, "exudyn": exu, "friction_ms": fric,
-    }, indent=1))
+    }
+    write_results(RESULTS, out, current_figures(out))
 
 
 if __name__ == "__main__":

@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 from _timing import best as _best  # noqa: E402 (benchmarks/ is the script's directory)
-from _timing import interleave
+from _timing import figure, interleave, write_results
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results" / "fourbar.json"
@@ -56,6 +56,38 @@ TARGET_SINGLE_RATIO = 2.0  # pylinkage one revolution / sewmech one revolution
 TARGET_FIRST_CALL_S = 1.0  # import sewmech .. first kinematics(m, phi), fresh process
 TARGET_ONE_OFF_S = 50e-6  # one-off kinematics() of one design, one revolution (issue 15)
 REPEAT = 7
+
+
+def current_figures(out: dict) -> list[dict]:
+    """The rows of the table of current figures (BENCHMARKS.md) from this script's results."""
+    sew, pl, ratios = out["sewmech"], out["pylinkage"], out["ratios"]
+    first = out["first_call"]
+    job = f"four-bar, {out['job']['n_designs']} designs x {out['job']['n_phi']} positions"
+    rows = []
+    if pl is not None:
+        rows += [
+            figure(f"{job}, p+v+a of C and P", sew["batch_s"] * 1e3, "ms",
+                   anchor=f"pylinkage {pl['version']} (numba) {ratios['batch_pylinkage_api']},"
+                   " positions only",
+                   anchor_value=min(pl["batch_ensemble_s"], pl["batch_raw_simulate_loop_s"]) * 1e3,
+                   ratio=ratios["batch"], target=TARGET_BATCH_RATIO, op=">=", on="ratio"),
+            figure("four-bar, one revolution (360 positions), KinematicsPlan, p+v+a of C and P",
+                   sew["single_plan_s"] * 1e6, "us",
+                   anchor=f"pylinkage {pl['version']} (numba) {ratios['single_pylinkage_api']},"
+                   " positions only",
+                   anchor_value=min(pl["single_step_fast_s"], pl["single_raw_simulate_s"]) * 1e6,
+                   ratio=ratios["single"], target=TARGET_SINGLE_RATIO, op=">=", on="ratio"),
+        ]
+    rows.append(figure("four-bar, one revolution, one-off kinematics() call",
+                       sew["single_s"] * 1e6, "us", target=TARGET_ONE_OFF_S * 1e6))
+    ours = first["sewmech_runs"][1]["first_call_s"]
+    theirs = first["pylinkage_runs"][1]["first_call_s"] if first["pylinkage_runs"] else None
+    rows.append(figure("import sewmech and the first kinematics in a fresh process (numba cache"
+                       " warm)", ours, "s",
+                       anchor=None if theirs is None else "pylinkage import and first step_fast",
+                       anchor_value=theirs, ratio=None if theirs is None else ours / theirs,
+                       ratio_kind="time", target=TARGET_FIRST_CALL_S, op="<"))
+    return rows
 
 
 def best(fn, number: int, repeat: int = REPEAT) -> float:
@@ -511,8 +543,7 @@ def main() -> int:
         },
         "table": [dict(zip(("section", "figure", "value", "target", "status"), r)) for r in rows],
     }
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps(payload, indent=2) + "\n")
+    write_results(RESULTS, payload, current_figures(payload), indent=2)
     print(f"written {RESULTS.relative_to(HERE.parent)}")
     return 0
 

@@ -23,14 +23,13 @@ Best of several repeats after a warm-up. Prints a table and writes
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import platform
 from pathlib import Path
 
 import numpy as np
-from _timing import best  # noqa: E402 (benchmarks/ is the script's directory)
+from _timing import best, figure, write_results  # noqa: E402 (benchmarks/ is the script's directory)
 from sewmech.feed import feed_cycles
 from sewmech.thread import thread_balance
 
@@ -44,6 +43,13 @@ SEED = 2026
 TARGET_MACHINE_72_MS = 5.0
 TARGET_FEED_BATCH_S = 2.0
 TARGET_THREAD_MS = 5.0
+
+
+def current_figures(out: dict) -> list[dict]:
+    """The rows of the table of current figures (BENCHMARKS.md) from this script's results."""
+    return [figure(f"JB1-3 {name}", row["best"], row["unit"], target=row["target"])
+            for name, row in out.items()
+            if isinstance(row, dict) and row.get("target") is not None]
 
 
 def main():
@@ -91,8 +97,7 @@ def main():
           f" {np.nanmin(c.stitch_mm):.3f}..{np.nanmax(c.stitch_mm):.3f} mm, lift"
           f" {np.nanmin(c.lift_mm):.3f}..{np.nanmax(c.lift_mm):.3f} mm")
     out["feasible designs"] = ok
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text(json.dumps(out, indent=2))
+    write_results(RESULTS, out, current_figures(out), indent=2)
 
 
 if __name__ == "__main__":

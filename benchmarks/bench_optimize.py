@@ -10,13 +10,13 @@ prints MISSED and exits 0. (Powell on the feed-lift problem takes minutes: the r
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
+from _timing import figure, write_results  # noqa: E402
 from test_problem import closed_form_crank  # noqa: E402
 
 from sewmech.design.optimize import optimize  # noqa: E402
@@ -25,6 +25,14 @@ from sewmech.design.problem import Problem, load_problem  # noqa: E402
 PROBLEMS = HERE.parent / "examples" / "problems"
 RESULTS = HERE / "results" / "optimize.json"
 TARGET_FEED_LIFT_POWELL_S = 2.0
+
+
+def current_figures(out: dict) -> list[dict]:
+    """The rows of the table of current figures (BENCHMARKS.md) from this script's results."""
+    powell = [r for r in out["rows"] if r["problem"] == "JB1-3 feed lift"
+              and r["method"] == "powell"][-1]
+    return [figure("JB1-3 feed-lift problem by Powell with the penalty", powell["seconds"], "s",
+                   target=TARGET_FEED_LIFT_POWELL_S)]
 
 
 def run(path: Path, method: str) -> dict:
@@ -59,8 +67,8 @@ def main():
     verdict = "met" if powell["seconds"] <= TARGET_FEED_LIFT_POWELL_S else "MISSED"
     print(f"target: the feed-lift problem by Powell with the penalty at most"
           f" {TARGET_FEED_LIFT_POWELL_S:g} s: {powell['seconds']:.1f} s, {verdict}")
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text(json.dumps({"rows": rows, "verdict": verdict}, indent=1))
+    out = {"rows": rows, "verdict": verdict}
+    write_results(RESULTS, out, current_figures(out))
 
 
 if __name__ == "__main__":

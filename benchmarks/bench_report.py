@@ -17,7 +17,6 @@ Prints a table and writes ``benchmarks/results/report.json``. Exits 0 when a tar
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import statistics
@@ -27,7 +26,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from _timing import table  # noqa: E402 (benchmarks/ is the script's directory)
+from _timing import figure, table, write_results  # noqa: E402 (benchmarks/ is the script's directory)
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results" / "report.json"
@@ -37,6 +36,19 @@ TARGET_REPORT_S = 5.0
 TARGET_FIRST_COMMAND_S = 5.0
 TARGET_FIRST_REPORT_S = 20.0
 RUNS = 5
+
+
+def current_figures(out: dict) -> list[dict]:
+    """The rows of the table of current figures (BENCHMARKS.md) from this script's results."""
+    walls, start = out["report_warm_s"], out["startup_s"]
+    return [
+        figure(f"sewmech report jb1-3, warm (median of {len(walls)} runs)",
+               statistics.median(walls), "s", target=TARGET_REPORT_S),
+        figure("first kinematics command after the install", start[
+            "first kinematics after the install"], "s", target=TARGET_FIRST_COMMAND_S),
+        figure("first report after the install", start["first report after the install"], "s",
+               target=TARGET_FIRST_REPORT_S),
+    ]
 
 
 def _run(args: list[str], env=None) -> float:
@@ -149,9 +161,8 @@ def main() -> int:
         rows.append((name, f"{seconds:.2f} s", verdict))
     print(f"{os.cpu_count()} cpus")
     print(table(rows, ("job", "time", "target")))
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text(json.dumps({"report_warm_s": walls, "split": parts, "startup_s": start},
-                                  indent=2))
+    out = {"report_warm_s": walls, "split": parts, "startup_s": start}
+    write_results(RESULTS, out, current_figures(out), indent=2)
     return 0
 
 

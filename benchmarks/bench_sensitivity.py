@@ -17,11 +17,10 @@ design marched round a 5 deg grid).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
-from _timing import best, interleave
+from _timing import best, figure, interleave, write_results
 
 import sewmech
 from sewmech.engine.sensitivity import sensitivities
@@ -31,6 +30,36 @@ RESULTS = HERE / "results" / "sensitivity.json"
 TARGET_EVALUATIONS = 3.0
 TARGET_MC_S = 2.0
 MC_SAMPLES = 100_000
+
+
+def current_figures(out: dict) -> list[dict]:
+    """The rows of the table of current figures (BENCHMARKS.md) from this script's results."""
+    n = out["parameters"]
+    worst = max(("1", "360"), key=lambda k: out[k]["evaluations"])
+    worst_rates = max(out[k]["with_rates_evaluations"] for k in ("1", "360"))
+    worst_one = max(v["evaluations"] for v in out["one_channel"].values())
+    target = out["target_evaluations"]
+    rows = [
+        figure(f"JB1-3 gradient of every position channel by all {n} parameters, in"
+               " kinematics evaluations (the worse of 1 and 360 angles)",
+               out[worst]["evaluations"], "evaluations", anchor="central differences",
+               anchor_value=out[worst]["central_differences_evaluations"],
+               ratio=out[worst]["central_differences_evaluations"] / out[worst]["evaluations"],
+               target=target),
+        figure("JB1-3 the same with the rates and accelerations", worst_rates, "evaluations",
+               target=target),
+        figure(f"JB1-3 gradient of one channel by all {n} parameters, 360 angles (the worst"
+               " of three)", worst_one, "evaluations", target=target),
+    ]
+    mc = out.get("monte_carlo")
+    if mc is not None:
+        rows.append(figure(f"JB1-3 tolerance Monte Carlo, {mc['samples']:,} designs (stitch"
+                           " length)", mc["seconds"], "s",
+                           anchor="the same designs on a 5 deg grid (the former batch)",
+                           anchor_value=mc["grid_5deg_batch_seconds"],
+                           ratio=mc["grid_5deg_batch_seconds"] / mc["seconds"],
+                           target=TARGET_MC_S))
+    return rows
 
 
 def main():
@@ -136,8 +165,7 @@ def main():
                           "median_seconds": sorted(times)[1], "evaluation": how,
                           "grid_5deg_batch_seconds": t_grid,
                           "std_mm": r.monte_carlo["std"], "rss_over_3_mm": r.rss / 3}
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text(json.dumps(out, indent=1))
+    write_results(RESULTS, out, current_figures(out))
 
 
 if __name__ == "__main__":

@@ -20,7 +20,6 @@ exits 0.
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import subprocess
@@ -31,7 +30,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from _timing import interleave, table
+from _timing import figure, interleave, table, write_results
 
 SHIPPED = HERE.parent / "examples" / "sweeps" / "jb-feed.toml"
 RESULTS = HERE / "results" / "sweep.json"
@@ -39,6 +38,21 @@ DESIGNS = 640
 CHUNK = 80
 ROUNDS = 3
 TARGET_OVERHEAD = 0.10
+TARGET_PER_CORE = 1000.0  # designs/s per core on the shipped sweep (issue 34)
+
+
+def current_figures(out: dict) -> list[dict]:
+    """The rows of the table of current figures (BENCHMARKS.md) from this script's results."""
+    c = out["contenders"]
+    return [
+        figure(f"shipped JB feed sweep, {out['designs']} designs on a LocalCluster of 2 workers"
+               " (Dask's overhead)", c["LocalCluster, 2 workers"]["median_s"], "s",
+               anchor="the same designs in-process, 2 cores",
+               anchor_value=c["in-process"]["median_s"], ratio=out["overhead_ratio_2_workers"],
+               ratio_kind="time", target=1.0 + TARGET_OVERHEAD, on="ratio"),
+        figure("shipped JB feed sweep, designs per second per core (1 worker)",
+               out["per_core_designs_per_s"], "designs/s", target=TARGET_PER_CORE, op=">="),
+    ]
 
 
 def main():
@@ -122,8 +136,7 @@ def main():
                             str(SHIPPED), "--out", str(out)], check=True)
             result["full_sweep_s"] = time.perf_counter() - t0
             print(f"the shipped 100,000-design sweep, run whole: {result['full_sweep_s']:.0f} s")
-        RESULTS.parent.mkdir(exist_ok=True)
-        RESULTS.write_text(json.dumps(result, indent=1))
+        write_results(RESULTS, result, current_figures(result))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 

@@ -45,7 +45,6 @@ Run: ``.venv/bin/python benchmarks/bench_synthesis.py`` (``make bench`` installs
 
 from __future__ import annotations
 
-import json
 import math
 import statistics
 import sys
@@ -54,7 +53,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _timing import Own, interleave  # noqa: E402 (benchmarks/ is the script's directory)
+from _timing import Own, figure, interleave, write_results  # noqa: E402 (benchmarks/ is the script's directory)
 
 import sewmech
 
@@ -68,6 +67,43 @@ ANGLES_DEG = np.arange(0.0, 360.0, 30.0)
 PARTICLES, ITERATIONS = 100, 200
 TARGET_RATIO = 10.0
 INFEASIBLE = 1e9
+PL_FUNCTION = "pylinkage function_generation (3 points)"
+
+
+def current_figures(out: dict) -> list[dict]:
+    """The rows of the table of current figures (BENCHMARKS.md) from this script's results
+    (synthesis.json)."""
+    rows, pl = out["rows"], out["rows"]["pylinkage"]
+    smaller = all(r["objective"] <= out["pylinkage_objective"]
+                  for r in rows["sewmech slsqp"]["runs"])
+    anchor = "pylinkage 1.3 particle swarm"
+    return [
+        figure("four-bar path synthesis, 12 points, SLSQP with exact derivatives",
+               rows["sewmech slsqp"]["seconds_median"], "s", anchor=anchor,
+               anchor_value=pl["seconds_median"], ratio=out["ratio_slsqp"],
+               target=out["target_ratio"], op=">=", on="ratio",
+               condition=("a smaller objective than pylinkage's", smaller)),
+        figure("four-bar path synthesis, 12 points, the same swarm with batch evaluation",
+               rows["sewmech swarm"]["seconds_median"], "s", anchor=anchor,
+               anchor_value=pl["seconds_median"], ratio=out["ratio_swarm"]),
+    ]
+
+
+def current_figures_classical(out: dict) -> list[dict]:
+    """The rows of the table of current figures from synthesis-classical.json (information:
+    no targets)."""
+    if PL_FUNCTION not in out:
+        return []
+    pl = out[PL_FUNCTION]["seconds_best"] * 1e6
+    anchor = "pylinkage 1.3 function_generation (the lengths alone)"
+    alone = out["sewmech Freudenstein's K and the lengths alone"]["seconds_best"] * 1e6
+    whole = out["sewmech synthesize_function (3 points, checks, 721-point error)"][
+        "seconds_best"] * 1e6
+    return [figure("Freudenstein function generation, 3 points, the lengths alone", alone, "us",
+                   anchor=anchor, anchor_value=pl, ratio=pl / alone),
+            figure("Freudenstein function generation, 3 points, with the checks and the"
+                   " 721-point error", whole, "us", anchor=anchor, anchor_value=pl,
+                   ratio=whole / pl, ratio_kind="time")]
 NAMES = ("B.u", "dyad.length1", "dyad.length2")
 
 
@@ -186,7 +222,7 @@ def classical() -> dict:
         s = pl.raw_solutions[0]
         gap = max(abs(s.crank_length - r.fourbar.a), abs(s.coupler_length - r.fourbar.b),
                   abs(s.rocker_length - r.fourbar.c))
-        row("pylinkage function_generation (3 points)",
+        row(PL_FUNCTION,
             lambda: function_generation(pairs, ground_length=100.0, require_grashof=False),
             lengths_gap_mm=gap)
         assert gap < 1e-9, f"the two Freudenstein answers differ by {gap} mm"
@@ -257,8 +293,8 @@ def classical() -> dict:
 def main() -> int:
     classic = classical()
     RESULTS.parent.mkdir(exist_ok=True)
-    (RESULTS.parent / "synthesis-classical.json").write_text(json.dumps(classic, indent=1),
-                                                             encoding="utf-8")
+    write_results(RESULTS.parent / "synthesis-classical.json", classic,
+                  current_figures_classical(classic))
     try:
         from pylinkage.optimization import particle_swarm_optimization
         from pylinkage.optimization.particle_swarm import _local_best_pso
@@ -338,11 +374,10 @@ def main() -> int:
           f" evaluation); / sewmech SLSQP to a smaller objective: {ratio_slsqp:.1f}x;"
           f" target {TARGET_RATIO:g}x: {verdict}")
     RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text(json.dumps({"rows": rows, "ratio_swarm": ratio_swarm,
-                                   "ratio_slsqp": ratio_slsqp, "pylinkage_objective": pl_obj,
-                                   "swarm_to_goal_s": to_goal,
-                                   "target_ratio": TARGET_RATIO, "verdict": verdict},
-                                  indent=1), encoding="utf-8")
+    out = {"rows": rows, "ratio_swarm": ratio_swarm, "ratio_slsqp": ratio_slsqp,
+           "pylinkage_objective": pl_obj, "swarm_to_goal_s": to_goal,
+           "target_ratio": TARGET_RATIO, "verdict": verdict}
+    write_results(RESULTS, out, current_figures(out))
     return 0
 
 

@@ -14,14 +14,13 @@ Interleaved rounds after a warm-up (``_timing.interleave``). Prints a table and 
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import platform
 from pathlib import Path
 
 import numpy as np
-from _timing import interleave, table
+from _timing import figure, interleave, table, write_results
 
 import sewmech
 from sewmech.dynamics import inverse_dynamics
@@ -32,6 +31,15 @@ RESULTS = HERE / "results" / "vibration.json"
 TARGET_RATIO = 2.0
 N_DESIGNS = 1000
 STEP_DEG = 5.0
+
+
+def current_figures(out: dict) -> list[dict]:
+    """The rows of the table of current figures (BENCHMARKS.md) from this script's results."""
+    return [figure(f"JB1-3 housing vibration, {N_DESIGNS} designs (with their inverse"
+                   " dynamics)", out["vibration_s"], "s",
+                   anchor="their inverse dynamics alone", anchor_value=out["inverse_dynamics_s"],
+                   ratio=out["ratio"], ratio_kind="time", target=out["target_ratio"],
+                   on="ratio")]
 
 
 def main():
@@ -74,13 +82,13 @@ def main():
     ]
     print(table(rows, ("job", "best", "median", "ratio")))
     print(f"batch against one design at a time: largest relative difference {max(diffs):.2g}")
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text(json.dumps({
+    out = {
         "machine": platform.machine(), "cpus": os.cpu_count(),
         "inverse_dynamics_s": t.best("inverse dynamics"),
         "vibration_s": t.best("vibration"), "housing_part_s": t.best("housing part"),
         "one_design_s": one.best("one design"), "ratio": ratio, "target_ratio": TARGET_RATIO,
-        "met": ok, "batch_vs_single": max(diffs)}, indent=1))
+        "met": ok, "batch_vs_single": max(diffs)}
+    write_results(RESULTS, out, current_figures(out))
 
 
 if __name__ == "__main__":

@@ -1,7 +1,9 @@
 """Run every ``benchmarks/bench_*.py`` in turn (same interpreter, one subprocess each).
 
 Exits non-zero if any script fails (non-zero exit status). A missed performance target is not a
-failure: the scripts print MISSED for it and exit 0.
+failure: the scripts print MISSED for it and exit 0. Each script writes its results file in
+``benchmarks/results/``; ``make bench`` then prints the table of current figures from them and
+rewrites it in BENCHMARKS.md (``benchmarks/table.py --write``).
 """
 
 from __future__ import annotations
