@@ -152,7 +152,7 @@ def test_a_bad_file_shows_its_located_error_and_the_page_keeps_working(page):
                                           "buffer": b"[machine]\nname = 3\n"}])
     pg.wait_for_selector("#error:not([hidden])", timeout=20000)
     assert pg.text_content("#error-where") == "broken.toml: [machine] name:"
-    assert "valid string" in pg.text_content("#error-what")
+    assert "must be a string, got 3" in pg.text_content("#error-what")
     assert pg.text_content("#stitch") == stitch  # the last good state stays
     # a design that cannot assemble: where and why, and the last good drawing stays
     n = pg.evaluate("window.sewmech.redraws")
