@@ -5,6 +5,7 @@ retries and failed chunks, bad sweep files and output directories that are not a
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import shutil
@@ -202,10 +203,11 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-@pytest.fixture
-def dask_cluster(tmp_path):
+@contextlib.contextmanager
+def _cluster(tmp_path, nanny: bool = True):
     """A scheduler and two one-thread workers, each its own process (as on a user's cluster),
-    always stopped."""
+    always stopped: (address, the processes, scheduler first). Without a nanny a worker's
+    process is the worker itself (killing it kills the worker, nothing restarts it)."""
     dask = Path(sys.executable).parent / "dask"
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
@@ -218,16 +220,18 @@ def dask_cluster(tmp_path):
                                       env=env))
         for _ in range(2):
             procs.append(subprocess.Popen([str(dask), "worker", address, "--nthreads", "1",
-                                           "--nworkers", "1", "--no-dashboard"], stdout=log,
+                                           "--nworkers", "1", "--no-dashboard"]
+                                          + ([] if nanny else ["--no-nanny"]), stdout=log,
                                           stderr=log, env=env))
         from distributed import Client
 
         with Client(address, timeout="30s") as c:
             c.wait_for_workers(2, timeout=60)
-        yield address
+        yield address, procs
     finally:
         for p in reversed(procs):
-            p.terminate()
+            if p.poll() is None:
+                p.terminate()
         for p in procs:
             try:
                 p.wait(timeout=20)
@@ -237,6 +241,12 @@ def dask_cluster(tmp_path):
         log.close()
 
 
+@pytest.fixture
+def dask_cluster(tmp_path):
+    with _cluster(tmp_path) as (address, _):
+        yield address
+
+
 def test_the_cli_runs_on_a_scheduler_and_workers_given_by_address(dask_cluster, reference,
                                                                    tmp_path):
     out = tmp_path / "remote"
@@ -244,6 +254,69 @@ def test_the_cli_runs_on_a_scheduler_and_workers_given_by_address(dask_cluster, 
                               "--out", str(out), "--json"])
     assert res.exit_code == 0, res.output
     assert '"chunks_computed": 4' in res.stdout
+    assert '"chunks_written_by_workers": 4' in res.stdout  # the workers see this directory
+    assert table(out).equals(reference[1])
+
+
+def test_workers_write_their_chunks_and_one_killed_mid_chunk_changes_nothing(small, reference,
+                                                                            tmp_path):
+    """Issue 34, item 2: each worker writes the chunks it computes into the directory (here a
+    file system it shares with the client); the client only records them. A worker killed
+    outright while it holds chunks: the scheduler gives them to the other worker, every chunk
+    is written exactly once, whole, the results are the in-process run's, and the killed
+    writer's temporary files are gone."""
+    import signal
+
+    from distributed import Client
+
+    out = tmp_path / "writers"
+    with _cluster(tmp_path, nanny=False) as (address, procs), \
+            Client(address, timeout="30s") as client:
+        pids = client.run(os.getpid)  # worker address -> its process (no nanny: the Popen's)
+        assert sorted(pids.values()) == sorted(p.pid for p in procs[1:])
+        killed = {}
+
+        def on_chunk(k, n):
+            if killed:
+                return
+            busy = {w: t for w, t in client.processing().items() if t}
+            if busy:
+                w, tasks = next(iter(busy.items()))
+                os.kill(pids[w], signal.SIGKILL)
+                killed.update(worker=w, tasks=tasks)
+
+        r = run_sweep(small, out, chunk=1, client=client, on_chunk=on_chunk)
+    assert killed["tasks"], "no worker held a chunk when one was killed"
+    n = small.n_designs  # chunks of one design
+    assert sorted(r.computed) == list(range(n)) and not r.failed, r.failed
+    assert r.written_by_workers == n  # the client wrote none
+    assert sweep_run.done_chunks(out) == set(range(n))
+    assert not [e for e in os.listdir(out / "chunks") if e.endswith(".tmp")]
+    assert table(out).equals(reference[1])
+    for k, v in curves(out).items():
+        np.testing.assert_array_equal(v, curves(reference[0])[k])
+
+
+def test_a_worker_that_does_not_see_the_directory_hands_its_chunk_to_the_client(small,
+                                                                                 reference,
+                                                                                 tmp_path):
+    """A worker on a machine without the client's file system (the run's probe file is not
+    there, or not this run's) returns its chunk for the client to write and writes nothing;
+    one that sees it writes the chunk as the client would."""
+    from sewmech.design.sweep import texts_of
+
+    out = tmp_path / "probe"
+    run_sweep(small, out, workers=0, chunk=5, stop_after=1)  # the directory, chunk 0
+    texts = texts_of(small)
+    c = sweep_run.evaluate_and_write(texts, str(out), "a" * 32, 1, 5, 10)
+    assert c is not None and list(c.columns["design"]) == [5, 6, 7, 8, 9]
+    assert sweep_run.done_chunks(out) == {0}
+    sweep_run._probe_path(out, "b" * 32).write_text("b" * 32, encoding="ascii")
+    assert sweep_run.evaluate_and_write(texts, str(out), "a" * 32, 1, 5, 10) is not None
+    assert sweep_run.evaluate_and_write(texts, str(out), "b" * 32, 1, 5, 10) is None
+    assert sweep_run.done_chunks(out) == {0, 1}
+    sweep_run._probe_path(out, "b" * 32).unlink()
+    run_sweep(small, out, workers=0)
     assert table(out).equals(reference[1])
 
 

@@ -60,7 +60,7 @@ CURVES = "curves.zarr"
 CHUNK_RE = re.compile(r"chunk-(\d{6,})\.parquet")
 #: the temporary names a sweep writes under before renaming (a killed run may leave them)
 ROOT_TMP_RE = re.compile(r"\.(sweep\.json|curves\.zarr)\..+\.tmp")
-CHUNK_TMP_RE = re.compile(r"\.chunk-\d{6,}\.parquet\..+\.tmp")
+CHUNK_TMP_RE = re.compile(r"\.(chunk-\d{6,}\.parquet|writers)\..+\.tmp")
 #: designs per chunk: the whole-turn assembly check of 250 JB1-3 designs holds about 250 MB
 #: of kinematics in a worker (1 GB at 1000)
 DEFAULT_CHUNK = 250
@@ -87,6 +87,8 @@ class RunReport:
     designs_computed: int = 0
     seconds: float = 0.0
     stopped: bool = False
+    #: chunks of this run written by the Dask workers themselves (the rest by this process)
+    written_by_workers: int = 0
 
 
 def done_chunks(root: Path) -> set[int]:
@@ -391,8 +393,11 @@ def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
         report = RunReport(len(bounds), len(have))
         t0 = time.perf_counter()
 
-        def finished(k: int, c: Chunk) -> bool:
-            write_chunk(root, sweep, k, c)
+        def finished(k: int, c: Chunk | None) -> bool:
+            if c is None:  # a worker wrote it
+                report.written_by_workers += 1
+            else:
+                write_chunk(root, sweep, k, c)
             report.computed.append(k)
             report.designs_computed += bounds[k][1] - bounds[k][0]
             if on_chunk is not None:
@@ -407,7 +412,8 @@ def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
                 if here:
                     _run_here(sweep, bounds, todo, retries, finished, report)
                 else:
-                    _run_dask(sweep, bounds, todo, retries, finished, report, client)
+                    _run_dask(sweep, bounds, todo, retries, finished, report, client,
+                              root)
             except OSError as exc:
                 if exc.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
                     raise
@@ -538,48 +544,89 @@ def _client(scheduler: str | None, workers: int):
         yield client
 
 
-def _run_dask(sweep, bounds, todo, retries, finished, report, client) -> None:
-    """The chunks as Dask tasks (at most four per worker thread in flight), results written
-    here as they arrive."""
+def _probe_path(root: Path, token: str) -> Path:
+    """The file by which a worker knows it sees this run's directory (``chunks/`` holds it
+    while the run lasts; its name is one of the sweep's temporary names)."""
+    return root / CHUNKS / f".writers.{token}.tmp"
+
+
+def evaluate_and_write(texts: tuple[str, str, str, str], root: str, token: str, k: int,
+                       start: int, stop: int) -> Chunk | None:
+    """A Dask task: chunk ``k`` (designs ``start .. stop - 1``) evaluated and, when this worker
+    sees the run's directory (a shared file system: the run's probe file there holds
+    ``token``), written into it by the worker itself, exactly as :func:`write_chunk` writes
+    (curves first, the Parquet file last by rename), returning None; a worker that does not
+    see it returns the chunk for the client to write."""
+    from ..design.sweep import evaluate_texts, sweep_of_texts
+
+    c = evaluate_texts(texts, start, stop)
+    path = Path(root)
+    try:
+        seen = _probe_path(path, token).read_text(encoding="ascii") == token
+    except (OSError, UnicodeDecodeError):
+        seen = False
+    if not seen:
+        return c
+    write_chunk(path, sweep_of_texts(texts), k, c)
+    return None
+
+
+def _run_dask(sweep, bounds, todo, retries, finished, report, client, root: Path) -> None:
+    """The chunks as Dask tasks (at most four per worker thread in flight), each written by
+    the worker that computed it where the worker sees ``root`` (else here, as it arrives);
+    this process records which chunks are done."""
+    import secrets
+
     from distributed import as_completed
 
-    from ..design.sweep import evaluate_texts, texts_of
+    from ..design.sweep import texts_of
 
     client.register_plugin(_Warm(), name="sewmech-warm")
     threads = max(1, sum(client.nthreads().values()))
     texts = client.scatter(texts_of(sweep), broadcast=True)
-    window = 4 * threads
     queue = iter(todo)
     keys = {}
+    token = secrets.token_hex(16)
 
     def submit():
         k = next(queue, None)
         if k is None:
             return None
-        f = client.submit(evaluate_texts, texts, *bounds[k], retries=retries, pure=False,
+        f = client.submit(evaluate_and_write, texts, str(root), token, k, *bounds[k],
+                          retries=retries, pure=False,
                           key=f"sewmech-sweep-{sweep.sweep_sha256[:8]}-chunk-{k}"
                               f"-{os.getpid()}-{time.monotonic_ns()}")
         keys[f.key] = k
         return f
 
-    first = [f for f in (submit() for _ in range(window)) if f is not None]
-    running = as_completed(first, with_results=False)
-    for f in running:
-        k = keys.pop(f.key)
-        if f.status == "finished":
-            c = f.result()
-            f.release()
-            if not finished(k, c):
-                for other in list(running.futures):
-                    other.cancel()
-                return
-        else:
-            exc = f.exception()
-            report.failed[k] = f"{type(exc).__name__}: {exc}"
-            f.release()
-        nxt = submit()
-        if nxt is not None:
-            running.add(nxt)
+    _probe_path(root, token).write_text(token, encoding="ascii")  # (a worker that reads it
+    # before it is whole writes nothing itself: its chunk comes here)
+    try:
+        first = [f for f in (submit() for _ in range(4 * threads)) if f is not None]
+        running = as_completed(first, with_results=False)
+        for f in running:
+            k = keys.pop(f.key)
+            if f.status == "finished":
+                c = f.result()
+                f.release()
+                if not finished(k, c):
+                    for other in list(running.futures):
+                        other.cancel()
+                    return
+            else:
+                exc = f.exception()
+                report.failed[k] = f"{type(exc).__name__}: {exc}"
+                f.release()
+            nxt = submit()
+            if nxt is not None:
+                running.add(nxt)
+    finally:
+        # the probe, and what writers killed mid-chunk left (their chunks were computed and
+        # written again elsewhere)
+        for e in os.listdir(root / CHUNKS):
+            if CHUNK_TMP_RE.fullmatch(e):
+                with contextlib.suppress(OSError):
+                    (root / CHUNKS / e).unlink()
 
 
 class _Warm(WorkerPlugin):

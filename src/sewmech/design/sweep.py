@@ -273,13 +273,18 @@ def texts_of(sweep: Sweep) -> tuple[str, str, str, str]:
 def evaluate_texts(texts: tuple[str, str, str, str], start: int, stop: int) -> Chunk:
     """:func:`evaluate_chunk` for a sweep given by its texts (:func:`texts_of`), built once per
     process: a Dask task."""
+    return evaluate_chunk(sweep_of_texts(texts), start, stop)
+
+
+def sweep_of_texts(texts: tuple[str, str, str, str]) -> Sweep:
+    """The sweep given by its texts (:func:`texts_of`), built once per process."""
     import hashlib
 
     key = hashlib.sha256("\0".join(texts).encode("utf-8")).hexdigest()
     sweep = _BUILT.get(key)
     if sweep is None:
         sweep = _BUILT[key] = Sweep.from_texts(*texts)
-    return evaluate_chunk(sweep, start, stop)
+    return sweep
 
 
 def prepare_worker() -> None:

@@ -102,7 +102,9 @@ def sweep_cmd(
     rate = r.designs_computed / r.seconds if r.seconds > 0 else math.nan
     data = {"sweep": sweep.spec.sweep.name, "out": str(root), "n_designs": sweep.n_designs,
             "n_chunks": r.n_chunks, "chunks_found_done": r.done_before,
-            "chunks_computed": len(r.computed), "designs_computed": r.designs_computed,
+            "chunks_computed": len(r.computed),
+            "chunks_written_by_workers": r.written_by_workers,
+            "designs_computed": r.designs_computed,
             "seconds": r.seconds, "designs_per_second": rate if math.isfinite(rate) else None,
             "feasible": feasible, "designs_written": total}
     if as_json:
@@ -110,6 +112,8 @@ def sweep_cmd(
         return
     how = (f"{len(r.computed)} chunks computed in {r.seconds:.1f} s ({rate:,.0f} designs/s)"
            if r.computed else "nothing left to compute")
+    if r.written_by_workers:
+        how += f", {r.written_by_workers} of them written by the workers"
     console.print(f"{escape(sweep.spec.sweep.name)}: {sweep.n_designs:,} designs in"
                   f" {r.n_chunks} chunks; {r.done_before} found done, {how}", highlight=False)
     console.print(f"feasible: {feasible:,} of {total:,} designs"
