@@ -168,3 +168,60 @@ def test_a_sweep_killed_anywhere_resumes_to_the_same_values(tmp_path):
     import pandas as pd
 
     pd.testing.assert_frame_equal(got, want)  # the same compiled code on the same designs
+
+
+#: writes three files through output_dir, the moves into place wrapped so that the process
+#: kills itself (SIGKILL) just before or just after its K-th move; K = 0 runs to the end, and
+#: tag "fail" raises before anything is staged (a run that ends in an error)
+_MOVER = """
+import os, signal, sys
+from sewmech.app.files import outdir
+root, tag, k, when = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
+real, calls = outdir.move_no_replace, [0]
+def move(src, dst):
+    calls[0] += 1
+    if calls[0] == k and when == "before":
+        os.kill(os.getpid(), signal.SIGKILL)
+    real(src, dst)
+    if calls[0] == k and when == "after":
+        os.kill(os.getpid(), signal.SIGKILL)
+outdir.move_no_replace = move
+names = ("a.csv", "b.csv", "c.csv") + (("d.csv",) if tag == "old" else ())
+with outdir.output_dir(root, command="t") as d:
+    if tag == "fail":
+        raise SystemExit(3)
+    for n in names:
+        (d / n).write_text(n + " " + tag + "\\n", encoding="utf-8")
+"""
+
+
+def _mover(root: Path, tag: str, k: int = 0, when: str = "before") -> int:
+    return subprocess.run([sys.executable, "-c", _MOVER, str(root), tag, str(k), when],
+                          capture_output=True, text=True, timeout=120).returncode
+
+
+@pytest.mark.parametrize("k, when", [(1, "before"), (2, "before"), (1, "after"), (2, "after"),
+                                     (3, "after")])
+def test_a_run_killed_while_it_moves_its_files_in_is_rolled_back(tmp_path, k, when):
+    """A run killed between its moves into place (old file set aside, new one not yet in; some
+    new files in, others not; every new file in, the stale d.csv not yet dropped and the
+    manifest not yet written): the next run puts the directory back as the killed run found
+    it (the previous files, each exactly sewmech's own again) before it does anything, and a
+    run after it completes. The killed run's previous files were lost: the next run removed
+    the staging directory that held them."""
+    from sewmech.app.files import outdir
+
+    root = tmp_path / "out"
+    assert _mover(root, "old") == 0
+    before = _state(root)
+    assert sorted(before) == [".sewmech-manifest.json", "a.csv", "b.csv", "c.csv", "d.csv"]
+    assert _mover(root, "new", k, when) == -signal.SIGKILL
+    assert _state(root) != before or when == "before"  # (killed in the middle of it)
+    assert _mover(root, "fail") == 3  # a run that ends in an error: it recovers, commits nothing
+    assert _state(root) == before
+    assert not [e for e in os.listdir(root) if e.startswith(".sewmech-staging-")]
+    outdir.preflight(root, command="t")  # every file sewmech's own, unchanged: not refused
+    assert _mover(root, "new") == 0
+    after = _state(root)
+    assert sorted(after) == [".sewmech-manifest.json", "a.csv", "b.csv", "c.csv"]
+    assert (root / "a.csv").read_text(encoding="utf-8") == "a.csv new\n"

@@ -21,7 +21,10 @@ Every command that writes files (``--out DIR``) goes through :func:`output_dir`:
   run did not write again are removed if unchanged (they are sewmech's own). On any error or interruption (Ctrl-C,
   SIGTERM, SIGHUP) the staging directory is removed, and DIR too if this run created it. A run
   killed outright (SIGKILL, power loss) leaves its staging directory and its process id in the
-  lock file: the next run removes the one, notices the other and says so.
+  lock file: the next run removes the one, notices the other and says so. Before its first
+  move a run writes the list of files it moves in (a journal in its staging directory), so a
+  run killed in the middle of its moves (some files in, the previous ones set aside) is rolled
+  back by the next run: each previous file returns (:func:`_roll_back`).
 - Files and directories get the modes the umask gives (0644 and 0755 under umask 022).
 
 A sweep (:mod:`sewmech.app.sweep_run`) writes in place instead, chunk by chunk, each file by
@@ -53,6 +56,8 @@ from ...engine.paths import user_path
 MANIFEST = ".sewmech-manifest.json"
 LOCK = ".sewmech.lock"
 STAGING_PREFIX = ".sewmech-staging-"
+#: in a staging directory: the files a commit moves in, written before the first move
+JOURNAL = ".sewmech-commit.json"
 #: a run's result that could not be moved into place (a file of the user's was in the way)
 KEPT_PREFIX = "sewmech-kept-"
 
@@ -462,10 +467,12 @@ def output_dir(path: str | Path, *, command: str, option: str = "--out",
             lock_created = False  # the other run's lock
             raise
         manifest = _read_manifest(root, option)
-        _refuse_foreign(root, manifest, command, option)
         left = [e for e in os.listdir(root) if e.startswith(STAGING_PREFIX)]
         for entry in left:  # staging left by a run that was killed outright
+            if (root / entry).is_dir() and not (root / entry).is_symlink():
+                _roll_back(root, root / entry, manifest)  # if it was killed mid-move
             shutil.rmtree(root / entry, ignore_errors=True)
+        _refuse_foreign(root, manifest, command, option)
         if left:
             notice(f"{option} {root}: a run (pid {killed or '?'}) was stopped before it"
                    " finished; its unfinished files were removed and the directory is as"
@@ -491,6 +498,8 @@ def output_dir(path: str | Path, *, command: str, option: str = "--out",
         staging = None
     except BaseException:
         if staging is not None:
+            with contextlib.suppress(OSError):
+                _roll_back(root, staging, manifest)  # (an error while it moved files in)
             shutil.rmtree(staging, ignore_errors=True)
         if lock_created:
             with contextlib.suppress(OSError):
@@ -502,6 +511,52 @@ def output_dir(path: str | Path, *, command: str, option: str = "--out",
     finally:
         if lock_fd is not None:
             _release_lock(lock_fd)
+
+
+def _roll_back(root: Path, staging: Path, manifest: dict) -> None:
+    """Put ``root`` back as a run found it that was stopped (killed outright, or an error)
+    while it moved its staged files into place (:func:`_commit`): each name of its journal
+    that holds the run's new file (its size and time, and no longer in ``staging``) gets its
+    previous file back from the staging's ``.aside-*`` directory (or is removed, if it had
+    none), a previous file moved aside and not replaced is moved back, and so are the
+    previous run's stale files it had set aside. Nothing is done when the run had not begun
+    to move (no journal) or had finished (``manifest`` records the new files), and nothing
+    that is not exactly the run's own file is touched."""
+    try:
+        journal = json.loads((staging / JOURNAL).read_text(encoding="utf-8"))["files"]
+        if not isinstance(journal, dict):
+            return
+    except (OSError, ValueError, KeyError, TypeError):
+        return  # the moves had not begun
+    if all((rec := manifest.get(n)) is not None and [rec.get("size"), rec.get("mtime_ns")]
+           == list(st) for n, st in journal.items()):
+        return  # the run's manifest is in place: it finished
+    asides = [staging / e for e in os.listdir(staging) if e.startswith(".aside-")]
+
+    def previous(name: str) -> Path | None:
+        return next((d / name for d in asides if os.path.lexists(d / name)), None)
+
+    for name, st in journal.items():
+        if not _plain_name(name):
+            continue
+        path, old = root / name, previous(name)
+        try:
+            new_here = (not os.path.lexists(staging / name) and os.path.lexists(path)
+                        and stat.S_ISREG(os.lstat(path).st_mode) and _stamp(path) == list(st))
+        except OSError:
+            new_here = False
+        with contextlib.suppress(OSError):
+            if new_here and old is not None:
+                os.replace(old, path)
+            elif new_here:
+                os.unlink(path)
+            elif old is not None and not os.path.lexists(path):
+                move_no_replace(old, path)
+    for d in asides:  # the previous run's stale files, set aside
+        for e in os.listdir(d):
+            if e != MANIFEST and e not in journal and _plain_name(e):
+                with contextlib.suppress(OSError):
+                    move_no_replace(d / e, root / e)
 
 
 def _kept_dir_name(command: str) -> str:
@@ -519,6 +574,12 @@ def _commit(root: Path, staging: Path, manifest: dict, command: str, option: str
     result is kept in ``root/sewmech-kept-COMMAND-TIME/`` and an OutputError says so; what
     was moved already stays, recorded in the manifest."""
     written = sorted(os.listdir(staging))
+    # what this commit moves in, with each file's size and time (a rename keeps both): a run
+    # killed in the middle of the moves is rolled back from it by the next run
+    tmp = staging / (JOURNAL + ".tmp")
+    tmp.write_text(json.dumps({"files": {n: _stamp(staging / n) for n in written}}),
+                   encoding="utf-8")
+    os.replace(tmp, staging / JOURNAL)
     aside = Path(tempfile.mkdtemp(prefix=".aside-", dir=staging))  # replaced files of ours
     in_the_way = [n for n in written if os.path.lexists(root / n)
                   and not _is_ours(root / n, manifest.get(n))]
@@ -567,6 +628,7 @@ def _commit(root: Path, staging: Path, manifest: dict, command: str, option: str
     os.chmod(tmp, file_mode())
     os.replace(tmp, root / MANIFEST)
     shutil.rmtree(aside, ignore_errors=True)
+    (staging / JOURNAL).unlink()  # the commit is over (its manifest in place)
     if not conflict:
         staging.rmdir()
         return
