@@ -28,10 +28,10 @@ def running_app(extra=None, initial=None, files=None, workers=0):
 
     from sewmech.app.web.server import create_app
 
+    app = create_app(extra, initial, files, workers)  # its workers first: they hold no socket
     sock = socket.socket()
     sock.bind(("127.0.0.1", 0))
     port = sock.getsockname()[1]
-    app = create_app(extra, initial, files, workers)
     server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="off"))
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()

@@ -90,26 +90,28 @@ def serve_cmd(
         initial = f"{spec.machine.name} ({path.name})"
         extra[initial] = (path.name, text)
         files[initial] = path.resolve()  # read again whenever a page opens it
-    try:
-        sock = socket.socket(family)
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        sock.bind(address)
-        sock.listen(128)  # connections wait from now on, while the server starts
-    except OSError as exc:
-        if exc.errno == errno.EADDRNOTAVAIL:  # an address of another computer
-            raise OptionError("--host", f"cannot listen on {host}: {exc.strerror or exc} (it is"
-                              " not an address of this computer)", _HOST_HINT) from None
-        raise OptionError("--port", f"cannot listen on {host}:{port}: {exc.strerror or exc}",
-                          "Choose another --port (0: any free one)") from None
-    bound = sock.getsockname()[1]
-    shown = f"[{host}]" if ":" in host else host
-    app = create_app(extra, initial, files, workers)  # starts the workers
-    with contextlib.suppress(KeyboardInterrupt, Terminated), _closing(app.state.sewmech):
-        # Ctrl-C, the documented way to stop the page's server (or a service manager's
-        # SIGTERM), is a normal end with exit code 0. Once it runs, uvicorn closes the
-        # connections on the signal, then raises it again, which ends here
-        console.print(f"sewmech: the page is at http://{shown}:{bound}/ (Ctrl-C stops the"
-                      " server)", highlight=False, soft_wrap=True)
-        config = uvicorn.Config(app, log_level="warning", lifespan="off")
-        uvicorn.Server(config).run(sockets=[sock])
+    # the workers first, forked before the socket exists, so that they hold no copy of it
+    app = create_app(extra, initial, files, workers)
+    with _closing(app.state.sewmech):
+        try:
+            sock = socket.socket(family)
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            sock.bind(address)
+            sock.listen(128)  # connections wait from now on, while the server starts
+        except OSError as exc:
+            if exc.errno == errno.EADDRNOTAVAIL:  # an address of another computer
+                raise OptionError("--host", f"cannot listen on {host}: {exc.strerror or exc}"
+                                  " (it is not an address of this computer)", _HOST_HINT) from None
+            raise OptionError("--port", f"cannot listen on {host}:{port}: {exc.strerror or exc}",
+                              "Choose another --port (0: any free one)") from None
+        bound = sock.getsockname()[1]
+        shown = f"[{host}]" if ":" in host else host
+        with contextlib.suppress(KeyboardInterrupt, Terminated):
+            # Ctrl-C, the documented way to stop the page's server (or a service manager's
+            # SIGTERM), is a normal end with exit code 0. Once it runs, uvicorn closes the
+            # connections on the signal, then raises it again, which ends here
+            console.print(f"sewmech: the page is at http://{shown}:{bound}/ (Ctrl-C stops the"
+                          " server)", highlight=False, soft_wrap=True)
+            config = uvicorn.Config(app, log_level="warning", lifespan="off")
+            uvicorn.Server(config).run(sockets=[sock])
     console.print("sewmech: the page's server stopped", highlight=False)

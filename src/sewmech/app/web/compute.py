@@ -289,9 +289,17 @@ class ProcessCompute:
             pass
 
     def close(self) -> None:
+        """Stop the workers now: the server is stopping, nobody waits for what they compute
+        (a worker still loading the kernels would otherwise hold up a Ctrl-C for seconds)."""
         self._closed = True
+        procs = [proc for p in self.pools for proc in (p._processes or {}).values()]
         for p in self.pools:
-            p.shutdown(wait=True, cancel_futures=True)
+            p.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:
+            if proc.is_alive():
+                proc.terminate()  # SIGTERM, whose default action the workers take
+        for proc in procs:
+            proc.join(10)
 
 
 def compute(workers: int, warm: tuple[str, str] | None = None):
