@@ -7,6 +7,7 @@ is asserted here (benchmarks/bench_serve.py measures it)."""
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import signal
@@ -137,6 +138,26 @@ def test_a_worker_that_dies_is_started_again_and_its_pages_load_again(served):
     status, turn = call(f"{url}/api/sessions/{again}/turn", {"set": _design(1, 0)})
     assert status == 200 and _mine(turn, _design(1, 0))
     assert victim not in app.compute.pids() and len(app.compute.pids()) == 2
+
+
+def test_a_bug_in_a_worker_is_a_500_whose_traceback_goes_to_the_servers_log(monkeypatch,
+                                                                             caplog):
+    from sewmech.app.web.session import Session
+
+    def broken(self, values):
+        raise RuntimeError("a bug in the worker")
+
+    monkeypatch.setattr(Session, "curves_csv", broken)  # the workers are forked with it
+    with running_app(workers=1) as (url, _):
+        token = _open(url)
+        with caplog.at_level(logging.ERROR, logger="sewmech.serve"):
+            status, body = call(f"{url}/api/sessions/{token}/curves.csv", {"set": {}})
+        assert status == 500 and body["error"]["kind"] == "InternalError", body
+        assert "RuntimeError" in body["error"]["what"] and "Traceback" not in str(body)
+        logged = "\n".join(r.getMessage() for r in caplog.records)
+        assert "internal error in curves_csv" in logged and "a bug in the worker" in logged
+        status, turn = call(f"{url}/api/sessions/{token}/turn", {"set": _design(2, 0)})
+        assert status == 200 and _mine(turn, _design(2, 0))  # the worker goes on
 
 
 def _serve(*args):
