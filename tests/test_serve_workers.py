@@ -160,6 +160,28 @@ def test_a_bug_in_a_worker_is_a_500_whose_traceback_goes_to_the_servers_log(monk
         assert status == 200 and _mine(turn, _design(2, 0))  # the worker goes on
 
 
+def _sessions_in_worker() -> int:
+    from sewmech.app.web import compute
+
+    return len(compute._SESSIONS)
+
+
+def test_a_dropped_session_leaves_its_worker(monkeypatch):
+    """The server keeps the last MAX_SESSIONS pages; an older page's session is dropped in its
+    worker too (the memory stays flat however many pages come and go)."""
+    import sewmech.app.web.server as server
+
+    monkeypatch.setattr(server, "MAX_SESSIONS", 3)
+    with running_app(workers=2) as (url, app):
+        tokens = [_open(url) for _ in range(5)]
+        status, body = call(f"{url}/api/sessions/{tokens[0]}/turn", {"set": {}})
+        assert status == 404 and body["error"]["hint"] == "Load the machine again"
+        assert call(f"{url}/api/sessions/{tokens[-1]}/turn", {"set": {}})[0] == 200
+        assert sorted(app.compute.where) == sorted(tokens[2:]) and sum(app.compute.count) == 3
+        held = [p.submit(_sessions_in_worker).result(60) for p in app.compute.pools]
+        assert sorted(held) == sorted(app.compute.count) and sum(held) == 3
+
+
 def _serve(*args):
     return subprocess.Popen([sys.executable, "-c", CLI, "serve", "jb1-3", "--port", "0",
                              *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
