@@ -7,9 +7,9 @@ lives in one worker, which holds its compiled machine and prepared calls for as 
 server keeps the session, computes its turns and encodes their JSON; the server's process
 only reads requests and sends answers. A new session goes to the worker with the fewest
 sessions. A worker computes one request at a time; the server sends it at most one turn and
-one checks request of a session at a time (the others wait in the server, not in the worker's
-queue), so a page that sends many requests at once cannot make the other pages wait behind all
-of them. Sessions never share anything: each has its own machine, in whichever process.
+one other request (the checks, an export) of a session at a time (the others wait in the
+server, not in the worker's queue), so a page that sends many requests at once cannot make the
+other pages wait behind all of them. Sessions never share anything: each has its own machine, in whichever process.
 
 With ``--workers 0`` (:class:`LocalCompute`) the sessions live in the server's own process and
 compute on its threads, as before issue 34: one core for the Python part of the work.
