@@ -129,7 +129,7 @@ def load(results: Path = RESULTS) -> tuple[list[Row], list[str]]:
                             r.get("ratio_kind", "faster"), r.get("target"),
                             r.get("target_op", "<="), r.get("target_on", "figure"),
                             r.get("condition"), r.get("condition_text", "a further condition"),
-                            met, str(date), str(commit)))
+                            met, str(r.get("date") or date), str(r.get("commit") or commit)))
     return rows, problems
 
 

@@ -1,5 +1,6 @@
 """A real ``sewmech serve`` server for the page's tests: uvicorn on 127.0.0.1 on a free port, in
-a thread of the test process, always stopped when the test module is done."""
+a thread of the test process, always stopped when the test module is done (with its worker
+processes, if it has any)."""
 
 from __future__ import annotations
 
@@ -13,16 +14,25 @@ import urllib.request
 
 
 @contextlib.contextmanager
-def running_server(extra=None, initial=None, files=None):
+def running_server(extra=None, initial=None, files=None, workers=0):
+    """The server's address. ``workers``: as ``sewmech serve --workers`` (0: the sessions
+    compute in this process)."""
+    with running_app(extra, initial, files, workers) as (url, _):
+        yield url
+
+
+@contextlib.contextmanager
+def running_app(extra=None, initial=None, files=None, workers=0):
+    """(address, the server's state: :class:`sewmech.app.web.server.App`)."""
     import uvicorn
 
     from sewmech.app.web.server import create_app
 
+    app = create_app(extra, initial, files, workers)  # its workers first: they hold no socket
     sock = socket.socket()
     sock.bind(("127.0.0.1", 0))
     port = sock.getsockname()[1]
-    server = uvicorn.Server(uvicorn.Config(create_app(extra, initial, files), log_level="warning",
-                                           lifespan="off"))
+    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="off"))
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
     try:
@@ -31,11 +41,12 @@ def running_server(extra=None, initial=None, files=None):
             if time.monotonic() > deadline or not thread.is_alive():
                 raise RuntimeError("the test server did not start")
             time.sleep(0.02)
-        yield f"http://127.0.0.1:{port}"
+        yield f"http://127.0.0.1:{port}", app.state.sewmech
     finally:
         server.should_exit = True
         thread.join(10)
         sock.close()
+        app.state.sewmech.close()
 
 
 def call(url: str, data=None, *, raw: bytes | None = None, method: str | None = None):

@@ -334,7 +334,7 @@ def test_every_toml_file_the_command_line_reads_is_bounded(tmp_path, monkeypatch
 def url():
     import sewmech.web  # noqa: F401  (the short name, as test_layers imports it, first)
 
-    with running_server() as u:
+    with running_server(workers=2) as u:  # as `sewmech serve` computes: in worker processes
         yield u
 
 

@@ -26,7 +26,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 def url():
     import sewmech.web  # noqa: F401  (the short name, as test_layers imports it, first)
 
-    with running_server() as u:
+    with running_server(workers=2) as u:  # as `sewmech serve` computes: in worker processes
         yield u
 
 

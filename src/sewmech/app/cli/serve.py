@@ -39,6 +39,15 @@ def _address(host: str, port: int) -> tuple[int, tuple]:
     return family, address
 
 
+@contextlib.contextmanager
+def _closing(state):
+    """Stop the page's worker processes when the server stops, however it stops."""
+    try:
+        yield
+    finally:
+        state.close()
+
+
 @command("serve")
 def serve_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="the machine the page opens with: a"
@@ -47,6 +56,9 @@ def serve_cmd(
     host: str = typer.Option("127.0.0.1", help="address to listen on; the default serves this"
                              " computer only (0.0.0.0 serves your network: anyone who reaches"
                              " it can use the page)"),
+    workers: int = typer.Option(None, help="processes that compute the pages' turns, each"
+                                " page's in one of them (default: one per CPU core; 0: in the"
+                                " server's own process, one core)"),
 ):
     """Start the interactive page: change a dimension or the stitch regulator and watch the
     mechanism, its curves, forces and checks move (docs/serve.md). Ctrl-C stops it (exit
@@ -57,8 +69,15 @@ def serve_cmd(
 
     from ...engine.machine import shipped_machines
     from ...engine.spec import parse_machine, read_toml_text
+    from ..web.compute import MAX_WORKERS, check_workers
     from ..web.server import create_app
 
+    if workers is not None and not 0 <= workers <= MAX_WORKERS:
+        raise OptionError("--workers", f"must be 0 .. {MAX_WORKERS}, got {workers}",
+                          "Give the number of processes that compute the pages (e.g. the"
+                          " CPU cores; 0 computes in the server's own process), or leave it"
+                          " out for one per core")
+    workers = check_workers(workers)
     if not 0 <= port <= 65535:
         raise OptionError("--port", f"must be 0 .. 65535, got {port}", "Give e.g. --port 8000,"
                           " or --port 0 for any free port")
@@ -71,26 +90,28 @@ def serve_cmd(
         initial = f"{spec.machine.name} ({path.name})"
         extra[initial] = (path.name, text)
         files[initial] = path.resolve()  # read again whenever a page opens it
-    app = create_app(extra, initial, files)
-    try:
-        sock = socket.socket(family)
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        sock.bind(address)
-        sock.listen(128)  # connections wait from now on, while the server starts
-    except OSError as exc:
-        if exc.errno == errno.EADDRNOTAVAIL:  # an address of another computer
-            raise OptionError("--host", f"cannot listen on {host}: {exc.strerror or exc} (it is"
-                              " not an address of this computer)", _HOST_HINT) from None
-        raise OptionError("--port", f"cannot listen on {host}:{port}: {exc.strerror or exc}",
-                          "Choose another --port (0: any free one)") from None
-    bound = sock.getsockname()[1]
-    shown = f"[{host}]" if ":" in host else host
-    with contextlib.suppress(KeyboardInterrupt, Terminated):
-        # Ctrl-C, the documented way to stop the page's server (or a service manager's
-        # SIGTERM), is a normal end with exit code 0. Once it runs, uvicorn closes the
-        # connections on the signal, then raises it again, which ends here
-        console.print(f"sewmech: the page is at http://{shown}:{bound}/ (Ctrl-C stops the"
-                      " server)", highlight=False, soft_wrap=True)
-        config = uvicorn.Config(app, log_level="warning", lifespan="off")
-        uvicorn.Server(config).run(sockets=[sock])
+    # the workers first, forked before the socket exists, so that they hold no copy of it
+    app = create_app(extra, initial, files, workers)
+    with _closing(app.state.sewmech):
+        try:
+            sock = socket.socket(family)
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            sock.bind(address)
+            sock.listen(128)  # connections wait from now on, while the server starts
+        except OSError as exc:
+            if exc.errno == errno.EADDRNOTAVAIL:  # an address of another computer
+                raise OptionError("--host", f"cannot listen on {host}: {exc.strerror or exc}"
+                                  " (it is not an address of this computer)", _HOST_HINT) from None
+            raise OptionError("--port", f"cannot listen on {host}:{port}: {exc.strerror or exc}",
+                              "Choose another --port (0: any free one)") from None
+        bound = sock.getsockname()[1]
+        shown = f"[{host}]" if ":" in host else host
+        with contextlib.suppress(KeyboardInterrupt, Terminated):
+            # Ctrl-C, the documented way to stop the page's server (or a service manager's
+            # SIGTERM), is a normal end with exit code 0. Once it runs, uvicorn closes the
+            # connections on the signal, then raises it again, which ends here
+            console.print(f"sewmech: the page is at http://{shown}:{bound}/ (Ctrl-C stops the"
+                          " server)", highlight=False, soft_wrap=True)
+            config = uvicorn.Config(app, log_level="warning", lifespan="off")
+            uvicorn.Server(config).run(sockets=[sock])
     console.print("sewmech: the page's server stopped", highlight=False)

@@ -10,17 +10,19 @@ file given on the command line); an uploaded file is bytes in the request's body
 the command line checks files (size, encoding, TOML, the machine-file validation) and never
 written anywhere. Each page gets its own session (a random token) with its own compiled
 machine, so no page sees another's edits; the oldest sessions are dropped beyond
-:data:`MAX_SESSIONS`.
+:data:`MAX_SESSIONS`. The sessions compute in worker processes, one per core by default
+(:mod:`.compute`); the server's own process reads the requests and sends the answers.
 """
 
 from __future__ import annotations
 
+import asyncio
 import json
 import logging
 import secrets
 import threading
-import time
 from collections import OrderedDict
+from dataclasses import dataclass, field
 from pathlib import Path, PurePath
 from urllib.parse import quote
 
@@ -31,9 +33,9 @@ from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
-from ...engine.errors import AssemblyError, SewmechError
 from ...engine.spec import MAX_FILE_BYTES, toml_text
-from .session import PageError, Session, error_dict, shipped_texts
+from .compute import ErrorAnswer, SessionGone, bug_answer, check_workers, compute, error_answer
+from .session import shipped_texts
 
 log = logging.getLogger("sewmech.serve")
 
@@ -48,11 +50,10 @@ MAX_JSON_BYTES = 256 * 1024
 STATIC = Path(__file__).resolve().parent / "static"
 
 
-class RequestError(Exception):
+class RequestError(ErrorAnswer):
     def __init__(self, status: int, where: str, what: str, hint: str = ""):
-        super().__init__(what)
-        self.status, self.body = status, {"kind": "RequestError", "where": where, "what": what,
-                                          "hint": hint}
+        super().__init__(status, {"kind": "RequestError", "where": where, "what": what,
+                                  "hint": hint})
 
 
 def _error(status: int, body: dict) -> Response:
@@ -99,37 +100,74 @@ async def _json(request: Request) -> dict:
     return data
 
 
+def _gone() -> RequestError:
+    return RequestError(404, "session", "is unknown or expired (the server keeps the last"
+                        f" {MAX_SESSIONS} pages' machines)", "Load the machine again")
+
+
+@dataclass
+class Page:
+    """What the server's process knows of a session: its token and file name, and the locks
+    that let one turn and one other request of it at a time go to the computing side (the
+    page itself waits for a turn's answer before it sends the next one, with the newest
+    values: a dragged slider's stale values are never sent)."""
+
+    token: str
+    file_name: str
+    turn_lock: asyncio.Lock = field(default_factory=asyncio.Lock)
+    other_lock: asyncio.Lock = field(default_factory=asyncio.Lock)
+
+
 class App:
     """The page's state: the machines it may open and the sessions of the pages."""
 
     def __init__(self, extra: dict[str, tuple[str, str]] | None = None,
-                 initial: str | None = None, files: dict[str, Path] | None = None):
+                 initial: str | None = None, files: dict[str, Path] | None = None,
+                 workers: int | None = 0):
         self.machines = {**shipped_texts(), **(extra or {})}
         #: the machines read from a file on disk (the command line's): read again whenever a
         #: page opens one, so that an edit saved meanwhile is what the page shows and exports
         self.files = {k: Path(v) for k, v in (files or {}).items() if k in self.machines}
         self.initial = initial if initial in self.machines else (
             "jb1-3" if "jb1-3" in self.machines else next(iter(self.machines), None))
-        self.sessions: OrderedDict[str, Session] = OrderedDict()
+        self.sessions: OrderedDict[str, Page] = OrderedDict()
         self._lock = threading.Lock()
+        warm = self.machines.get(self.initial) if self.initial else None
+        self.compute = compute(check_workers(workers), None if warm is None else
+                               (warm[1], warm[0]))
 
-    def add(self, session: Session) -> str:
-        token = secrets.token_urlsafe(16)
+    def close(self) -> None:
+        """Stop the worker processes (the sessions go with them)."""
+        self.compute.close()
+
+    def add(self, page: Page) -> None:
         with self._lock:
-            self.sessions[token] = session
+            self.sessions[page.token] = page
+            dropped = []
             while len(self.sessions) > MAX_SESSIONS:
-                self.sessions.popitem(last=False)
-        return token
+                dropped.append(self.sessions.popitem(last=False)[0])
+        for token in dropped:
+            self.compute.drop(token)
 
-    def get(self, token: str) -> Session:
+    def get(self, token: str) -> Page:
         with self._lock:
             s = self.sessions.get(token)
             if s is None:
-                raise RequestError(404, "session", "is unknown or expired (the server keeps"
-                                   f" the last {MAX_SESSIONS} pages' machines)",
-                                   "Load the machine again")
+                raise _gone()
             self.sessions.move_to_end(token)
             return s
+
+    async def call(self, page: Page, what: str, *args):
+        """A session's call on the computing side, one turn and one other request of a session
+        at a time."""
+        lock = page.turn_lock if what == "turn" else page.other_lock
+        async with lock:
+            try:
+                return await self.compute.call(page.token, what, *args)
+            except SessionGone:
+                with self._lock:  # its worker was started again: the page loads it again
+                    self.sessions.pop(page.token, None)
+                raise _gone() from None
 
     # ---- endpoints -----------------------------------------------------------------------------
     async def index(self, request: Request):
@@ -174,10 +212,10 @@ class App:
         return await self._open(text, name)
 
     async def _open(self, text: str, file: str):
-        session = await run_in_threadpool(Session.from_text, text, file)
-        await run_in_threadpool(session.warm)
-        token = self.add(session)
-        return JSONResponse({"session": token, "machine": session.info()})
+        token = secrets.token_urlsafe(16)
+        info = await self.compute.open(token, text, file)
+        self.add(Page(token, file))
+        return JSONResponse({"session": token, "machine": info})
 
     async def turn(self, request: Request):
         return await self._timed(request, "turn")
@@ -190,17 +228,7 @@ class App:
         (computing and encoding, ms; the page and the benchmark read it)."""
         s = self.get(request.path_params["token"])
         data = await _json(request)
-
-        def work():
-            t0 = time.perf_counter()
-            answer = getattr(s, what)(data.get("set"))
-            try:
-                body = json.dumps(answer, separators=(",", ":"), allow_nan=False).encode()
-            except ValueError as exc:  # a NaN or infinity the session let through: a bug
-                raise RuntimeError(f"a non-finite number in the {what}: {exc}") from None
-            return body, (time.perf_counter() - t0) * 1e3
-
-        body, ms = await run_in_threadpool(work)
+        body, ms = await self.call(s, what, data.get("set"))
         return Response(body, media_type="application/json",
                         headers={"Server-Timing": f"{what};dur={ms:.1f}"})
 
@@ -222,7 +250,7 @@ class App:
         s = self.get(request.path_params["token"])
         data = await _json(request)
         phi = data.get("phi_deg", 0.0)
-        text = await run_in_threadpool(s.drawing, data.get("set"), phi, fmt)
+        text = await self.call(s, "drawing", data.get("set"), phi, fmt)
         name = f"{PurePath(s.file_name).stem}-phi{float(phi):g}.{fmt}"
         return Response(text, media_type=f"{media}; charset=utf-8",
                         headers={"Content-Disposition": content_disposition(name)})
@@ -232,7 +260,7 @@ class App:
         after the machine's file."""
         s = self.get(request.path_params["token"])
         data = await _json(request)
-        text = await run_in_threadpool(getattr(s, method), data.get("set"))
+        text = await self.call(s, method, data.get("set"))
         name = PurePath(s.file_name).stem + suffix
         return Response(text, media_type=f"{media}; charset=utf-8",
                         headers={"Content-Disposition": content_disposition(name)})
@@ -250,39 +278,32 @@ def content_disposition(name: str) -> str:
 
 
 def create_app(extra: dict[str, tuple[str, str]] | None = None,
-               initial: str | None = None, files: dict[str, Path] | None = None) -> Starlette:
+               initial: str | None = None, files: dict[str, Path] | None = None,
+               workers: int | None = 0) -> Starlette:
     """The web application. ``extra``: more machines to offer, name -> (file name, text);
     ``initial``: the machine the page opens with; ``files``: which of ``extra`` are files on
-    disk, name -> path, read again each time a page opens them."""
-    state = App(extra, initial, files)
+    disk, name -> path, read again each time a page opens them; ``workers``: the processes
+    the sessions compute in (None: one per core; 0: this process, on its threads), started
+    now: ``app.state.sewmech.close()`` stops them. A ValueError for a ``workers`` that is no
+    count of processes."""
+    state = App(extra, initial, files, workers)
 
     def guarded(fn):
         async def endpoint(request: Request):
             try:
                 return await fn(request)
-            except RequestError as exc:
-                return _error(exc.status, exc.body)
             except ClientDisconnect:  # the page closed or the client gave up: nobody to answer
                 log.info("%s %s: the client went away before its request was read",
                          request.method, request.url.path)
                 return Response(status_code=400)
-            except AssemblyError as exc:
-                body = error_dict(exc)
-                body.update(unit=exc.unit, phi_deg=exc.phi_deg, ranges_deg=exc.ranges_deg)
-                return _error(422, body)
-            except PageError as exc:
-                return _error(400, error_dict(exc))
-            except (SewmechError, ValueError, KeyError) as exc:  # located errors of the library
-                return _error(422, error_dict(exc))
-            except MemoryError:
-                return _error(507, {"kind": "MemoryError", "where": "server",
-                                    "what": "out of memory", "hint": "Try a smaller file"})
-            except Exception as exc:  # a bug: logged with its traceback, never sent
+            except Exception as exc:
+                # the library's located errors, the requests' own and those a worker answered
+                known = error_answer(exc)
+                if known is not None:
+                    return _error(*known)
+                # a bug: logged with its traceback, never sent
                 log.exception("internal error in %s", request.url.path)
-                return _error(500, {"kind": "InternalError", "where": "server",
-                                    "what": f"internal error ({type(exc).__name__})",
-                                    "hint": "This is a bug in sewmech: please report it with"
-                                    " the machine file; the server's log has the details"})
+                return _error(*bug_answer(exc))
         return endpoint
 
     routes = [
