@@ -477,10 +477,16 @@ def local_cluster(workers: int):
     import dask
     from distributed import LocalCluster
 
-    with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENV}), \
-            _interrupt_after() as interrupted, _environment_kept():
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=":0", silence_logs=50)
+    interrupted: list[bool] = []
+    try:
+        with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENV}), \
+                _interrupt_after() as interrupted, _environment_kept():
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=":0", silence_logs=50)
+    except Exception:
+        if interrupted:  # the Ctrl-C reached the starting workers too ("Nanny failed to
+            raise KeyboardInterrupt from None  # start"): it is why the start failed
+        raise
     if interrupted:  # Ctrl-C while it started: now that it can be closed in order
         cluster.close()
         raise KeyboardInterrupt

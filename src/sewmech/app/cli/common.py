@@ -276,6 +276,8 @@ def _print_error(text: str) -> None:
 @contextlib.contextmanager
 def _guard():
     """One place where every command's failures become one clear line and an exit code."""
+    global _CTRL_C
+    _CTRL_C = False
     old: dict = {}
     if threading.current_thread() is threading.main_thread():
         def on_term(signum, frame):
@@ -283,6 +285,8 @@ def _guard():
 
         for sig in (signal.SIGTERM, signal.SIGHUP):
             old[sig] = signal.signal(sig, on_term)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            old[signal.SIGINT] = signal.signal(signal.SIGINT, _on_ctrl_c)
     try:
         try:
             yield
@@ -378,9 +382,24 @@ def _out_of_memory_text() -> str:
         f" was left behind. {hint}"
 
 
+#: whether a Ctrl-C reached this process while a command ran (set by :func:`_on_ctrl_c`)
+_CTRL_C = False
+
+
+def _on_ctrl_c(signum, frame) -> None:
+    """Python's own Ctrl-C (KeyboardInterrupt), remembered: a library that catches the
+    KeyboardInterrupt and fails another way (Dask's cluster, interrupted while its workers
+    start: "Nanny failed to start") has still stopped because of it."""
+    global _CTRL_C
+    _CTRL_C = True
+    raise KeyboardInterrupt
+
+
 def _interruption(exc: BaseException) -> BaseException | None:
     """The Ctrl-C or termination signal in the chain of exceptions that ``exc`` was raised
-    while handling, if any."""
+    while handling (or a Ctrl-C that reached the process before it), if any."""
+    if _CTRL_C:
+        return KeyboardInterrupt()
     seen = set()
     e = exc.__context__
     while e is not None and id(e) not in seen:
@@ -576,7 +595,11 @@ def run_as_process() -> None:
     if signal.getsignal(signal.SIGINT) is sewmech._interrupted_while_starting:
         signal.signal(signal.SIGINT, signal.default_int_handler)  # started: _guard's turn
     try:
-        app()
+        try:
+            app()
+        except KeyboardInterrupt:  # before a command's guard (while its modules load)
+            _print_error("interrupted (Ctrl-C); nothing was written")
+            sys.exit(EXIT_SIGINT)
     finally:
         # the process ends now: everything alive is frozen, so that the interpreter's
         # shutdown does not walk it again in its garbage collections (after a report, half a
