@@ -51,11 +51,18 @@ from typing import Literal
 from pydantic import Field, field_validator, model_validator
 
 from ..engine.errors import MachineFileError
-from ..engine.kinematics import MIN_RPM
 from ..engine.machine import Machine, load_machine, machine_from_toml, shipped_machines
 from ..engine.paths import user_path
 from ..engine.spec import ValueHint, load_toml_model, read_toml_text
-from ._models import Bounds, Header, MetricRef, Strict, check_bounds, check_limit
+from ._models import (
+    Bounds,
+    DynamicsTable,
+    Header,
+    MetricRef,
+    Strict,
+    check_bounds,
+    check_limit,
+)
 
 DOC = "docs/sweeps.md"
 #: the outputs the force analysis gives (one DynamicsPlan call per chunk of designs)
@@ -117,10 +124,7 @@ class Output(MetricRef):
         return f"{self.metric}@{self.phi_deg:g}deg"
 
 
-class Dynamics(Strict):
-    rpm: float | None = Field(None, ge=MIN_RPM, le=20_000.0)
-    step_deg: float = Field(2.0, ge=0.1, le=30.0)
-    gravity: bool = True
+Dynamics = DynamicsTable  # (the same table in problem files)
 
 
 class Curves(Strict):
