@@ -194,6 +194,14 @@ def load_problem(path: str | Path) -> tuple[ProblemSpec, Machine]:
     spec = load_toml_model(path, ProblemSpec, "problem file", "docs/design.md")
     ref = spec.problem.machine
     local = (path.parent / ref)
+    if not local.is_file():
+        from ..engine.machine import shipped_machines
+
+        if ref not in shipped_machines():
+            raise MachineFileError(str(path), "problem", "machine", f"'{ref}' is neither a file"
+                                   f" (relative to the problem file: {local}) nor a shipped"
+                                   " machine", "Give the machine file's path, or one of"
+                                   f" {', '.join(shipped_machines())}")
     machine = load_machine(str(local) if local.is_file() else ref)
     check_problem(spec, machine, str(path))
     return spec, machine

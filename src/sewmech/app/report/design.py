@@ -278,6 +278,13 @@ def page_html(data: dict, problem, metrics: pd.DataFrame, blocks, text: str, fil
     ok = data["status"] == "success"
     verdict = (f'<p class="{"pass" if ok else "fail"}">{e(data["status"])}: {e(data["message"])}'
                f" ({data['n_evaluations']} designs evaluated)</p>")
+    check = data.get("check")
+    if check:
+        kkt = "" if check.get("kkt_residual") is None else \
+            f"; the KKT residual of the exact derivatives is {check['kkt_residual']:.2g}"
+        verdict += (f"<p>Optimality check: {e(check['how'])} lowered the objective by"
+                    f" {check['improvement']:.3g} (at most {check['tolerance']:.3g} allowed:"
+                    f" {'passed' if check['passed'] else 'failed'}){e(kkt)}.</p>")
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <title>sewmech problem: {e(data['problem'])}</title><style>{CSS}</style></head><body>
