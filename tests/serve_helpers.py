@@ -13,7 +13,7 @@ import urllib.request
 
 
 @contextlib.contextmanager
-def running_server(extra=None, initial=None):
+def running_server(extra=None, initial=None, files=None):
     import uvicorn
 
     from sewmech.app.web.server import create_app
@@ -21,7 +21,7 @@ def running_server(extra=None, initial=None):
     sock = socket.socket()
     sock.bind(("127.0.0.1", 0))
     port = sock.getsockname()[1]
-    server = uvicorn.Server(uvicorn.Config(create_app(extra, initial), log_level="warning",
+    server = uvicorn.Server(uvicorn.Config(create_app(extra, initial, files), log_level="warning",
                                            lifespan="off"))
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()

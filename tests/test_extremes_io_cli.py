@@ -188,7 +188,8 @@ def test_cli_report_writes_page_figures_and_tables(tmp_path):
                "dyn-torque", "dyn-physics", "dyn-energy", "dyn-shaking", "dyn-bearings",
                "dyn-pairs",
                "dyn-pressure", "dyn-regulator", "dyn-needle", "bal-components", "bal-hodograph",
-               "bal-bearings", "bal-front", "accuracy-stitch", "comparison")
+               "bal-bearings", "bal-levels", "bal-front", "vib-spectrum", "vib-speed",
+               "accuracy-stitch", "comparison")
     assert page.count("data:image/png;base64,") == len(figures)
     assert "jb1-3 against jb8-2" in page  # the file's variant, side by side
     for fig in figures:

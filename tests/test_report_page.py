@@ -193,3 +193,38 @@ def test_the_drawing_is_the_turn_of_the_motion_diagrams(reports):
     k = int(np.flatnonzero(motion["phi_deg"] == 90.0)[0])
     y = motion["needle.point height y [mm]"].iloc[k]
     assert data.loc["needle.point", "y_mm"] == pytest.approx(y, abs=1e-9)
+
+
+def test_the_vibration_section_is_the_librarys(reports):
+    """The section "Vibration and running": its levels are housing_vibration's at the working
+    setting (as the file has it, and with the counterweights the vibration criterion chose),
+    its modes the housing's; a machine without counterweights gets the section on its own."""
+    from sewmech.design.balancing import balance
+    from sewmech.engine.housing import Housing, housing_vibration
+
+    d, page, _ = reports["jb1-3"]
+    assert '<h2 id="vibration">Vibration and running</h2>' in page
+    m = sewmech.load_machine("jb1-3")
+    levels = pd.read_csv(d / "jb1-3-vibration-levels.csv")
+    as_file = levels[levels["machine"] == "as the file has it"].iloc[0]
+    v = housing_vibration(m, 2.0)
+    for j, ax in enumerate("xyz"):
+        assert as_file[f"{ax} [dB]"] == pytest.approx(float(v.level_db[0, j]), abs=1e-6)
+    res = balance(m, "vibration")
+    balanced = levels[levels["machine"] != "as the file has it"].iloc[0]
+    v2 = housing_vibration(m.with_parameters(res.overrides), 2.0)
+    for j, ax in enumerate("xyz"):
+        assert balanced[f"{ax} [dB]"] == pytest.approx(float(v2.level_db[0, j]), abs=1e-6)
+    assert max(balanced["x [dB]"], balanced["y [dB]"]) <= max(as_file["x [dB]"],
+                                                              as_file["y [dB]"]) + 1e-9
+    modes = pd.read_csv(d / "jb1-3-housing-modes.csv")
+    f, _ = Housing.of(m).modes()
+    np.testing.assert_allclose(modes["frequency [Hz]"], f, rtol=1e-9)
+    for stem in ("vib-spectrum", "vib-speed"):
+        assert (d / f"jb1-3-{stem}.png").stat().st_size > 5000
+    speed = pd.read_csv(d / "jb1-3-vib-speed.csv")
+    k = int(np.argmin(np.abs(speed["rpm"] - m.rpm)))
+    assert speed["rpm"][k] == pytest.approx(m.rpm)  # the working speed is on the sweep's grid
+    assert speed["x_db_before"][k] == pytest.approx(float(v.level_db[0, 0]), abs=0.2)
+    _, page82, _ = reports["jb8-2"]
+    assert '<h2 id="vibration">Vibration and running</h2><p>' in page82

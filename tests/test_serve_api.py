@@ -91,6 +91,15 @@ def test_a_turn_is_the_librarys_turn(url, jb, machine):
     assert t["dynamics"]["friction_loss_W"] == pytest.approx(
         float(d.friction_power.mean()) * 1e-3, rel=1e-9)
     assert t["dynamics"]["friction_loss_W"] > 1.0
+    # the housing's levels at its control points: the library's on the page's turn
+    from sewmech.engine.housing import housing_vibration
+
+    hv = housing_vibration(m, 2.0, params=P)
+    for j, ax in enumerate("xyz"):
+        assert t["dynamics"]["vibration"]["hands"]["level_db"][ax] == pytest.approx(
+            float(hv.level_db[0, j]), abs=2e-6)
+        assert t["dynamics"]["vibration"]["hands"]["rms_velocity_mm_s"][ax] == pytest.approx(
+            float(hv.rms_velocity[0, j]), rel=1e-6)
     b = thread_balance(m, stitch_mm=abs(float(c.stitch_mm)), params=P)
     assert np.allclose(t["thread"]["overfeed_mm"], b.overfeed, atol=2e-6)
     needle = r.point("needle.point")

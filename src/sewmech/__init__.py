@@ -43,8 +43,7 @@ def _interrupts_while_starting() -> None:
         if getattr(multiprocessing.current_process(), "_inheriting", False) or \
                 multiprocessing.parent_process() is not None:
             signal.signal(signal.SIGINT, signal.SIG_IGN)
-    elif (sys.argv and os.path.basename(sys.argv[0]) == "sewmech"
-          and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+    elif _is_the_command() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         signal.signal(signal.SIGINT, _interrupted_while_starting)
 
 
@@ -55,7 +54,46 @@ def _interrupted_while_starting(signum, frame) -> None:  # pragma: no cover (a r
     os._exit(130)
 
 
+def _is_the_command() -> bool:
+    """Whether this process is the ``sewmech`` command (not a program importing sewmech)."""
+    import os
+
+    return bool(sys.argv) and os.path.basename(sys.argv[0]) == "sewmech"
+
+
+def _check_environment() -> None:
+    """NUMBA_NUM_THREADS, which numba reads once when it is first imported, must be a whole
+    number of threads >= 1. numba raises a ValueError with a traceback while it is imported
+    for 0 (every command, ``--help`` too) and prints a warning with a traceback in it for text
+    that is no number. Checked here, before numba is imported: the ``sewmech`` command stops
+    with one located line and exit code 2 (docs/errors.md); a program that imports sewmech gets
+    the same line as an :class:`~sewmech.engine.errors.OptionError`."""
+    import os
+
+    value = os.environ.get("NUMBA_NUM_THREADS")
+    if value is None:
+        return
+    try:
+        n = int(value)  # as numba reads it
+    except ValueError:
+        n = None
+    if n is not None and n >= 1:
+        return
+    from .engine.errors import OptionError
+
+    what = (f"is {value!r}, not a whole number" if n is None
+            else f"is {n}: numba needs at least one thread")
+    exc = OptionError("NUMBA_NUM_THREADS", f"{what} (the environment variable numba reads for"
+                      " its number of threads)", "Give a whole number >= 1, e.g."
+                      " NUMBA_NUM_THREADS=2, or unset it (numba then takes one thread a core)")
+    if _is_the_command():
+        os.write(2, f"error: {exc}\n".encode("utf-8", "replace"))
+        raise SystemExit(2)
+    raise exc
+
+
 _interrupts_while_starting()
+_check_environment()
 
 # (the imports after the handler: they are what takes the time)
 from .engine.errors import AssemblyError, ConvergenceError, MachineFileError, SewmechError  # noqa: E402,I001

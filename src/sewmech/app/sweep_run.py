@@ -100,6 +100,23 @@ def chunk_path(root: Path, k: int) -> Path:
     return root / CHUNKS / f"chunk-{k:06d}.parquet"
 
 
+def read_chunk(root: Path, k: int, columns: list[str] | None = None):
+    """A written chunk as a pyarrow table; a chunk that is not a whole Parquet file (cut short
+    by a copy, or edited) is a located error that says how to have it computed again (it was
+    pyarrow's "Parquet magic bytes not found in footer", without a place or a way out)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    path = chunk_path(root, k)
+    try:
+        return pq.read_table(path, columns=columns)
+    except (pa.ArrowException, OSError) as exc:
+        why = " ".join(str(exc).split())
+        raise OutputError(str(path), f"is not a whole chunk of the sweep ({why[:200].rstrip('.')})",
+                          "Delete this file and run the same `sewmech sweep` command again:"
+                          " it computes the missing chunks") from None
+
+
 def _record(sweep: Sweep, chunk: int) -> dict:
     from .. import __version__
 
@@ -155,13 +172,35 @@ def _foreign(root: Path) -> list[str]:
         if entry == CURVES and path.is_dir() and not path.is_symlink() and (
                 path / "zarr.json").is_file():
             continue
+        if _summary_dir(path):  # `sweep-summary DIR --out DIR/NAME`, as it suggests
+            continue
         out.append(entry)
     return out
+
+
+def _summary_dir(path: Path) -> bool:
+    """Whether ``path`` is a directory that ``sewmech sweep-summary --out`` wrote (its manifest
+    records only that command's files, and it holds nothing else): inside the sweep's
+    directory, where sweep-summary suggests to put it, it kept the sweep from being resumed."""
+    from .files.outdir import MANIFEST, _read_manifest
+    from .files.outdir import _foreign as foreign_files
+
+    if path.is_symlink() or not path.is_dir() or not (path / MANIFEST).is_file():
+        return False
+    try:
+        manifest = _read_manifest(path)
+    except OutputError:
+        return False
+    return bool(manifest) and all(r.get("command") == "sweep-summary"
+                                  for r in manifest.values()) and not foreign_files(path, manifest)
 
 
 def prepare_dir(root: Path, sweep: Sweep, chunk: int | None, option: str = "--out") -> int:
     """Check the output directory for the sweep (nothing is written); returns the chunk size
     to use. Called before the long work starts, and again with the directory's lock held."""
+    from .files.outdir import _refuse_broken_link
+
+    _refuse_broken_link(root, option)
     if root.exists() and not root.is_dir():
         raise OutputError(f"{option} {root}", "is a file, not a directory",
                           "Give a directory for the sweep (it is created if missing)")
@@ -276,6 +315,28 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+#: the most worker processes of a local cluster per core this process may use: each worker
+#: runs one thread, so more than one a core only share the cores, and each holds its own
+#: interpreter and kernels (about 150 MB). 1000 workers on 2 cores never finished starting
+#: (no progress in 120 s, about 150 GB asked of a 23 GB machine)
+WORKERS_PER_CORE = 4
+
+
+def check_workers(workers: int | None) -> None:
+    """``--workers``: 0 (this process) up to :data:`WORKERS_PER_CORE` a usable core."""
+    if workers is None:
+        return
+    cores = default_workers()
+    most = WORKERS_PER_CORE * cores
+    if not 0 <= workers <= most:
+        raise OptionError("--workers", f"must be in 0 .. {most} on this machine ({cores} usable"
+                          f" core{'s' if cores != 1 else ''}, at most {WORKERS_PER_CORE} worker"
+                          f" processes a core: each runs one thread and holds its own memory,"
+                          f" about 150 MB), got {workers}", f"Leave it out for one worker a"
+                          f" core ({cores}), give --workers 0 to run in this process, or run"
+                          " on a cluster of more machines with --scheduler")
+
+
 def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
               workers: int | None = None, chunk: int | None = None, retries: int = 2,
               on_chunk: Callable[[int, int], None] | None = None,
@@ -291,12 +352,10 @@ def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
     if chunk is not None and not 1 <= chunk <= 10_000_000:
         raise OptionError("--chunk", f"must be in 1 .. 10000000 designs, got {chunk}",
                           "Give e.g. --chunk 250")
-    if workers is not None and not 0 <= workers <= 4096:
-        raise OptionError("--workers", f"must be in 0 .. 4096, got {workers}",
-                          "Give --workers 0 to run in this process")
     if scheduler is not None and workers is not None:
         raise OptionError("--workers", "a cluster given by --scheduler has its own workers",
                           "Leave out --workers (start `dask worker` processes on the cluster)")
+    check_workers(workers)
     size = prepare_dir(root, sweep, chunk)  # a directory not this sweep's: before any work
     here = client is None and scheduler is None and workers == 0
     if (root / RECORD).is_file() and len(done_chunks(root)) >= len(
@@ -306,7 +365,8 @@ def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
         if not here and client is None:  # (an unreachable scheduler: before any writing)
             client = stack.enter_context(_client(scheduler, default_workers()
                                                  if workers is None else workers))
-        if not root.exists():
+        made = not root.exists()
+        if made:
             try:
                 root.mkdir(mode=dir_mode(), parents=True)
             except OSError as exc:
@@ -358,16 +418,18 @@ def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
                                   " directory to a larger disk) and run the same command again:"
                                   " it computes only the missing chunks") from None
         report.seconds = time.perf_counter() - t0
-    if report.failed:
-        shown = "; ".join(f"chunk {k} (designs {bounds[k][0]} .. {bounds[k][1] - 1}): {e}"
-                          for k, e in sorted(report.failed.items())[:3])
-        more = f" and {len(report.failed) - 3} more" if len(report.failed) > 3 else ""
-        raise SweepError(str(root), f"{len(report.failed)} of {len(bounds)} chunks failed"
-                         f" after {retries + 1} attempt{'s' if retries else ''} each:"
-                         f" {shown}{more}; the other"
-                         f" {len(bounds) - len(report.failed)} chunks are written",
-                         "Fix the cause and run the same command again: it computes only the"
-                         " missing chunks")
+        if report.failed:  # (inside: a directory this run made, with no chunk, goes again)
+            shown = "; ".join(f"chunk {k} (designs {bounds[k][0]} .. {bounds[k][1] - 1}): {e}"
+                              for k, e in sorted(report.failed.items())[:3])
+            more = f" and {len(report.failed) - 3} more" if len(report.failed) > 3 else ""
+            written = len(bounds) - len(report.failed)
+            raise SweepError(str(root), f"{len(report.failed)} of {len(bounds)} chunks failed"
+                             f" after {retries + 1} attempt{'s' if retries else ''} each:"
+                             f" {shown}{more}; the other {written} chunks are written"
+                             + (" (none: the directory this run made is removed again)"
+                                if made and not written and not have else ""),
+                             "Fix the cause and run the same command again: it computes only"
+                             " the missing chunks")
     return report
 
 

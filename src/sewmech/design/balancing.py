@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -39,16 +40,18 @@ from numpy.typing import ArrayLike
 from ..engine.counterweights import GCM_PER_KGMM, Counterweight, counterweight_values, describe
 from ..engine.dynamics import DynamicsPlan
 from ..engine.errors import AnalysisError, OptionError
+from ..engine.housing import Housing
 from ..engine.machine import Machine
 from ._minimax import _linear, _minimise, _natural, _s_terms, _within_limits
 
 #: the criteria :func:`balance` can minimise
-CRITERIA = ("delta-q", "peak", "rms", "moment", "bearings", "torque", "weighted")
+CRITERIA = ("delta-q", "peak", "rms", "moment", "bearings", "torque", "weighted", "vibration",
+            "equal-levels")
 
 #: the figures every result reports, before and after (keys of :meth:`BalanceBasis.criteria`)
 FIGURES = ("delta_q_N", "peak_force_N", "rms_force_N", "peak_moment_Nm", "bearing_front_peak_N",
            "bearing_rear_peak_N", "bearing_front_rms_N", "bearing_rear_rms_N",
-           "torque_fluctuation_Nm")
+           "torque_fluctuation_Nm", "vibration_x_db", "vibration_y_db")
 
 # the four probes of a counterweight: (radius mm, angle rad), 1 kg each; their (m, m u, m v,
 # m r^2) rows are independent, so the responses to the four follow from one solve
@@ -99,6 +102,8 @@ class BalanceBasis:
     resp: dict
     plan: DynamicsPlan = field(repr=False)
     start: np.ndarray = field(repr=False)
+    housing: Housing | None = field(default=None, repr=False)
+    control: int = 0
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -124,8 +129,51 @@ class BalanceBasis:
 
     def criteria(self, xy: ArrayLike) -> dict:
         """Every balancing figure (:data:`FIGURES`) for static moments ``xy`` (batch + (n, 2)),
-        each of shape batch (None for the bearings of a machine without ``[shaft]``)."""
-        return figures(self.quantities(xy))
+        each of shape batch (None for the bearings of a machine without ``[shaft]``, and for
+        the vibration of one without ``[housing]``)."""
+        return figures(self.quantities(xy), self.levels)
+
+    @property
+    def control_name(self) -> str | None:
+        return None if self.housing is None else self.housing.control_names[self.control]
+
+    def velocities(self, W: np.ndarray) -> np.ndarray:
+        """The control point's RMS velocity along x and y (mm/s), batch + (2,), under the
+        excitation ``W`` (batch + (n_phi, 6))."""
+        from ..engine.housing import vibration
+
+        return vibration(self.housing, W, self.rpm).rms_velocity[..., self.control, :2]
+
+    @cached_property
+    def _velocity_basis(self) -> tuple[np.ndarray, np.ndarray]:
+        """The control point's x and y velocity harmonics (complex, mm/s) of the base and of
+        each counterweight's four responses: (n_h, 2) and (n, 4, n_h, 2). The velocities are
+        linear in the wrench, so any design's are theirs combined as the wrench's are."""
+        from ..engine.housing import vibration
+
+        W0, R = self.base["W"], self.resp["W"]
+        stack = np.concatenate([W0[None], R.reshape(-1, *W0.shape)])
+        cv = vibration(self.housing, stack, self.rpm).control_v[..., self.control, :2]
+        return cv[0], cv[1:].reshape(R.shape[:2] + cv.shape[1:])
+
+    def velocities_at(self, xy: ArrayLike) -> np.ndarray:
+        """The control point's RMS velocity along x and y (mm/s), batch + (2,), for static
+        moments ``xy`` (batch + (n, 2), kg mm): :meth:`velocities` of their wrench, from the
+        velocity harmonics of the basis (no Fourier series or solve per design)."""
+        xy = np.asarray(xy, dtype=float)
+        x, y = xy[..., 0], xy[..., 1]
+        s = np.hypot(x, y)
+        coef = np.stack([s / self.radius, x, y, s * self.radius], axis=-1)  # batch + (n, 4)
+        v0, vr = self._velocity_basis
+        V = v0 + np.tensordot(coef, vr, axes=([-2, -1], [0, 1]))
+        return np.sqrt(2.0 * np.sum(np.abs(V) ** 2, axis=-2))
+
+    def levels(self, W: np.ndarray) -> np.ndarray:
+        """The control point's vibration levels along x and y, dB re 5e-8 m/s, batch + (2,)."""
+        from ..engine.housing import V_REF_MM_S
+
+        with np.errstate(divide="ignore"):
+            return 20.0 * np.log10(self.velocities(W) / V_REF_MM_S)
 
     def design(self, xy: ArrayLike) -> dict[str, float]:
         """The parameter values (internal units) that give the counterweights static moments
@@ -149,7 +197,7 @@ class BalanceBasis:
         flat = xy.reshape(-1, *xy.shape[-2:])
         designs = [self.design(one) for one in flat]
         P = self.machine.parameters({k: np.array([d[k] for d in designs]) for k in designs[0]})
-        q = _quantities(self.plan(P), self.moment_point, self.has_bearings)
+        q = _quantities(self.plan(P), self.moment_point, self.has_bearings, self.housing)
         return {k: v.reshape(xy.shape[:-2] + v.shape[1:]) for k, v in q.items()}
 
     def describe(self, xy: ArrayLike) -> dict[str, dict]:
@@ -163,9 +211,10 @@ class BalanceBasis:
         return out
 
 
-def figures(q: Mapping[str, np.ndarray]) -> dict:
-    """The balancing figures (:data:`FIGURES`, N and N m) of quantities ``q`` (the keys of
-    :attr:`BalanceBasis.base`, each batch + (n_phi, ...))."""
+def figures(q: Mapping[str, np.ndarray], levels=None) -> dict:
+    """The balancing figures (:data:`FIGURES`, N and N m, dB) of quantities ``q`` (the keys of
+    :attr:`BalanceBasis.base`, each batch + (n_phi, ...)); ``levels``: the control point's
+    levels (x, y) dB of the housing's excitation ``q["W"]`` (:meth:`BalanceBasis.levels`)."""
     F = q["F"]
     mag = np.hypot(F[..., 0], F[..., 1])
     out = {
@@ -182,17 +231,39 @@ def figures(q: Mapping[str, np.ndarray]) -> dict:
             out[f"bearing_{side}_rms_N"] = np.sqrt(np.mean(b ** 2, axis=-1))
         else:
             out[f"bearing_{side}_peak_N"] = out[f"bearing_{side}_rms_N"] = None
+    if "W" in q and levels is not None:
+        lv = levels(q["W"])
+        out["vibration_x_db"], out["vibration_y_db"] = lv[..., 0], lv[..., 1]
+    else:
+        out["vibration_x_db"] = out["vibration_y_db"] = None
     return {k: out[k] for k in FIGURES}
 
 
-def _quantities(res, point: tuple[float, float], bearings: bool) -> dict:
-    """The balancing quantities of a dynamics result (see :attr:`BalanceBasis.base`)."""
+def _difference(key: str, a: np.ndarray, b: np.ndarray) -> float:
+    """The largest difference of a quantity, N or N m (the housing's wrench: its forces N,
+    its moments N m)."""
+    d = np.abs(np.asarray(a) - np.asarray(b))
+    if key in ("M", "T"):
+        return float(d.max()) * 1e-3
+    if key == "W":
+        return max(float(d[..., :3].max()), float(d[..., 3:].max()) * 1e-3)
+    return float(d.max())
+
+
+def _quantities(res, point: tuple[float, float], bearings: bool,
+                housing: Housing | None = None) -> dict:
+    """The balancing quantities of a dynamics result (see :attr:`BalanceBasis.base`); with a
+    housing, ``W`` the wrench the mechanisms put on it (n_phi, 6: N, N mm)."""
     F = res.shaking_force
     x0, y0 = point
     out = {"F": F, "M": res.shaking_moment - (x0 * F[..., 1] - y0 * F[..., 0]),
            "T": res.input_torque}
     if bearings:
         out["Bf"], out["Br"] = res.bearings.front, res.bearings.rear
+    if housing is not None:
+        from ..engine.housing import excitation
+
+        out["W"] = excitation(res.machine, housing, res)
     return out
 
 
@@ -223,12 +294,13 @@ def shaft_counterweight(machine: Machine) -> str | None:
 def balance_basis(machine: Machine, counterweights: Sequence[str] | None = None, *,
                   rpm: float | None = None, step_deg: float = 1.0,
                   moment_point: tuple[float, float] | None = None,
-                  gravity: bool = True) -> BalanceBasis:
+                  gravity: bool = True, control_point: str | None = None) -> BalanceBasis:
     """The balancing quantities of ``machine`` as functions of the static moments of its
     counterweights ``counterweights`` (names; default: all of the file's), at ``rpm``
     (default: the file's) on a grid of ``step_deg`` over one turn; the shaking moment about
     ``moment_point`` (x, y mm; default: the upper shaft's axis). The other counterweights stay
-    as the file has them."""
+    as the file has them. With a ``[housing]``, the wrench on it too (the vibration criteria;
+    ``control_point``: where they judge it, default the housing's first)."""
     chosen = _chosen(machine, counterweights)
     n_phi = round(360.0 / step_deg)
     if not (0.1 <= step_deg <= 30.0) or abs(n_phi * step_deg - 360.0) > 1e-9:
@@ -249,10 +321,15 @@ def balance_basis(machine: Machine, counterweights: Sequence[str] | None = None,
             rows.append(_set(machine, chosen, {c.name: (1.0, r, a)}))
     linear = plan if machine.spec.friction is None else DynamicsPlan(
         machine, phi, rpm=rpm, gravity=gravity, friction=False)
+    housing = None
+    if machine.spec.housing is not None:
+        from ..engine.housing import Housing
+
+        housing = Housing.of(machine)
     res = linear(np.stack(rows))
-    q = _quantities(res, point, bearings)
+    q = _quantities(res, point, bearings, housing)
     if linear is not plan:
-        q0 = _quantities(plan(rows[0]), point, bearings)
+        q0 = _quantities(plan(rows[0]), point, bearings, housing)
         base = {k: np.asarray(v).copy() for k, v in q0.items()}
         q = {k: np.concatenate([v[:1] * 0.0 + q0[k][None], v[1:] - v[:1] + q0[k][None]])
              for k, v in q.items()}
@@ -266,8 +343,15 @@ def balance_basis(machine: Machine, counterweights: Sequence[str] | None = None,
     radius, s_max, start = _radii(machine, chosen)
     if rpm is None:
         rpm = machine.rpm
+    control = 0
+    if housing is not None and control_point is not None:
+        if control_point not in housing.control_names:
+            raise OptionError("--control-point", f"'{control_point}' is not a control point of"
+                              f" '{machine.name}'", "Its housing's control points:"
+                              f" {', '.join(housing.control_names)}")
+        control = housing.control_names.index(control_point)
     return BalanceBasis(machine, chosen, radius, s_max, phi, float(rpm), point, base, resp,
-                        plan, start)
+                        plan, start, housing, control)
 
 
 def _chosen(machine: Machine, names: Sequence[str] | None) -> tuple[Counterweight, ...]:
@@ -416,7 +500,8 @@ def balance(machine: Machine, criterion: str = "delta-q",
             counterweights: Sequence[str] | None = None, *, rpm: float | None = None,
             step_deg: float = 1.0, moment_point: tuple[float, float] | None = None,
             weights: Mapping[str, float] | None = None,
-            basis: BalanceBasis | None = None) -> BalanceResult:
+            basis: BalanceBasis | None = None,
+            control_point: str | None = None) -> BalanceResult:
     """Choose the static moments and angles of ``counterweights`` (default: all of the
     machine's) that minimise ``criterion`` at ``rpm``:
 
@@ -428,7 +513,13 @@ def balance(machine: Machine, criterion: str = "delta-q",
       shaft (the JB dynamics report's third method; needs ``[shaft]``);
     - ``"torque"``: the fluctuation (max - min) of the driving torque;
     - ``"weighted"``: sum of ``weights[part] * part / part before`` over
-      :data:`WEIGHTED_PARTS` (default weight 1 each; bearings only with ``[shaft]``).
+      :data:`WEIGHTED_PARTS` (default weight 1 each; bearings only with ``[shaft]``);
+    - ``"vibration"``: the larger of the RMS vibration velocities along x and y at the
+      housing's ``control_point`` (default its first; needs ``[housing]``);
+    - ``"equal-levels"``: the balancing paper's own experimental criterion predicted from the
+      model: one counterweight's static moment along its present angle at which the control
+      point's x and y levels are equal (:func:`sewmech.design._vibration_criteria.
+      level_curves` draws the two against it).
 
     Each counterweight keeps its radius; its static moment stays within
     ``max_static_moment_gcm`` if its table gives one. ``basis``: a :func:`balance_basis` of the
@@ -438,7 +529,12 @@ def balance(machine: Machine, criterion: str = "delta-q",
         raise OptionError("--criterion", f"unknown criterion {criterion!r}",
                           f"Choose one of {', '.join(CRITERIA)}")
     B = basis if basis is not None else balance_basis(
-        machine, counterweights, rpm=rpm, step_deg=step_deg, moment_point=moment_point)
+        machine, counterweights, rpm=rpm, step_deg=step_deg, moment_point=moment_point,
+        control_point=control_point)
+    if criterion in ("vibration", "equal-levels") and B.housing is None:
+        raise OptionError("--criterion", f"machine '{machine.name}' has no [housing] table, so"
+                          " its vibration is not known", "Add [housing] (its mass, mounts and"
+                          " control points: docs/vibration.md) or choose another criterion")
     if criterion == "bearings" and not B.has_bearings:
         raise OptionError("--criterion", f"machine '{machine.name}' has no [shaft] table, so"
                           " its bearing reactions are not known", "Add [shaft] (the cranks' and"
@@ -448,6 +544,11 @@ def balance(machine: Machine, criterion: str = "delta-q",
     def solve(B):
         if criterion == "delta-q":
             return _solve_delta_q(B)
+        if criterion in ("vibration", "equal-levels"):
+            from ._vibration_criteria import solve_equal_levels, solve_vibration
+
+            return (solve_vibration(B) if criterion == "vibration" else
+                    solve_equal_levels(B))
         if criterion == "rms":
             return _solve_rms(B)
         if criterion == "weighted":
@@ -463,16 +564,26 @@ def balance(machine: Machine, criterion: str = "delta-q",
         # linear basis cannot know (the shaking force and moment do not depend on it): solve
         # again with the basis moved by the friction's change at the answer, until the answer
         # stays (the friction of the answer, as it is)
+        # (the shift is the friction's change against the frictionless basis B, not against
+        # the last shifted one: shifts taken against that would drop the one before and
+        # alternate)
         passes = 0
         for passes in range(1, FRICTION_PASSES + 1):
-            shifted = replace(B, base={k: B.base[k] + (exact[k] - predicted[k]) for k in exact})
-            xy2, status, message = solve(shifted)
+            plain = B.quantities(xy)
+            shift = {k: exact[k] - plain[k] for k in exact}
+            shifted = replace(B, base={k: B.base[k] + shift[k] for k in exact})
+            # from the last answer (the weighted criterion's parts are scaled by the figures
+            # at the start, so it keeps its start): where the optimum is flat, a solve from
+            # afar may land elsewhere on it with every pass and never settle
+            xy2, status, message = solve(shifted if criterion == "weighted" else
+                                         replace(shifted, start=xy.copy()))
             moved = float(np.abs(xy2 - xy).max())
             xy = xy2
             exact = {k: v[0] for k, v in B.evaluate(xy[None]).items()}
             predicted = shifted.quantities(xy)
             B_used = shifted
-            if moved <= 1e-9 * max(1.0, float(np.abs(xy).max())):
+            if moved <= 1e-9 * max(1.0, float(np.abs(xy).max())) or \
+                    max(_difference(k, predicted[k], exact[k]) for k in exact) <= 1e-9:
                 break
         message += (f"; with the friction of the answer ({passes} pass"
                     f"{'es' if passes != 1 else ''}: the counterweights change the friction)")
@@ -480,10 +591,9 @@ def balance(machine: Machine, criterion: str = "delta-q",
     if status == "optimal" and np.any(np.hypot(xy[:, 0], xy[:, 1]) >= B.s_max * (1 - 1e-9)):
         status = "bounded"
         message += "; a counterweight is at its max_static_moment_gcm"
-    before = figures({k: v[0] for k, v in both.items()})
-    after = figures(exact)
-    err = max(float(np.abs(predicted[k] - exact[k]).max()) * (1e-3 if k in ("M", "T") else 1.0)
-              for k in exact)
+    before = figures({k: v[0] for k, v in both.items()}, B.levels)
+    after = figures(exact, B.levels)
+    err = max(_difference(k, predicted[k], exact[k]) for k in exact)
     curves = {"phi": B.phi, "before": {k: v[0] for k, v in both.items()}, "after": exact}
     if criterion == "delta-q" and status != "infeasible" and \
             after["peak_force_N"] > before["peak_force_N"] * (1.0 + 1e-9):
@@ -497,8 +607,12 @@ def balance(machine: Machine, criterion: str = "delta-q",
     # nothing to propose: the machine stays as the file has it; the least Delta-Q is kept for
     # information, and the least peak shaking force is what this counterweight can achieve
     closest = {"xy": xy, "counterweights": B.describe(xy), "figures": after}
-    alt = balance(machine, "peak", basis=B)
-    message += _infeasible_advice(B, closest, alt, before)
+    if criterion == "equal-levels":  # the least vibration is what it can achieve instead
+        alt = balance(machine, "vibration", basis=B)
+        message += _unequal_advice(B, closest, alt, before)
+    else:
+        alt = balance(machine, "peak", basis=B)
+        message += _infeasible_advice(B, closest, alt, before)
     return BalanceResult(criterion, status, message, B.start.copy(), B.describe(B.start),
                          B.describe(B.start), before, dict(before), {}, err, B.rpm, w,
                          {"phi": B.phi, "before": curves["before"], "after": curves["before"]},
@@ -520,6 +634,26 @@ def _infeasible_advice(B: BalanceBasis, closest: dict, alt: BalanceResult, befor
             f" {a['static_moment_gcm']:.4g} g cm at {a['angle_deg']:.4g} deg: use --criterion"
             f" peak (or rms, weighted); or turn '{name}' (its angle_deg) to where Delta-Q has a"
             " root")
+    if math.isfinite(B.s_max[0]):
+        text += ", or allow it more static moment (max_static_moment_gcm)"
+    return text
+
+
+def _unequal_advice(B: BalanceBasis, closest: dict, alt: BalanceResult, before: dict
+                   ) -> str:
+    """What an equal-levels balancing without a crossing says besides: how close the levels
+    come, and the least vibration the counterweights achieve."""
+    (name, cw), = closest["counterweights"].items()
+    f = closest["figures"]
+    lx, ly = float(f["vibration_x_db"]), float(f["vibration_y_db"])
+    worst0 = max(float(before["vibration_x_db"]), float(before["vibration_y_db"]))
+    best = max(float(alt.after["vibration_x_db"]), float(alt.after["vibration_y_db"]))
+    where = ", ".join(f"{n} {c['static_moment_gcm']:.4g} g cm at {c['angle_deg']:.4g} deg"
+                      for n, c in alt.counterweights.items())
+    text = (f". No counterweight is proposed: the levels come closest with"
+            f" {cw['static_moment_gcm']:.4g} g cm, x {lx:.4g} dB and y {ly:.4g} dB. The least"
+            f" larger level the counterweights achieve is {best:.4g} dB against {worst0:.4g} dB"
+            f" now ({where}): use --criterion vibration; or turn '{name}' (its angle_deg)")
     if math.isfinite(B.s_max[0]):
         text += ", or allow it more static moment (max_static_moment_gcm)"
     return text
@@ -581,7 +715,7 @@ def _solve_weighted(B: BalanceBasis, w: dict) -> tuple[np.ndarray, str, str]:
     such as the moment of a machine that has none, are left out, and so are parts the chosen
     counterweights cannot change, such as the moment about the shaft's axis of counterweights
     on the shaft: a constant does not move the optimum)."""
-    before = figures(B.quantities(B.start))
+    before = figures(B.quantities(B.start), B.levels)
     value = {"peak_force_N": before["peak_force_N"], "rms_force_N": before["rms_force_N"],
              "peak_moment_Nm": before["peak_moment_Nm"],
              "torque_fluctuation_Nm": before["torque_fluctuation_Nm"]}
@@ -699,7 +833,8 @@ def paper_workflow(machine: Machine, counterweight: str, *, rpm: float | None = 
                    basis: BalanceBasis | None = None, result: BalanceResult | None = None
                    ) -> dict:
     """The balancing paper's method on ``counterweight`` (an extra counterweight on the upper
-    shaft, static moment 0 in the file): S_add from Delta-Q = 0 along its angle, S_1 the
+    shaft, usually of static moment 0 in the file): S_add, its static moment from Delta-Q = 0
+    along its angle (whatever the file gives it), S_1 the
     static moment the shaft's crank has (:func:`link_static_moment`, all its solids), S_opt =
     |S_1 + S_add| (as vectors: the net static moment of the crank with the extra
     counterweight), and the extra counterweight built ``factor`` times stronger (default: the
@@ -730,16 +865,17 @@ def paper_workflow(machine: Machine, counterweight: str, *, rpm: float | None = 
         out["build_refused"] = (f"{where}: Delta-Q has no root along its angle, so there is no"
                                 " S_add and nothing to build")
         return out
-    before = res.counterweights_before[counterweight]
-    add = cw["static_moment_gcm"] - before["static_moment_gcm"]
+    # S_add is the extra counterweight's static moment Delta-Q asks for (>= 0, at its angle),
+    # whatever the file gave it: the difference from the file's (1000 g cm in the file, 135
+    # proposed) printed as "S_add -865 g cm", a static moment no counterweight has
+    add = cw["static_moment_gcm"]
     v1 = s1 * np.exp(1j * math.radians(a1))
     v_opt = v1 + cw["static_moment_gcm"] * np.exp(1j * math.radians(cw["angle_deg"]))
     out.update(s_add_gcm=add, s_add_angle_deg=cw["angle_deg"], s_opt_gcm=float(abs(v_opt)),
                s_opt_angle_deg=float(np.degrees(np.angle(v_opt))))
-    if not add > 1e-9 * (abs(s1) + cw["static_moment_gcm"]):
-        out["build_refused"] = (f"{where}: Delta-Q needs no more static moment than the file"
-                                f" gives ({before['static_moment_gcm']:.4g} g cm): nothing to"
-                                " build")
+    if not add > 1e-9 * abs(s1):
+        out["build_refused"] = (f"{where}: Delta-Q needs no extra counterweight here (S_add ="
+                                " 0): nothing to build")
         return out
     bore, source = counterweight_bore(machine, counterweight)
     if bore is None:

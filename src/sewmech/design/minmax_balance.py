@@ -125,18 +125,19 @@ def _solve(A, V0, w, limits, K, inscribed: bool):
 
 def influence_minmax(baseline: ArrayLike, trials: ArrayLike, trial_gcm: ArrayLike,
                      trial_angle_deg: ArrayLike, *, weights: ArrayLike | None = None,
-                     limits_gcm: ArrayLike | None = None, sides: int = SIDES) -> MinmaxResult:
+                     limits_gcm: ArrayLike | None = None, sides: int = SIDES,
+                     names: list[str] | None = None) -> MinmaxResult:
     """Correction masses that minimise the largest weighted residual vibration.
 
     baseline (rows,), trials (planes, rows), trial_gcm, trial_angle_deg (planes,) as
     :func:`sewmech.design.vibration.influence_balance`; weights (rows,) >= 0, default 1 (a
     place that matters more, or a speed the machine runs at most); limits_gcm (planes,) the
     most static moment each plane can take (inf: no limit), default none; sides: K of the
-    polygons (module docstring), at least 8."""
+    polygons (module docstring), at least 8; names: the planes' names in messages."""
     from .vibration import influence_balance
 
     V0 = np.asarray(baseline, dtype=complex)
-    lsq = influence_balance(baseline, trials, trial_gcm, trial_angle_deg)  # its checks, A
+    lsq = influence_balance(baseline, trials, trial_gcm, trial_angle_deg, names)  # its checks
     A = lsq.coefficients
     n, m = A.shape
     w = np.ones(n) if weights is None else np.asarray(weights, dtype=float)

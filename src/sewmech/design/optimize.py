@@ -98,7 +98,6 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
             return math.inf
         return f if ok and math.isfinite(f) else math.inf
 
-    f0 = objective_of(problem, problem.start)
     converged = True
     message = ""
     history: list[float] = []
@@ -134,8 +133,15 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
         message = "SLSQP " + ("converged" if converged else "did not converge")
     x = np.clip(x, lo, hi)
     n_method = problem.evaluations
-    fx = objective_of(problem, x)
+    # the answer and the start are judged by the exact proof of assembly (the constraints'
+    # report), not by the searches' clearance of ASSEMBLY_CLEARANCE_MM on a grid: SLSQP stops
+    # on its margin constraint to within its tolerance (2e-10 mm inside the clearance), and
+    # the answer, proved to assemble, was called undefined while its own table said it
+    # assembles
     report = problem.report(x)
+    fx = objective_of(problem, x, report)
+    start_report = problem.report(problem.start)
+    f0 = objective_of(problem, problem.start, start_report)
     feasible = all(c["satisfied"] for c in report.values())
     check = None
     if method == "nsga2":  # the compromise is a member of the front (an equality met within
@@ -161,9 +167,10 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
     res = OptimizeResult(x=x, fun=fx, objective_start=f0, constraints=report, status=status,
                          success=status == "success", message=message, check=check,
                          n_evaluations=n_method, history=history, method=method,
-                         fun_note=None if math.isfinite(fx) else undefined_objective(problem, x),
+                         fun_note=None if math.isfinite(fx) else
+                         undefined_objective(problem, x, report),
                          objective_start_note=None if math.isfinite(f0) else
-                         undefined_objective(problem, problem.start))
+                         undefined_objective(problem, problem.start, start_report))
     if method == "nsga2":
         res.front, res.best = extra["front"], extra["best"]
     return res
@@ -176,11 +183,16 @@ def _require_gradients(problem: Problem, method: str) -> None:
                           " only)", "Use powell, cyclic, de or golden, which compare values")
 
 
-def objective_of(problem: Problem, x: np.ndarray) -> float:
+def objective_of(problem: Problem, x: np.ndarray, report: dict | None = None) -> float:
     """The objective at x from the exactly located metrics; infinite where it is not defined
-    (the design does not assemble over the whole turn, or a metric cannot be formed)."""
+    (the design does not assemble over the whole turn, or a metric cannot be formed). Whether
+    x assembles: ``report``'s exact proof (:meth:`Problem.report`) where given, else the
+    searches' clearance on a grid and, where that refuses x (an answer on the assembly
+    margin), the exact proof."""
     try:
-        if not problem.design_ok(x):
+        ok = _assembles(report) if report is not None else (
+            problem.design_ok(x) or _assembles(problem.report(x)))
+        if not ok:
             return math.inf
         v = problem.form(x).objective
     except SewmechError:
@@ -192,13 +204,21 @@ def _feasible(problem: Problem, x: np.ndarray) -> bool:
     return all(c["satisfied"] for c in problem.report(x).values())
 
 
-def undefined_objective(problem: Problem, x: np.ndarray) -> str:
-    """Why the objective is not defined at the design x (file units), in words."""
+def _assembles(report: dict) -> bool:
+    return bool(report["assembles over the whole turn"]["satisfied"])
+
+
+def undefined_objective(problem: Problem, x: np.ndarray, report: dict | None = None) -> str:
+    """Why the objective is not defined at the design x (file units), in words; ``report``:
+    :meth:`Problem.report` of x (computed if not given), whose exact proof says whether x
+    assembles."""
+    report = problem.report(x) if report is None else report
+    if not _assembles(report):
+        failures = report["assembles over the whole turn"]["failures"]
+        return ("not defined: the design does not assemble over the whole turn (proved at both"
+                " ends of every setting input" + (f": {failures[0]}" if failures else "")
+                + ")")
     try:
-        if not problem.design_ok(x):
-            return ("not defined: the design does not assemble over the whole turn (every"
-                    f" closed-form unit {ASSEMBLY_CLEARANCE_MM:g} mm from failing, on a 1 deg"
-                    " grid at both ends of every setting input)")
         problem.objective(x)
     except SewmechError as exc:
         return f"not defined: a metric cannot be formed on the design ({exc.message})"

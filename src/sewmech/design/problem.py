@@ -49,7 +49,7 @@ import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from ..engine.errors import MachineFileError, SewmechError
-from ..engine.machine import Machine, load_machine
+from ..engine.machine import Machine, load_machine, shipped_machines
 from ..engine.paths import user_path
 from ..engine.spec import ValueHint, load_toml_model
 from ._models import (
@@ -193,15 +193,12 @@ def load_problem(path: str | Path) -> tuple[ProblemSpec, Machine]:
     path = user_path(path)
     spec = load_toml_model(path, ProblemSpec, "problem file", "docs/design.md")
     ref = spec.problem.machine
-    local = (path.parent / ref)
-    if not local.is_file():
-        from ..engine.machine import shipped_machines
-
-        if ref not in shipped_machines():
-            raise MachineFileError(str(path), "problem", "machine", f"'{ref}' is neither a file"
-                                   f" (relative to the problem file: {local}) nor a shipped"
-                                   " machine", "Give the machine file's path, or one of"
-                                   f" {', '.join(shipped_machines())}")
+    local = path.parent / Path(ref).expanduser()
+    if not local.is_file() and ref not in shipped_machines():
+        raise MachineFileError(str(path), "problem", "machine", f"'{ref}' is neither a machine"
+                               f" file beside the problem file ({local}) nor a shipped machine",
+                               "Give a path relative to the problem file, or one of "
+                               + ", ".join(sorted(shipped_machines())))
     machine = load_machine(str(local) if local.is_file() else ref)
     check_problem(spec, machine, str(path))
     return spec, machine
@@ -292,7 +289,7 @@ def _check_metric(where: str, table: str, k: int, ref: MetricRef, machine: Machi
     import difflib
 
     from ..engine.kinematics import kinematics
-    from ..sewing.gradients import METRICS
+    from ..sewing.gradients import METRICS, missing_roles
     from .evaluate import THREAD_METRICS
 
     name = ref.metric
@@ -305,6 +302,10 @@ def _check_metric(where: str, table: str, k: int, ref: MetricRef, machine: Machi
             raise MachineFileError(where, table, key, f"{name} needs a machine with a stitch"
                                    f" regulator ([sewing] regulator); '{machine.name}' has"
                                    " none", "Choose another metric")
+        lacks = missing_roles(machine, name)
+        if lacks is not None:
+            raise MachineFileError(where, table, key, lacks, "Choose another metric, or name"
+                                   " the role in the machine file (docs/machine-files.md)")
         if name in FEED_METRICS and ref.regulator_deg is not None:
             _in_range(where, table, k, ref, machine)
         if name not in FEED_METRICS and ref.regulator_deg is not None:

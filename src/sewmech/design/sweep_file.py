@@ -274,7 +274,7 @@ def _check_lhs_memory(n: int, d: int, where: str) -> None:
 def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
     """What the schema cannot know: names against the machine, grid points, column names."""
     from ..engine.kinematics import kinematics
-    from ..sewing.gradients import METRICS
+    from ..sewing.gradients import METRICS, missing_roles
 
     names = machine.parameter_names
     seen = set()
@@ -327,9 +327,11 @@ def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
         name = o.metric
         if name in METRICS:
             feed = name in ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
-            if feed and (s is None or s.regulator is None):
-                raise MachineFileError(where, "outputs", f"{k}.metric", f"{name} needs a"
-                                       " machine with a stitch regulator ([sewing] regulator)")
+            lacks = missing_roles(machine, name)
+            if lacks is not None:  # (every chunk failed on it, 3 attempts each)
+                raise MachineFileError(where, "outputs", f"{k}.metric", lacks,
+                                       "Choose another metric, or name the role in the"
+                                       " machine file (docs/machine-files.md)")
             if o.regulator_deg is not None and not feed:
                 raise MachineFileError(where, "outputs", f"{k}.regulator_deg", f"{name} does"
                                        " not depend on the regulator", "Leave out"

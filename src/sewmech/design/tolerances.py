@@ -101,15 +101,18 @@ def metric_gradient(machine: Machine, metric: str, *, regulator_deg: float | Non
 
 
 def _gradient(machine: Machine, metric: str, regulator_deg: float | None, phi_deg: float,
-              option: str = "regulator_deg", give: str = "regulator_deg={deg:g}"
+              option: str = "regulator_deg", give: str = "regulator_deg={deg:g}",
+              working_deg: float | None = None
               ) -> tuple[float, np.ndarray, str, Gradient | None]:
     """:func:`metric_gradient` and the metric's :class:`Gradient` (its events; None for a
-    channel); ``option`` and ``give`` name the setting in a refusal."""
+    channel); ``option``, ``give`` and ``working_deg`` name the setting in a refusal
+    (:func:`~sewmech.sewing.gradients.require_a_stitch`)."""
     if metric in METRICS:
         reg = _setting(machine, regulator_deg) if metric in FEED else None
         g = METRICS[metric](machine, reg)
         if reg is not None:
-            require_a_stitch(machine, metric, g.value, reg, option=option, give=give)
+            require_a_stitch(machine, metric, g.value, reg, option=option, give=give,
+                             working_deg=working_deg)
         return g.value, g.d_dparam, g.unit, g
     inputs = _inputs(machine, regulator_deg)
     try:
@@ -165,13 +168,15 @@ def tolerance_analysis(machine: Machine, metric: str, spec: ToleranceSpec | None
                        regulator_deg: float | None = None, phi_deg: float = 0.0,
                        samples: int = 10_000, seed: int = 0, band: float | None = None,
                        where: str = "tolerances", option: str = "regulator_deg",
-                       give: str = "regulator_deg={deg:g}") -> ToleranceResult:
+                       give: str = "regulator_deg={deg:g}",
+                       working_deg: float | None = None) -> ToleranceResult:
     """Worst case, RSS, Monte Carlo (``samples`` designs, ``seed``), contributions and, with
     ``band`` (+- in the metric's unit), the allocated tolerances, for ``metric`` under the
     tolerances of ``spec`` (default: IT9 on every length, see
     :func:`sewmech.design.tolerance_file.tolerances_of`), at ``regulator_deg`` (default: the
     machine's working setting). A metric that is degenerate at the setting (a stitch of
-    round-off length) is refused, naming ``option`` and a setting in ``give``'s form."""
+    round-off length) is refused, naming ``option`` and a setting in ``give``'s form (the
+    working setting ``working_deg``, default the machine file's)."""
     if not (isinstance(samples, int) and 100 <= samples <= 1_000_000):
         raise OptionError("--samples", f"must be a whole number in 100 .. 1000000, got"
                           f" {samples!r}", "Give e.g. --samples 10000")
@@ -185,7 +190,8 @@ def tolerance_analysis(machine: Machine, metric: str, spec: ToleranceSpec | None
     check_seed(seed)
     tol = tolerances_of(machine, spec, where)
     dist = (spec or ToleranceSpec()).defaults.distribution
-    value, d, unit, nominal = _gradient(machine, metric, regulator_deg, phi_deg, option, give)
+    value, d, unit, nominal = _gradient(machine, metric, regulator_deg, phi_deg, option, give,
+                                        working_deg)
     on = tol > 0
     contrib = (d * tol) ** 2
     rss = float(np.sqrt(contrib.sum()))

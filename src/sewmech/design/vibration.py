@@ -88,7 +88,9 @@ class Crossing:
 
 def _line(s: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """Least-squares line v = a + b s: coefficients (a, b), their covariance, residual
-    variance (n - 2 degrees of freedom)."""
+    variance (n - 2 degrees of freedom). ``s`` should be of order 1 (:func:`crossing` fits
+    against the static moments scaled to -0.5 .. 0.5): numpy's rank cut-off and X^T X are
+    not scale-free."""
     X = np.column_stack([np.ones_like(s), s])
     coef, *_ = np.linalg.lstsq(X, v, rcond=None)
     r = v - X @ coef
@@ -140,18 +142,25 @@ def crossing(s_add_gcm: ArrayLike, vx_mm_s: ArrayLike, vy_mm_s: ArrayLike,
         raise AnalysisError(where, f"{np.unique(s).size} different static moments measured",
                             "Measure at least three (two on each side of the crossing)")
     d = vx - vy
-    coef, cov, var = _line(s, d)
-    a, b = coef
     n = len(s)
     lo_s, hi_s = float(s.min()), float(s.max())
-    if b == 0.0 or not (lo_s <= -a / b <= hi_s):
+    # the lines are fitted against t = (s - mid) / span, -0.5 .. 0.5, whatever the unit and
+    # size of the static moments: fitted against s itself, moments of 1e-20 g cm fell below
+    # numpy's rank cut-off ("the lines do not cross") and of 1e-300 g cm made X^T X singular
+    # (numpy's bare "Singular matrix")
+    mid, span = 0.5 * (lo_s + hi_s), hi_s - lo_s
+    t = (s - mid) / span
+    coef, cov, var = _line(t, d)
+    a, b = coef
+    if b == 0.0 or not (-0.5 <= -a / b <= 0.5):
         side = "x" if np.mean(d) > 0 else "y"
         raise AnalysisError(where, f"the x and y lines do not cross within the measured static"
                             f" moments {lo_s:g} .. {hi_s:g} g cm (the {side} velocity is the"
                             " larger throughout)", "Measure further on the side where the"
                             " velocities come closer")
-    root = -a / b
-    below, above = int(np.sum(s < root)), int(np.sum(s > root))
+    root_t = -a / b
+    root = mid + span * root_t
+    below, above = int(np.sum(t < root_t)), int(np.sum(t > root_t))
     if below < 2 or above < 2:
         raise AnalysisError(where, f"{below} measurement(s) below and {above} above the"
                             f" crossing at {root:.4g} g cm", "Measure at least two on each"
@@ -168,14 +177,22 @@ def crossing(s_add_gcm: ArrayLike, vx_mm_s: ArrayLike, vy_mm_s: ArrayLike,
                             "Measure over a wider range of static moments or repeat the"
                             " measurements")
     disc = max(qb * qb - 4.0 * qa * qc, 0.0)
-    lo = (-qb - math.sqrt(disc)) / (2.0 * qa)
-    hi = (-qb + math.sqrt(disc)) / (2.0 * qa)
-    cx, _, _ = _line(s, vx)
-    cy, _, _ = _line(s, vy)
-    v_cross = float(cx[0] + cx[1] * root)
+    lo = mid + span * (-qb - math.sqrt(disc)) / (2.0 * qa)
+    hi = mid + span * (-qb + math.sqrt(disc)) / (2.0 * qa)
+    cx, _, _ = _line(t, vx)
+    cy, _, _ = _line(t, vy)
+    v_cross = float(cx[0] + cx[1] * root_t)
     s0 = lo_s
-    v0 = math.hypot(cx[0] + cx[1] * s0, cy[0] + cy[1] * s0)
-    v1 = math.hypot(v_cross, float(cy[0] + cy[1] * root))
+    v0 = math.hypot(cx[0] - 0.5 * cx[1], cy[0] - 0.5 * cy[1])  # at t = -0.5, s = s0
+    v1 = math.hypot(v_cross, float(cy[0] + cy[1] * root_t))
+    # each line as intercept (mm/s) and slope (mm/s per g cm) of the static moment itself
+    fit_x = (float(cx[0] - cx[1] * mid / span), float(cx[1] / span))
+    fit_y = (float(cy[0] - cy[1] * mid / span), float(cy[1] / span))
+    if not np.all(np.isfinite([*fit_x, *fit_y, lo, hi])):
+        raise AnalysisError(where, f"the static moments measured span only {span:g} g cm: the"
+                            " lines' slopes per g cm are beyond floating point",
+                            "Give the static moments in g cm (a milligram at 1 cm is 0.001"
+                            " g cm)")
     # a level in dB needs a velocity > 0: a fitted velocity vector of zero (or of round-off of
     # the velocities measured) at either end has none, and the change is said to be undefined
     floor = 1e-9 * max(float(np.max(vx)), float(np.max(vy)))
@@ -187,8 +204,8 @@ def crossing(s_add_gcm: ArrayLike, vx_mm_s: ArrayLike, vy_mm_s: ArrayLike,
                 " dB needs a velocity > 0 (the level of 0 is minus infinity)")
     else:
         change = level_change_db(v0, v1)
-    return Crossing(float(root), (float(lo), float(hi)), n, (float(cx[0]), float(cx[1])),
-                    (float(cy[0]), float(cy[1])), math.sqrt(var), v_cross, s0, change, note)
+    return Crossing(float(root), (float(lo), float(hi)), n, fit_x, fit_y, math.sqrt(var),
+                    v_cross, s0, change, note)
 
 
 def level_db(v_mm_s: ArrayLike, ref_mm_s: float = V_REF_MM_S) -> np.ndarray:
@@ -255,8 +272,18 @@ class InfluenceResult:
         return out
 
 
+#: the least change a trial run must make to the readings, as a fraction of their size (the
+#: 2-norm over the rows, for the weakest combination of the trial masses): a vibration meter
+#: resolves about 1 % of a reading (or 0.5 deg of phase), so a smaller change does not
+#: determine the influence coefficients, and the correction they give (at least 100 times
+#: the trial mass) is noise. Balancing practice asks a trial run to change the readings by
+#: 10 to 30 % or more.
+MIN_TRIAL_EFFECT = 0.01
+
+
 def influence_balance(baseline: ArrayLike, trials: ArrayLike, trial_gcm: ArrayLike,
-                      trial_angle_deg: ArrayLike) -> InfluenceResult:
+                      trial_angle_deg: ArrayLike, names: list[str] | None = None
+                      ) -> InfluenceResult:
     """Correction masses from trial runs (the influence-coefficient method).
 
     baseline : (rows,) complex vibration phasors without trial masses, mm/s (a row is one
@@ -265,7 +292,13 @@ def influence_balance(baseline: ArrayLike, trials: ArrayLike, trial_gcm: ArrayLi
     mass's static moment (g cm) and angle (deg). The vibration is taken as linear in the
     unbalance: V = V_0 + A U with U the complex static moments added, so
     A[:, j] = (V_j - V_0) / U_j, and the correction minimises sum |V_0 + A U|^2 (exact when
-    rows = planes and A is regular; least squares over more rows)."""
+    rows = planes and A is regular; least squares over more rows). ``names``: the planes'
+    names in messages (default "plane 1", ...).
+
+    Raises AnalysisError when the trial runs do not determine the coefficients: a trial mass
+    whose run changes the readings by less than :data:`MIN_TRIAL_EFFECT` of their size, or
+    trial runs whose changes do not tell the planes apart (the smallest singular value of the
+    changes, against the readings' size, below the same fraction)."""
     V0 = np.asarray(baseline, dtype=complex)
     Vt = np.atleast_2d(np.asarray(trials, dtype=complex))
     Ut = phasor(trial_gcm, trial_angle_deg).reshape(-1)
@@ -287,12 +320,37 @@ def influence_balance(baseline: ArrayLike, trials: ArrayLike, trial_gcm: ArrayLi
         raise AnalysisError("influence", f"{_count(len(V0), 'reading')} cannot fix"
                             f" {_count(len(Ut), 'plane')}", "Measure at more places or speeds"
                             " than there are planes")
-    A = ((Vt - V0[None, :]) / Ut[:, None]).T  # (rows, planes)
-    if np.linalg.matrix_rank(A, tol=1e-9 * max(np.abs(A).max(), 1e-300)) < len(Ut):
-        raise AnalysisError("influence", "the trial runs do not tell the planes apart (the"
-                            " influence coefficients are dependent or a trial changed"
-                            " nothing)", "Use a larger trial mass, or measure at another"
-                            " place or speed")
+    names = names or [f"plane {j + 1}" for j in range(len(Ut))]
+    E = (Vt - V0[None, :]).T  # (rows, planes): what each trial mass changed, mm/s
+    size = max(float(np.linalg.norm(V0)), float(np.linalg.norm(Vt, axis=1).max()))
+    effect = np.linalg.norm(E, axis=0) / size if size > 0 else np.zeros(len(Ut))
+    weak = int(np.argmin(effect))
+    if not effect[weak] >= MIN_TRIAL_EFFECT:
+        # the trial mass that would change the readings by 10 % (linear in the mass); a
+        # change of 1e-4 or less is no measurement of it at all
+        bigger = abs(Ut[weak]) * 0.1 / effect[weak] if effect[weak] >= 1e-4 else math.inf
+        more = (f" (about {bigger:.3g} g cm)" if bigger <= STATIC_MOMENT_RANGE_GCM[1]
+                else "")
+        apart = "the trial runs do not tell the planes apart: " if len(Ut) > 1 else ""
+        raise AnalysisError("influence", f"{apart}the trial mass of {names[weak]}"
+                            f" ({abs(Ut[weak]):g} g cm) changes the readings by"
+                            f" {100 * effect[weak]:.2g} % of their size, less than the"
+                            f" {100 * MIN_TRIAL_EFFECT:g} % a vibration meter resolves: its"
+                            " influence coefficients are not determined, and a correction"
+                            f" from them would be at least {1 / MIN_TRIAL_EFFECT:g} times the"
+                            " trial mass", f"Repeat that run with a trial mass that changes"
+                            f" the readings by 10 % or more{more}, and check that the mass"
+                            " was fitted in that plane")
+    sv = np.linalg.svd(E, compute_uv=False)
+    if len(Ut) > 1 and not sv[-1] >= MIN_TRIAL_EFFECT * size:
+        raise AnalysisError("influence", "the trial runs do not tell the planes apart: some"
+                            " combination of their trial masses changes the readings by"
+                            f" {100 * sv[-1] / size:.2g} % of their size (the influence"
+                            " coefficients of the planes are nearly dependent), so the"
+                            " correction is not determined", "Measure at another place or"
+                            " speed, where the planes act differently, or use larger trial"
+                            " masses")
+    A = E / Ut[None, :]  # (rows, planes), mm/s per g cm
     U, *_ = np.linalg.lstsq(A, -V0, rcond=None)
     res = V0 + A @ U
     before = float(np.sqrt(np.mean(np.abs(V0) ** 2)))

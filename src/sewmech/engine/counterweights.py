@@ -75,7 +75,8 @@ def describe(cw: Counterweight, mass: float, u: float, v: float) -> dict:
     radius and u, v mm."""
     S, ang = static_moment(mass, u, v)
     return {"link": cw.link, "static_moment_gcm": float(S) * GCM_PER_KGMM,
-            "angle_deg": math.degrees(float(ang)), "mass_g": 1e3 * float(mass),
+            "angle_deg": math.degrees(float(ang)) + 0.0,  # (+ 0.0: never "-0 deg")
+            "mass_g": 1e3 * float(mass),
             "radius_mm": float(math.hypot(u, v)), "u_mm": float(u), "v_mm": float(v)}
 
 

@@ -50,6 +50,12 @@ GRAVITY = 9.80665
 _N_UNKNOWN = {"revolute": 2, "prismatic": 2, "cam": 1, "slot": 1, "driver": 1}
 
 
+def _machine_where(machine) -> str:
+    """The machine and its file, for an error's *where*: ``machine 'x' (path/x.toml)``."""
+    file = getattr(machine, "file", "")
+    return f"machine '{machine.name}' ({file})" if file else f"machine '{machine.name}'"
+
+
 class SingularForceSystem(SewmechError):
     """The equilibrium equations have no unique solution at some position."""
 
@@ -276,6 +282,18 @@ class DynamicsResult:
             raise ValueError(f"pair '{name}' is a driver: it transmits a torque, not a force")
         return x[..., :1] * self._geometry[1][..., self.pairs.index(pair), :]
 
+    def total_force(self, name: str) -> np.ndarray:
+        """The force (N) of a pair on its second link, the friction along a sliding pair's
+        tangent included (:meth:`force` is its normal force alone), batch + (n_phi, 2)."""
+        F = self.force(name)
+        fr = self._friction_at_pairs
+        c, pair = self._columns[name]
+        if name in fr and pair.kind != "revolute":
+            n = self._geometry[1][..., self.pairs.index(pair), :]
+            t = np.stack([n[..., 1], -n[..., 0]], axis=-1)  # the friction kernel's tangent
+            F = F + fr[name][..., None] * t
+        return F
+
     def magnitude(self, name: str) -> np.ndarray:
         """|force| (N) of a pair, or |torque| (N mm) of a driver, batch + (n_phi,)."""
         c, pair = self._columns[name]
@@ -318,17 +336,12 @@ class DynamicsResult:
         friction along a sliding pair's tangent included, and of each spring anchored to it
         (by the spring's name); where each acts: :attr:`frame_reaction_points`."""
         out = {}
-        fr = self._friction_at_pairs
         for name, (c, pair) in self._columns.items():
             if pair.kind == "driver":
                 continue
             if FRAME not in pair.links:
                 continue
-            F = self.force(name)
-            if name in fr and pair.kind != "revolute":
-                n = self._geometry[1][..., self.pairs.index(pair), :]
-                t = np.stack([n[..., 1], -n[..., 0]], axis=-1)  # the friction kernel's tangent
-                F = F + fr[name][..., None] * t
+            F = self.total_force(name)
             out[name] = -F if pair.links[0] == FRAME else F
         for spring, (end, F) in self._frame_springs.items():
             out[spring] = F
@@ -559,12 +572,14 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
     kin = res.kin
     names = machine.link_names
     bshape = kin.theta.shape[:-1]
-    S = np.zeros(bshape + (2,))  # sum of forces from outside the shaft (not the bearings)
-    Mx = np.zeros(bshape)  # their moments about the axis point, N mm
-    My = np.zeros(bshape)
-    dHx = np.zeros(bshape)
-    dHy = np.zeros(bshape)
-    mass_S = np.zeros(bshape + (2,))
+    # (complex for the complex step of sewmech.engine.dynamic_sensitivity)
+    dt = np.result_type(kin.theta, res.com_a)
+    S = np.zeros(bshape + (2,), dtype=dt)  # sum of forces from outside the shaft (not the
+    Mx = np.zeros(bshape, dtype=dt)  # bearings), their moments about the axis point, N mm
+    My = np.zeros(bshape, dtype=dt)
+    dHx = np.zeros(bshape, dtype=dt)
+    dHy = np.zeros(bshape, dtype=dt)
+    mass_S = np.zeros(bshape + (2,), dtype=dt)
     for lname, z in shaft.links.items():
         li = names.index(lname)
         # pairs of this crank with links that are not the frame (the frame's share is the
@@ -574,7 +589,7 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
                 continue
             if pair.links[0] in shaft.links and pair.links[1] in shaft.links:
                 continue
-            F = res.force(pair.name) * (1.0 if pair.links[1] == lname else -1.0)
+            F = res.total_force(pair.name) * (1.0 if pair.links[1] == lname else -1.0)
             S += F
             Mx += -z * F[..., 1]
             My += z * F[..., 0]
@@ -722,7 +737,7 @@ def force_structure(machine: Machine) -> ForceStructure:
     if n_unk != n_eq:
         kinds = {k: sum(1 for p in pairs if p.kind == k) for k in _N_UNKNOWN}
         raise SingularForceSystem(
-            f"machine '{machine.name}': {n_links - 1} moving links give {n_eq} equilibrium"
+            f"{_machine_where(machine)}: {n_links - 1} moving links give {n_eq} equilibrium"
             f" equations but the pairs give {n_unk} unknowns ({kinds}); declare the cam and"
             " slot contacts of loop units (units[].contacts) and pin shared points"
             " (point units' pins)")
@@ -742,7 +757,7 @@ def force_structure(machine: Machine) -> ForceStructure:
     if (match < 0).any():
         lame = sorted({names[1 + int(r) // 3] for r in np.flatnonzero(match < 0)})
         raise SingularForceSystem(
-            f"machine '{machine.name}': the equations of link(s) {', '.join(lame)} cannot be"
+            f"{_machine_where(machine)}: the equations of link(s) {', '.join(lame)} cannot be"
             " balanced by the pairs' unknowns (the force system is singular at every"
             " position); check which links the pairs, pins and contacts join")
     row_of_col = np.empty(n_eq, dtype=np.int64)
@@ -1046,7 +1061,7 @@ class DynamicsPlan:
             design = tuple(int(i) for i in np.unravel_index(d, batch)) if batch else ()
             at = f"design {design}, " if design else ""
             raise AnalysisError(
-                f"machine '{self.machine.name}' at {at}phi = {float(kin.phi_deg[k]):.6g}"
+                f"{_machine_where(self.machine)} at {at}phi = {float(kin.phi_deg[k]):.6g}"
                 " deg", f"the force analysis with friction did not settle in {MAX_STEPS} steps"
                 f" (a change of {change:.2g} of the largest force remained): the friction may"
                 " lock the mechanism there", "Lower the friction coefficients or pin radii"
@@ -1148,7 +1163,7 @@ class DynamicsPlan:
         design = tuple(int(i) for i in np.unravel_index(d, batch)) if batch else ()
         at = f"design {design}, " if design else ""
         raise SingularForceSystem(
-            f"machine '{self.machine.name}' at {at}phi = {float(kin.phi_deg[k]):.6g} deg: the"
+            f"{_machine_where(self.machine)} at {at}phi = {float(kin.phi_deg[k]):.6g} deg: the"
             " equilibrium equations are singular (a mechanism at a dead centre with respect"
             " to its driver, or a pair whose line passes through its link's pivot); step"
             " around this angle")

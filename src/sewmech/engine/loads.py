@@ -133,6 +133,7 @@ class LoadTables:
     machine: Machine = field(repr=False)
     phi: np.ndarray = field(repr=False)
     _max_plan: object = field(default=None, repr=False)
+    _supports: dict = field(default_factory=dict, repr=False)
 
     @classmethod
     def build(cls, machine: Machine, loads: Sequence[LoadSpec], phi_deg: np.ndarray
@@ -184,12 +185,10 @@ class LoadTables:
 
         P = params.reshape(-1, params.shape[-1])
         out = np.empty(P.shape[0])
-        cw = [i for c in self.machine.counterweights for i in c.params]
+        support = self._support(ref)
         todo = []
         for d in range(P.shape[0]):
-            key = P[d].copy()
-            key[cw] = 0.0
-            key = (ref.name, key.tobytes())
+            key = (ref.name, P[d, support].tobytes())
             hit = self.machine._condition_maxima.get(key)
             if hit is None:
                 todo.append((d, key))
@@ -233,6 +232,40 @@ class LoadTables:
                 if len(cache) >= 4096:
                     cache.pop(next(iter(cache)))
                 cache[key] = peak
+        return out
+
+    def _support(self, ref: ChannelRef) -> np.ndarray:
+        """The parameters a channel's values depend on (indices): its largest value is kept
+        per their values alone (designs that differ elsewhere, as a sweep's feed dimensions
+        for the take-up's thread, share it)."""
+        hit = self._supports.get(ref.name)
+        if hit is not None:
+            return hit
+        from .sensitivity import _plan
+
+        m = self.machine
+        if ref.kind == "thread":
+            names = [f"p_{m.point_names[i]}_x" for i in self.thread.points]
+        elif ref.kind in ("p", "v", "a"):
+            names = [f"p_{m.point_names[ref.index]}_x"]
+        elif ref.kind in ("theta", "omega", "epsilon"):
+            names = [f"theta_{m.link_names[ref.index]}"]
+        else:
+            names = [f"q_{m.variable_names[ref.index]}"]
+        plan = _plan(m, names)
+        sup: set = set()
+        for name in names:
+            kind, _, rest = name.partition("_")
+            fam = {"p": "p", "theta": "l", "q": "v"}[kind]
+            if fam == "p":
+                i = m.point_names.index(rest.rpartition("_")[0])
+            elif fam == "l":
+                i = m.link_names.index(rest)
+            else:
+                i = m.variable_names.index(rest)
+            sup |= {int(j) for j in plan.support[plan.quantity[fam][i]]}
+        out = np.array(sorted(sup), dtype=np.int64)
+        self._supports[ref.name] = out
         return out
 
     def masks(self, a: dict[str, np.ndarray], params: np.ndarray

@@ -611,17 +611,30 @@ def period_turns(ratios) -> int | None:
     return turns
 
 
+#: how far from its link's origin a centre of mass may lie, in units of the machine's size
+#: (its largest length or coordinate in mm): a link's material is within the machine
+COM_REACH = 100.0
+
+
 def check_loads(machine_name: str, links, points, point_links, loads, file: str) -> None:
     """Raise :class:`MachineFileError` (file, load, key) if a load names a link or point the
-    machine lacks, or a point that is not on its link."""
+    machine lacks, the frame, a point that is not on its link, or its own point among the
+    points it is pulled toward (no direction)."""
+    moving = [lk for lk in links if lk != FRAME]
     for k, load in enumerate(loads):
         table = f'loads[{k}] "{load.name}"'
-        for key, value, names in (("link", load.link, links), ("point", load.point, points)):
-            if value not in names or value == FRAME:
+        if load.link == FRAME:
+            raise MachineFileError(file, table, "link", "a load on the frame moves nothing (the"
+                                   " frame takes every force through its pairs)",
+                                   f"Name the moving link it acts on: {', '.join(moving)}")
+        for key, value, names in (("link", load.link, moving), ("point", load.point, points)):
+            if value not in names:
                 close = difflib.get_close_matches(value, list(names), n=3)
-                hint = f" Did you mean {', '.join(close)}?" if close else ""
+                hint = (f"Did you mean {', '.join(close)}?" if close else
+                        f"The machine's {key}s: {', '.join(names[:20])}"
+                        + (f" and {len(names) - 20} more" if len(names) > 20 else ""))
                 raise MachineFileError(file, table, key, f"machine '{machine_name}' has no"
-                                       f" moving {key} '{value}'.{hint}")
+                                       f" moving {key} '{value}'", hint)
         if load.link not in point_links[load.point]:
             on = [p for p in points if load.link in point_links.get(p, ())]
             raise MachineFileError(file, table, "point", f"'{load.point}' is not a point of link"
@@ -632,6 +645,12 @@ def check_loads(machine_name: str, links, points, point_links, loads, file: str)
             if q not in points:
                 raise MachineFileError(file, table, "toward", f"machine '{machine_name}' has no"
                                        f" point '{q}'")
+            if q == load.point:
+                raise MachineFileError(file, table, "toward", f"a load's toward points must"
+                                       f" differ from its point ('{q}' is the load's own point:"
+                                       " the direction from a point to itself is not defined)",
+                                       "Name the points its line of action is pulled towards,"
+                                       " or give angle_deg for a fixed direction")
 
 
 # ---- compiler ---------------------------------------------------------------------------------
@@ -694,6 +713,36 @@ class _Compiler:
     # -- helpers
     def err(self, table: str, key: str, msg: str, hint: str = "") -> MachineFileError:
         return MachineFileError(self.file, table, key, msg, hint)
+
+    def _com_within_reach(self, lname: str, mspec, props) -> None:
+        """A link's centre of mass lies in its material, within the machine: one further out
+        than :data:`COM_REACH` times the machine's size (its largest length or coordinate) is
+        a slip of the value or its unit (``com = [1e8, 0]``: the force equations lost every
+        digit to it and were reported singular "at a dead centre")."""
+        size = max([abs(v) for v, u in zip(self.pvalues, self.punits, strict=True) if u == "mm"]
+                   + [1.0])
+        far = float(np.hypot(props.com[0], props.com[1]))
+        if far > COM_REACH * size:
+            raise self.err(f"masses.{lname}", "com" if mspec.solids is None else "solids",
+                           f"puts the centre of mass {far:.3g} mm from the link's origin,"
+                           f" {far / size:.3g} times the machine's size (its largest length or"
+                           f" coordinate, {size:g} mm): no part of a link reaches so far, and"
+                           " its force equations would lose every digit to it",
+                           "Check the value and its unit (mm, in the link's frame)")
+
+    def _not_moving(self, name: str, todo: str) -> tuple[str, str]:
+        """(message, hint) for a name that should be a moving link and is not: the frame, or
+        a name no unit moves; the hint names the close ones, or lists the moving links."""
+        moving = list(self.links[1:])
+        shown = ", ".join(moving[:20]) + (f" and {len(moving) - 20} more"
+                                          if len(moving) > 20 else "")
+        if name == FRAME:
+            return (f"'{FRAME}' is not a moving link: masses and counterweights on it enter no"
+                    " inertia force", f"{todo}: {shown}")
+        close = difflib.get_close_matches(name, moving, n=3)
+        return (f"'{name}' is not a moving link of this machine",
+                f"Did you mean {', '.join(close)}?" if close
+                else f"{todo}: {shown}")
 
     def param(self, name: str, value: float, unit: str, src: tuple | None = None, *,
               positive: bool = False, bounds: tuple[float, float] | None = None) -> int:
@@ -847,16 +896,15 @@ class _Compiler:
                                        f"unknown parameter '{pname}'.{hint}")
         for lname, mspec in spec.masses.items():
             if lname not in self.links or lname == FRAME:
-                close = difflib.get_close_matches(lname, self.links[1:], n=3)
-                hint = f" Did you mean {', '.join(close)}?" if close else ""
-                raise self.err(f"masses.{lname}", "", f"'{lname}' is not a moving link of this"
-                               f" machine.{hint}")
+                raise self.err(f"masses.{lname}", "", *self._not_moving(
+                    lname, "Name the table [masses.LINK] after a moving link"))
             try:
-                mass_from_spec(mspec)
+                props = mass_from_spec(mspec)
             except ValueError as exc:
                 key = "solids" if mspec.solids is not None else (
                     "inertia" if mspec.inertia is not None else "inertia_zz")
                 raise self.err(f"masses.{lname}", key, str(exc)) from None
+            self._com_within_reach(lname, mspec, props)
         if spec.thread is not None:
             for k, g in enumerate(spec.thread.guides):
                 self.known_point("thread", f"guides[{k}].point", g.point)
@@ -930,10 +978,7 @@ class _Compiler:
         for name, cw in self.spec.counterweights.items():
             table = f"counterweights.{name}"
             if cw.link == FRAME or cw.link not in self.links:
-                close = difflib.get_close_matches(cw.link, self.links[1:], n=3)
-                hint = f" Did you mean {', '.join(close)}?" if close else ""
-                raise self.err(table, "link", f"'{cw.link}' is not a moving link of this"
-                               f" machine.{hint}")
+                raise self.err(table, "link", *self._not_moving(cw.link, "Give a moving link"))
             origin = self.mass_origins.get(cw.link) or next(
                 (p for p in self.points if cw.link in self.point_links[p]), None)
             if origin is None:

@@ -618,6 +618,10 @@ class MassSpec(_Spec):
                 raise ValueError("measured mass properties need com and exactly one of"
                                  " inertia_zz, inertia")
         else:
+            if not self.solids:  # (mass.compose() refused it later, by its own name)
+                raise ValueHint("solids = [] holds no solid: a part is made of at least one",
+                                "List its solids (box, cylinder, ...; docs/machine-files.md),"
+                                " or give its measured mass, com and inertia_zz")
             if (self.material is None) == (self.density is None):
                 raise ValueError("solids need exactly one of material, density")
             from .mass import MATERIALS
@@ -908,6 +912,65 @@ class FrictionSpec(_Spec):
     note: str = ""
 
 
+Vec3Pos = tuple[PosFloat, PosFloat, PosFloat]
+
+
+class MountSpec(_Spec):
+    """One mount of the housing (``[[housing.mounts]]``): where it holds the housing (machine
+    frame, mm), its stiffness along x, y, z (N/mm) and its damping along them (N s/mm; default:
+    the housing's ``loss_factor``)."""
+
+    name: str = Field(min_length=1, max_length=200)
+    at_mm: Vec3
+    stiffness_N_per_mm: tuple[NonNegFloat, NonNegFloat, NonNegFloat]
+    damping_N_s_per_mm: tuple[NonNegFloat, NonNegFloat, NonNegFloat] | None = None
+    note: str = ""
+
+
+class HousingSpec(_Spec):
+    """``[housing]``: the machine's housing (head, arm and bed) as a rigid body on elastic
+    mounts, excited by every force the mechanisms put on it (docs/vibration.md).
+
+    ``mass``: its mass properties in the machine frame (a ``[masses]``-style table without
+    ``origin``: measured ``mass``, ``com`` [x, y, z] and a full ``inertia`` tensor, or solids);
+    ``mounts``: at least one; ``loss_factor``: the mounts' structural damping where a mount
+    gives no damping; ``control_points``: name -> [x, y, z] mm, where the vibration is judged
+    (the operator's hands); ``bounds_mm``: the housing's extent [[x0, x1], [y0, y1], [z0, z1]],
+    inside which mounts and control points must lie; ``planes_mm``: the z of the plane in which
+    each frame pair (or a spring anchored to the frame) acts, by name, and ``default_plane_mm``
+    for the others (the upper shaft's cranks act through its bearings, at ``[shaft]``'s z)."""
+
+    mass: MassSpec
+    mounts: list[MountSpec] = Field(min_length=1)
+    loss_factor: NonNegFloat = Field(0.1, le=2.0)
+    control_points: dict[Name, Vec3] = Field(min_length=1)
+    bounds_mm: tuple[tuple[Float, Float], tuple[Float, Float], tuple[Float, Float]] | None = None
+    planes_mm: dict[str, Float] = Field(default_factory=dict)
+    default_plane_mm: Float = 0.0
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _housing(self):
+        if self.mass.origin is not None:
+            raise ValueHint("the housing's mass properties are in the machine frame: it has no"
+                            " origin point", "Leave out origin")
+        if self.mass.mass is not None and self.mass.inertia is None:
+            raise ValueHint("the housing turns in 3-D on its mounts: give its full inertia"
+                            " tensor (inertia = [[Ixx, Ixy, Ixz], ...], kg mm^2 about its centre"
+                            " of mass), not only inertia_zz", "Give inertia, or solids")
+        if self.mass.mass is not None and len(self.mass.com) != 3:
+            raise ValueHint("the housing's com needs x, y and z (mm)", "Write com = [x, y, z]")
+        names = [m.name for m in self.mounts]
+        if len(set(names)) != len(names):
+            raise ValueHint("two mounts share a name", "Give every mount its own name")
+        if self.bounds_mm is not None:
+            for lo, hi in self.bounds_mm:
+                if not lo < hi:
+                    raise ValueHint(f"bounds_mm: [{lo:g}, {hi:g}] is not a range (low < high)",
+                                    "Write [[x0, x1], [y0, y1], [z0, z1]] with x0 < x1, ...")
+        return self
+
+
 class LoadFile(_Spec):
     """A load file: ``[[loads]]`` tables that replace the machine file's loads."""
 
@@ -936,6 +999,97 @@ class ShaftSpec(_Spec):
         return self
 
 
+#: the keys of each kind of motor (besides kind, the belt, the inertias and the note)
+MOTOR_KEYS = {
+    "table": ("speed_rpm", "torque_N_mm"),
+    "induction": ("synchronous_rpm", "rated_rpm", "rated_power_W", "breakdown_torque_ratio"),
+    "clutch": ("synchronous_rpm", "rated_rpm", "rated_power_W", "breakdown_torque_ratio",
+               "clutch_torque_N_mm", "brake_torque_N_mm"),
+    "servo": ("max_torque_N_mm", "bandwidth_hz"),
+}
+#: the keys a kind may leave out (the run takes 0 N mm of brake and a 10 Hz speed loop)
+_MOTOR_OPTIONAL = {"brake_torque_N_mm", "bandwidth_hz"}
+
+
+def _a(word: str) -> str:
+    """``word`` with its indefinite article."""
+    return ("an " if word[:1] in "aeiou" else "a ") + word
+
+
+class MotorSpec(_Spec):
+    """``[motor]``: the motor that drives the upper shaft, for the run in time
+    (docs/running.md). ``kind``: ``table`` (the torque at the motor's shaft against its speed,
+    ``speed_rpm`` from 0 increasing and ``torque_N_mm``), ``induction`` (Kloss's curve through
+    the rated point, ``rated_rpm`` and ``rated_power_W``, with the breakdown torque
+    ``breakdown_torque_ratio`` times the rated one, ``synchronous_rpm``), ``clutch`` (that
+    induction motor running before a dry clutch that passes at most ``clutch_torque_N_mm``; a
+    brake of ``brake_torque_N_mm`` stops the machine) or ``servo`` (a speed controller, PI with
+    the torque limit ``max_torque_N_mm`` and the speed loop's ``bandwidth_hz``). The motor
+    turns ``belt_ratio`` times as fast as the shaft; ``rotor_inertia_kg_mm2`` is its own turning
+    parts' (a clutch motor's rotor with its flywheel), ``hand_wheel_inertia_kg_mm2`` what turns
+    with the shaft and is not in ``[masses]``. Torques N mm at the motor's shaft."""
+
+    kind: str
+    belt_ratio: Annotated[Float, Field(gt=0.0, le=100.0)] = 1.0
+    rotor_inertia_kg_mm2: NonNegFloat = 0.0
+    hand_wheel_inertia_kg_mm2: NonNegFloat = 0.0
+    speed_rpm: list[Annotated[Float, Field(ge=0.0, le=1e5)]] | None = None
+    torque_N_mm: list[Float] | None = None
+    synchronous_rpm: Annotated[Float, Field(gt=0.0, le=1e5)] | None = None
+    rated_rpm: Annotated[Float, Field(gt=0.0, le=1e5)] | None = None
+    rated_power_W: Annotated[Float, Field(gt=0.0, le=1e6)] | None = None
+    breakdown_torque_ratio: Annotated[Float, Field(gt=1.0, le=20.0)] | None = None
+    clutch_torque_N_mm: PosFloat | None = None
+    brake_torque_N_mm: NonNegFloat | None = None
+    max_torque_N_mm: PosFloat | None = None
+    bandwidth_hz: Annotated[Float, Field(gt=0.0, le=1000.0)] | None = None
+    note: str = ""
+
+    @field_validator("kind", mode="before")
+    @classmethod
+    def _kind(cls, v):
+        if isinstance(v, str) and v in MOTOR_KEYS:
+            return v
+        import difflib
+
+        close = difflib.get_close_matches(str(v), list(MOTOR_KEYS), n=1, cutoff=0.6)
+        raise ValueHint(f"unknown motor kind; expected one of: {', '.join(MOTOR_KEYS)}",
+                        f"Did you mean kind = \"{close[0]}\"?" if close else
+                        "Write e.g. kind = \"induction\" (docs/running.md)")
+
+    @model_validator(mode="after")
+    def _keys_of_its_kind(self):
+        own = MOTOR_KEYS[self.kind]
+        others = [k for keys in MOTOR_KEYS.values() for k in keys if k not in own]
+        stray = [k for k in dict.fromkeys(others) if getattr(self, k) is not None]
+        if stray:
+            kinds = [k for k, keys in MOTOR_KEYS.items() if stray[0] in keys]
+            raise ValueHint(f"{stray[0]} is for {_a(' or '.join(kinds))} motor; this one is"
+                            f" {_a(self.kind)} motor", f"Leave {stray[0]} out, or write kind ="
+                            f" \"{kinds[0]}\"")
+        missing = [k for k in own if getattr(self, k) is None and k not in _MOTOR_OPTIONAL]
+        if missing:
+            needed = [k for k in own if k not in _MOTOR_OPTIONAL]
+            raise ValueHint(f"{_a(self.kind)} motor needs {', '.join(needed)}; missing:"
+                            f" {', '.join(missing)}", "Add them (docs/running.md)")
+        if self.kind == "table":
+            n, t = self.speed_rpm, self.torque_N_mm
+            if len(n) != len(t) or len(n) < 2:
+                raise ValueHint(f"speed_rpm and torque_N_mm must be lists of the same length,"
+                                f" at least 2 (got {len(n)} and {len(t)})",
+                                "Give the torque at each speed")
+            if n[0] != 0.0 or any(b <= a for a, b in zip(n[:-1], n[1:], strict=True)):
+                raise ValueHint(f"speed_rpm must start at 0 and increase, got {_short(n)}",
+                                "Give the torque from standstill (0 rpm) up")
+        if self.kind in ("induction", "clutch") and not (
+                self.rated_rpm < self.synchronous_rpm):
+            raise ValueHint(f"rated_rpm = {self.rated_rpm:g} must be below synchronous_rpm ="
+                            f" {self.synchronous_rpm:g}: an induction motor's torque comes from"
+                            " its slip", "Give the rated speed from the motor's plate (e.g."
+                            " 2800 for a 2-pole motor on 50 Hz, synchronous 3000)")
+        return self
+
+
 class MachineSpec(_Spec):
     """The whole machine file."""
 
@@ -953,8 +1107,10 @@ class MachineSpec(_Spec):
     springs: list[SpringSpec] = Field(default_factory=list)
     torsion_springs: list[TorsionSpringSpec] = Field(default_factory=list)
     friction: FrictionSpec | None = None
+    housing: HousingSpec | None = None
     shaft: ShaftSpec | None = None
     counterweights: dict[Name, CounterweightSpec] = Field(default_factory=dict)
+    motor: MotorSpec | None = None
 
     @field_validator("points")
     @classmethod
@@ -1160,8 +1316,16 @@ def _explain(err: dict, raw: dict, file: str, root: type[BaseModel] = MachineSpe
             hint = cause.hint
     elif etype in ("dict_type", "model_type", "model_attributes_type"):
         msg = f"must be a table ({{ key = value, ... }} or [{'.'.join(path)}]), got {_short(got)}"
-    else:
-        msg = f"{err['msg']} (got {_short(got)})"
+    elif etype == "literal_error":  # one of a few words or numbers
+        expected = str((err.get("ctx") or {}).get("expected", "")) or "one of its values"
+        msg = f"must be {expected}, got {_short(got)}"
+        hint = f"Give {'one of them' if ' or ' in expected else expected} ({doc})"
+    elif etype == "string_type":
+        msg = f"must be a string, got {_short(got)}"
+        hint = "Write it in quotes, e.g. name = \"my-machine\""
+    else:  # pydantic's wording, without its "Input should be"
+        msg = f"{err['msg'].replace('Input should be', 'should be')} (got {_short(got)})"
+        hint = f"See {doc} for what it takes"
     return MachineFileError(file, table, key, msg, hint)
 
 

@@ -27,6 +27,7 @@ STEPS = (
     ("friction in the pairs", "friction"),
     ("the design sensitivities' tangent kernel (positions)", "sensitivities"),
     ("the design sensitivities' tangent kernel (rates)", "rates"),
+    ("the run in time's integrator", "run"),
 )
 
 
@@ -59,8 +60,12 @@ def warm(progress=None) -> float:
             inverse_dynamics(m, phi)
         elif step == "sensitivities":
             sensitivities(m, phi)  # every level of positions, every unit type
-        else:
+        elif step == "rates":
             sensitivities(m, phi, rates=True)
+        else:  # a short run at a low speed: the tables, the integrator, the samples
+            from .running import run
+
+            run(m, rpm=100.0, run_time=0.2, step_deg=10.0, energy_method=False)
 
     for k, (what, step) in enumerate(STEPS, start=1):
         if progress is not None:

@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike
 from ..engine._events import at_rows as _at_rows
 from ..engine._events import crossing_rows as _crossing_rows
 from ..engine._events import extreme_rows as _extreme_rows
-from ..engine.errors import OptionError
+from ..engine.errors import AnalysisError, OptionError
 from ..engine.evaluation import evaluation
 from ..engine.kinematics import kinematics
 from ..engine.machine import Machine
@@ -270,7 +270,9 @@ def scale_marks(machine: Machine, step_mm: float = 0.5, *, params=None,
     hi = math.floor(st_s[-1] / step_mm + 1e-9)
     targets = np.arange(lo, hi + 1) * step_mm
     g0 = np.interp(targets, st_s, rg_s)
-    g1 = g0 + 0.01
+    # the secant's second point 0.01 deg away, inside the travel (a mark at its end would
+    # otherwise be evaluated beyond the regulator's range, which is refused)
+    g1 = np.where(g0 + 0.01 <= travel[1], g0 + 0.01, g0 - 0.01)
     f0 = feed_cycles(machine, g0, params=params).stitch_mm - targets
     for _ in range(30):
         f1 = feed_cycles(machine, g1, params=params).stitch_mm - targets
@@ -330,7 +332,13 @@ def set_feed_timing(machine: Machine, mid_feed_after_top_deg: float = 0.0, *,
             break
         p[i] += math.radians(err)  # x(phi) ~ x0(phi + phase): a later mid-feed needs more phase
     else:
-        raise ValueError("the feed timing did not settle; check the feed mechanism")
+        raise AnalysisError(f"machine '{machine.name}' ({machine.file}) [sewing] feed_cam",
+                            f"no phase of the feed cam puts the middle of the feed stroke"
+                            f" {mid_feed_after_top_deg:g} deg after the top of lift at regulator"
+                            f" {reg:g} deg: 20 steps left it {abs(err):.3g} deg off (the"
+                            " middle of the stroke does not move with the cam's phase as a"
+                            " shift of the shaft angle)", "Check the feed and lift cams'"
+                            " dimensions against the machine's")
     return FeedTiming({f"{s.feed_cam}.phase": float(p[i])}, math.degrees(p[i]) % 360.0, c)
 
 

@@ -182,9 +182,17 @@ def _top(machine: Machine, point: str, params, also: tuple[str, ...] = ()
     return phi, -w * dv[0] / a, S
 
 
+def _needle_roles(machine: Machine):
+    """The machine's [sewing] roles for the needle's, the take-up's and the hook's metrics:
+    its needle point (a machine without a feed dog has these metrics too)."""
+    from .timing import roles
+
+    return roles(machine)
+
+
 def _with_take_up(machine: Machine):
     """The machine's [sewing] roles, which must name the take-up's thread eye."""
-    s = _roles(machine)
+    s = _needle_roles(machine)
     if s.take_up_eye is None:
         raise AnalysisError(f"machine '{machine.name}'", "has no take_up_eye in [sewing]",
                             "Name the take-up's thread eye there")
@@ -196,7 +204,7 @@ def needle_top_gradient(machine: Machine, regulator_deg: float | None = None, *,
     """The shaft angle of the needle's top dead centre (deg, 0 .. 360) and its derivative by
     every parameter (deg per unit). (The regulator does not move it; the argument keeps the
     metrics' signature.)"""
-    s = _roles(machine)
+    s = _needle_roles(machine)
     phi, dphi, _ = _top(machine, s.needle_point, params)
     return Gradient("needle_top_deg", math.degrees(phi) % 360.0, "deg", machine.parameter_names,
                     np.degrees(dphi), {"needle_top": math.degrees(phi) % 360.0})
@@ -294,6 +302,30 @@ def shuttle_swing_gradient(machine: Machine, regulator_deg: float | None = None,
                     {"max": sw.max_phi_deg, "min": sw.min_phi_deg})
 
 
+#: the [sewing] roles each metric reads, besides the needle point every [sewing] table names
+METRIC_ROLES = {"stitch_length": ("feed_dog", "regulator"),
+                "feed_lift": ("feed_dog", "regulator"),
+                "dog_height_at_needle_plate": ("feed_dog", "regulator"),
+                "needle_top_deg": (), "take_up_lag_deg": ("take_up_eye",),
+                "needle_descent_at_take_up_top": ("take_up_eye",),
+                "loop_lift": ("shuttle_link", "shuttle_point"),
+                "shuttle_swing_deg": ("shuttle_link",)}
+
+
+def missing_roles(machine: Machine, metric: str) -> str | None:
+    """What the machine lacks to give ``metric`` (a key of :data:`METRICS`), in words, or None:
+    files that name a metric (sweeps, problems) are refused where they name it, not after
+    every design has failed on it."""
+    s = machine.spec.sewing
+    if s is None:
+        return (f"{metric} needs a [sewing] table (the needle point and the parts of stitch"
+                f" formation); '{machine.name}' has none")
+    lack = [r for r in METRIC_ROLES[metric] if getattr(s, r) is None]
+    if lack:
+        return f"{metric} needs [sewing] {' and '.join(lack)}, which '{machine.name}' does not name"
+    return None
+
+
 #: the metrics with exact derivatives: name -> function(machine, regulator_deg, params=)
 METRICS = {"stitch_length": stitch_length_gradient, "feed_lift": feed_lift_gradient,
            "dog_height_at_needle_plate": dog_height_at_needle_plate_gradient,
@@ -310,13 +342,15 @@ DEGENERATE_STITCH = 1e-6
 
 def require_a_stitch(machine: Machine, metric: str, value: float, regulator_deg: float, *,
                      option: str = "regulator_deg", give: str = "regulator_deg={deg:g}",
-                     params=None) -> None:
+                     params=None, working_deg: float | None = None) -> None:
     """Refuse a feed metric that is degenerate at the setting: the stitch length where it is
     round-off of zero (below :data:`DEGENERATE_STITCH` of the longest stitch at the ends of the
     regulator's travel), whose tolerances and derivatives would be those of a stitch that does
     not exist. The error names the metric, the setting and ``option``, and suggests a setting
     in ``give``'s form (``{deg}``): the machine's working setting, or the forward end of the
-    regulator's travel where the working setting is the one refused. Other metrics pass."""
+    regulator's travel where the working setting is the one refused (``working_deg``: the
+    working setting, default the machine file's; a ``--set`` of the input changes the file's).
+    Other metrics pass."""
     from ..engine.errors import OptionError
     from .feed import regulator_range_deg
 
@@ -327,7 +361,8 @@ def require_a_stitch(machine: Machine, metric: str, value: float, regulator_deg:
     if not abs(value) <= DEGENERATE_STITCH * longest:
         return
     s = _roles(machine)
-    working = machine.spec.inputs[s.regulator].default_deg
+    working = machine.spec.inputs[s.regulator].default_deg if working_deg is None \
+        else working_deg
     if regulator_deg != working:
         suggest, why = working, "the machine's working setting"
     else:
@@ -383,7 +418,7 @@ def _timing_values(machine: Machine, name: str, params: np.ndarray, step_deg: fl
                    ) -> np.ndarray:
     """The needle-top and take-up timing metrics for a batch of designs, from a ``step_deg``
     grid with each top refined on the Hermite interpolant of its slope."""
-    s = _roles(machine)
+    s = _with_take_up(machine) if name != "needle_top_deg" else _needle_roles(machine)
     n = round(360.0 / step_deg)
     h = 2.0 * math.pi / n
     pts = [s.needle_point] + ([s.take_up_eye] if s.take_up_eye else [])
@@ -417,9 +452,12 @@ def _hook_values(machine: Machine, name: str, params: np.ndarray, step_deg: floa
     """The loop lift and the shuttle's swing for a batch of designs, from a ``step_deg`` grid
     refined on the Hermite interpolants (as :func:`sewmech.sewing.timing.loop_lift` and
     :func:`~sewmech.sewing.timing.shuttle_swing` locate them on one design)."""
-    from .timing import _shuttle_axis
+    from .timing import _need, _shuttle_axis
 
-    s = _roles(machine)
+    s = _needle_roles(machine)
+    _need(s.shuttle_link, "shuttle_link", machine)
+    if name == "loop_lift":
+        _need(s.shuttle_point, "shuttle_point", machine)
     n = round(360.0 / step_deg)
     h = 2.0 * math.pi / n
     m = int(np.prod(params.shape[:-1]))

@@ -299,7 +299,48 @@ REFERENCES: tuple[Reference, ...] = (
        "seen",
        ("1000-1200 stitches/min, the fastest <= 1500", "the working speeds of household"
         " machines", "the speed range the JB files' one-sided contacts must stay closed in"
-        " (their feed-bar spring)")),
+        " (their feed-bar spring)"),
+       ("<= 1500 stitches/min", "the fastest household machines", "the JB files' `[motor]`"
+        " belt ratio: the motor's loaded speed puts the shaft at about 1400 rpm")),
+    # ---- motors (the run in time) ---------------------------------------------------------------
+    _r("OldSewinGear-motor",
+       "Amped Up ... when bigger is not necessarily better. OldSewinGear (blog on vintage Singer"
+       " and class 15 machines), 18 December 2012.",
+       "http://www.oldsewingear.com/blog/amped-upbigger-is-not-always-better", "seen",
+       ("1.0 A", "the motor of a belt-driven class 15 'Singer clone' household machine (a"
+        " Singer 401's: 0.72 A)", "the JB files' `[motor]`: about 115 W taken at 115 V, so"
+        " about 70 W at the shaft [estimate: 60 % efficiency]: the table's rated point")),
+    _r("Nisley-Kenmore-motor",
+       "Nisley E., 'Kenmore 158: Motor Speed vs. DC Voltage'. Softsolder (Ed Nisley's blog),"
+       " 8 July 2014.",
+       "https://softsolder.com/2014/07/08/kenmore-158-motor-speed-vs-dc-voltage/", "seen",
+       ("about 8500 rpm; 300 mA unloaded, 500 mA loaded (110-120 V motor)", "the top speed of"
+        " a household machine's universal motor belted to the machine, and its currents",
+        "the JB files' `[motor]` table: its torque falls to the machine's light load near"
+        " 10,000 rpm")),
+    _r("Nisley-Kenmore-belt",
+       "Nisley E., 'Kenmore 158: Current & Shaft Speeds vs. Motor RPM'. Softsolder (Ed"
+       " Nisley's blog), 13 November 2014.",
+       "https://softsolder.com/2014/11/13/kenmore-158-current-shaft-speeds-vs-motor-rpm/",
+       "seen",
+       ("belt reduction 11.1", "the motor's speed over the main shaft's in a household"
+        " (zigzag) machine", "the range the JB files' belt ratio (7, for a faster straight-"
+        "stitch machine) is chosen below")),
+    _r("Leatherworker-clutch-motor",
+       "Option C: Clutch Motor. leatherworker.net (forum blog on choosing a sewing machine"
+       " motor).",
+       "https://leatherworker.net/forum/blogs/entry/516-option-c-clutch-motor", "seen",
+       ("an AC induction motor; 2-pole about 2800 rpm, 4-pole about 1400 rpm; a cork clutch"
+        " face on a steel plate, pressed by the pedal", "what an industrial machine's clutch"
+        " motor is", "bartack-1820.toml's `[motor]`: kind = \"clutch\", rated at 2800 rpm")),
+    _r("Adafruit-clutch-motor",
+       "Hacking an industrial sewing machine by adjusting the clutch motor. Adafruit blog,"
+       " 8 November 2007.",
+       "https://blog.adafruit.com/2007/11/08/hacking-an-industrial-sewing-machine-by-adjusting"
+       "-the-clutch-motor/", "seen",
+       ("the motor runs at 1750 rpm; 1/3 HP; the motor runs from the moment it is switched on,"
+        " the pedal moves the clutch onto it", "an industrial machine's clutch motor",
+        "bartack-1820.toml's `[motor]`: 250 W (1/3 HP), running before the clutch engages")),
     # ---- standards, textbooks and methods -----------------------------------------------------
     _r("Friction-handbook",
        "Oberg E. et al., Machinery's Handbook, section on friction: coefficients of friction of"
@@ -366,6 +407,15 @@ REFERENCES: tuple[Reference, ...] = (
        ("conditions for a complete force balance of a four-bar by counterweights", "the method"
         " of linearly independent vectors", "a closed form the balancing tests check sewmech"
         " against"), background=True),
+    _r("Kloss-formula",
+       "Kloss's formula: the simplified torque-slip curve of the induction motor, as"
+       " electrical-machines textbooks give it (e.g. Fischer R., Elektrische Maschinen, Hanser,"
+       " Munich).",
+       "", "textbook",
+       ("T(s) = 2 T_b s s_b / (s^2 + s_b^2)", "an induction motor's torque against its slip"
+        " through its breakdown point (T_b, s_b); with the rated point it gives s_b ="
+        " s_r (k + sqrt(k^2 - 1)), k = T_b / T_r", "`[motor]` kind = \"induction\" and"
+        " \"clutch\" (sewmech.engine.motor)"), background=True),
 )
 
 BY_KEY: dict[str, Reference] = {r.key: r for r in REFERENCES}

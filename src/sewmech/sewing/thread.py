@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..engine._events import crossing_rows as _crossing_rows
-from ..engine.errors import AnalysisError, OptionError
+from ..engine.errors import AnalysisError, MachineFileError, OptionError
 from ..engine.threadpath import path_length, path_length_gradient  # noqa: F401 (public here too)
 from ..engine.kinematics import kinematics
 from ..engine.machine import Machine
@@ -95,10 +95,33 @@ def _path_of(machine: Machine, r, on_failure: str = "raise") -> ThreadPath:
     rho = guide_radii(machine)
     i0, i1 = t.take_up
     mode = "nan" if on_failure == "mask" else "raise"
+    if mode == "raise":
+        _refuse_overlap(machine, pos, rho, np.degrees(r.phi))
     total = path_length(pos, rho, on_overlap=mode)
     tu = path_length(pos[..., i0:i1 + 1, :], rho[i0:i1 + 1], on_overlap=mode)
     below = path_length(pos[..., i1:, :], rho[i1:], on_overlap=mode)
     return ThreadPath(np.degrees(r.phi), total, tu, tu.max(axis=-1, keepdims=True) - tu, below)
+
+
+def _refuse_overlap(machine: Machine, pos: np.ndarray, rho: np.ndarray, phi_deg) -> None:
+    """Two neighbouring guides with no common tangent at some angle (a guide inside the
+    other's pin, or on it): a located error of the file's [thread] guides, naming the pair and
+    the first such angle (it was the path's own "thread guides 0 and 1 overlap", without a
+    file or a table, and only once an analysis read the thread)."""
+    d = pos[..., 1:, :] - pos[..., :-1, :]
+    b = rho[:-1] - rho[1:]
+    bad = np.einsum("...i,...i->...", d, d) - b * b < 0.0  # batch + (n_phi, n_guide - 1)
+    if not bad.any():
+        return
+    flat = bad.reshape(-1, bad.shape[-2], bad.shape[-1])
+    _, j, k = (int(i) for i in np.argwhere(flat)[0])
+    g = _thread_spec(machine).guides
+    at = f" at phi = {float(np.ravel(phi_deg)[j]):g} deg" if np.size(phi_deg) > 1 else ""
+    raise MachineFileError(machine.file, "thread", f"guides[{k}]", f"'{g[k].point}' and the next"
+                           f" guide, '{g[k + 1].point}', overlap{at}: the thread has no common"
+                           " tangent to run along from one to the other (they are closer than"
+                           " the difference of their signed radii)", "Move the guides apart, or"
+                           " give the pins smaller radii")
 
 
 # ---- demand of the stitch-forming side, and the balance ------------------------------------------

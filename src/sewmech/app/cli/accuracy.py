@@ -16,13 +16,24 @@ from rich.table import Table
 from ...engine.errors import OptionError
 from ..display import is_round_off, number
 from .common import (DEFAULT_MACHINE, SET_HELP, _load, _settings, command, console,
-                         print_json)
+                     print_json, refuse_unused)
 
 
 #: the sewing metrics ``--output`` accepts besides the position channels (the keys of
 #: :data:`sewmech.sewing.gradients.METRICS`)
 METRICS = ("stitch_length", "feed_lift", "dog_height_at_needle_plate", "needle_top_deg",
            "take_up_lag_deg", "needle_descent_at_take_up_top", "loop_lift", "shuttle_swing_deg")
+#: the metrics read at a stitch-regulator setting (the others at the working setting)
+FEED_METRICS = ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
+
+
+def _refuse_phi_for_a_metric(output: str) -> None:
+    """--phi-deg places a position channel; a metric is read at its own events."""
+    if output in METRICS:
+        refuse_unused("phi_deg", "--phi-deg", f"is the shaft angle of a position channel, and"
+                      f" {output} is a metric read at its own events: the angle would be"
+                      " ignored", "Leave --phi-deg out, or give a channel such as"
+                      " p_needle.point_y")
 
 
 def _metric(m, name: str, settings: dict) -> tuple[float, np.ndarray, str, dict]:
@@ -43,9 +54,23 @@ def _metric(m, name: str, settings: dict) -> tuple[float, np.ndarray, str, dict]
     reg = settings.get(s.regulator)
     deg = m.spec.inputs[s.regulator].default_deg if reg is None else math.degrees(reg)
     g = FUNCTIONS[name](m, deg)
-    require_a_stitch(m, name, g.value, deg, option="--input",
-                     give=f"--input {s.regulator}={{deg:g}}")
+    require_a_stitch(m, name, g.value, deg, **_setting_option(m, reg is None, "--input",
+                                                              f"--input {s.regulator}={{deg:g}}"))
     return g.value, g.d_dparam, g.unit, {**g.events_deg, "regulator": deg}
+
+
+def _setting_option(m, default: bool, option: str, give: str) -> dict:
+    """Which option a refused regulator setting came from, and the setting to suggest: a
+    ``--set input.REGULATOR=...`` when the option was not given and --set changed it (the
+    error blamed --input, which was not given), else ``option``."""
+    s = m.spec.sewing
+    key = f"input.{s.regulator}"
+    if not (default and key in m.changes):
+        return {"option": option, "give": give}
+    from ...engine.machine import load_machine
+
+    return {"option": "--set", "give": f"--set {key}={{deg:g}}deg",
+            "working_deg": load_machine(m.file).spec.inputs[s.regulator].default_deg}
 
 
 @command("sensitivity")
@@ -84,8 +109,13 @@ def sensitivity_cmd(
         raise OptionError("--phi-deg", f"must be a finite angle in deg, got {phi_deg}")
     if top < 1:
         raise OptionError("--top", f"must be at least 1, got {top}")
+    _refuse_phi_for_a_metric(output)
     m = _load(machine, sets)
     settings = _settings(m, inputs)
+    if settings and output in METRICS and output not in FEED_METRICS:
+        raise OptionError("--input", f"{output} is read at the machine's working setting: the"
+                          f" setting {', '.join(inputs)} would be ignored", "Leave --input out"
+                          " (it sets " + ", ".join(FEED_METRICS) + " and the position channels)")
     tol = ranking_tolerances(m, load_tolerance_file(tolerances) if tolerances else None,
                              str(tolerances or "tolerances"))
     ranked_by = (f"the tolerances of {tolerances}" if tolerances else
@@ -191,21 +221,36 @@ def tolerance_cmd(
         raise OptionError("--phi-deg", f"must be a finite angle in deg, got {phi_deg}")
     if top < 1:
         raise OptionError("--top", f"must be at least 1, got {top}")
+    _refuse_phi_for_a_metric(output)
     m = _load(machine, sets)
     if regulator_deg is not None:
-        _settings(m, [f"{m.spec.sewing.regulator}={regulator_deg}"] if m.spec.sewing and
-                  m.spec.sewing.regulator else [])
+        regulator = m.spec.sewing.regulator if m.spec.sewing is not None else None
+        if regulator is None:
+            raise OptionError("--regulator-deg", f"machine '{m.name}' has no stitch regulator"
+                              " ([sewing] regulator): the setting would be ignored",
+                              "Leave --regulator-deg out")
+        if output in METRICS and output not in FEED_METRICS:
+            raise OptionError("--regulator-deg", f"{output} is read at the machine's working"
+                              " setting: the setting would be ignored", "Leave --regulator-deg"
+                              " out (it sets " + ", ".join(FEED_METRICS) + " and the position"
+                              " channels)")
+        _settings(m, [f"{regulator}={regulator_deg}"])
     spec = load_tolerance_file(tolerances) if tolerances is not None else None
     if out is not None:
         from ..files.outdir import preflight
 
         preflight(out, command="tolerance")
-    with Progress(console=console, transient=True) as progress:
+    with Progress(console=console, transient=True,
+                  disable=not console.is_terminal) as progress:
         progress.add_task(f"tolerance analysis of {output} ({samples} designs)", total=None)
+        how = (_setting_option(m, regulator_deg is None, "--regulator-deg",
+                               "--regulator-deg {deg:g}")
+               if m.spec.sewing is not None and m.spec.sewing.regulator else {})
         res = tolerance_analysis(m, output, spec, regulator_deg=regulator_deg, phi_deg=phi_deg,
                                  samples=samples, seed=seed, band=band,
-                                 where=str(tolerances or "tolerances"), option="--regulator-deg",
-                                 give="--regulator-deg {deg:g}")
+                                 where=str(tolerances or "tolerances"),
+                                 **{"option": "--regulator-deg",
+                                    "give": "--regulator-deg {deg:g}", **how})
     data = {"machine": m.name, **res.to_json()}
     if out is not None:
         _write_tolerance(m, out, res, data)
@@ -271,7 +316,7 @@ def _write_tolerance(m, out: Path, res, data: dict) -> None:
     from ..files.outdir import output_dir
 
     u = res.unit
-    with output_dir(out, command="tolerance") as root:
+    with output_dir(out, command="tolerance", machine=m.name) as root:
         stem = f"{m.name}-tolerance-{res.metric}"
         fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
         ax.hist(res.deviations, bins=80, density=True, color="C0", alpha=0.6,

@@ -16,7 +16,7 @@ from ...engine.errors import AnalysisError, OptionError, SewmechError
 from ...engine.machine import Machine, file_value, load_machine, shipped_machines
 from ..display import is_round_off, number
 from .common import (DEFAULT_MACHINE, SET_HELP, Format, _bounded, _load, _phi, _phi_grid, _rpm,
-                     _settings, command, console, print_json, process_ends)
+                     _settings, command, console, print_json, process_ends, refuse_unused)
 
 
 @command("machines")
@@ -76,6 +76,15 @@ def check_cmd(
                                " joins; the margin says by how much")
         proofs.append((label, proof))
     ref = require_reference(m)
+    _variants(m, None)  # the file's variants: each a machine the report can compare
+    if m.spec.sewing is not None:  # the throat plate and the fabric within the needle's
+        from ...sewing.timing import needle_windows  # reach, as the report needs them
+
+        needle_windows(m)
+    if m.spec.thread is not None:  # a thread path whose guides never overlap over the turn
+        from ...sewing.thread import thread_path
+
+        thread_path(m, phi)
     conv = m.spec.convention
     table = Table(title=f"{m.name}: valid", show_header=False)
     table.add_row("file", m.file)
@@ -263,12 +272,16 @@ def kinematics_cmd(
     from ..files.io import kinematics_to_dict, write_kinematics_csv, write_kinematics_json
     from ..files.outdir import output_dir
 
+    if out is None:
+        refuse_unused("format", "--format", "is the format of the file --out writes, and no"
+                      " --out is given: nothing would be written", "Give --out DIR, or leave"
+                      " --format out")
     m = _load(machine, sets)
     settings = _settings(m, inputs)
     phi = _phi(step_deg, phi_deg)
     rpm = _rpm(rpm)
     if out is not None:
-        with output_dir(out, command="kinematics") as root:
+        with output_dir(out, command="kinematics", machine=m.name) as root:
             res = kinematics(m, phi, rpm=rpm, inputs=settings or None)
             path = root / f"{m.name}-kinematics.{format.value}"
             (write_kinematics_csv if format is Format.csv else write_kinematics_json)(res, path)
@@ -347,7 +360,7 @@ def dynamics_cmd(
             " resists the machine, so their windows or conditions do not follow it. Give them"
             " conditions (`when`, docs/dynamics.md) that hold while their process acts"))
     if out is not None:
-        with output_dir(out, command="dynamics") as root:
+        with output_dir(out, command="dynamics", machine=m.name) as root:
             written = write_dynamics_csv(res, root)
             n_figs = 0
             if m.spec.sewing is not None:
@@ -374,7 +387,8 @@ def _dynamics_figures(m, out, settings, rpm, load_specs, gravity) -> int:
     pool = figure_pool()
     try:
         figs = Figures(out, m.name, pool)
-        with Progress(console=console, transient=True) as progress:
+        with Progress(console=console, transient=True,
+                      disable=not console.is_terminal) as progress:
             progress.add_task("dynamics figures", total=None)
             # the command's settings (the file's defaults unless --input), as its tables
             inputs = {n: math.radians(i.default_deg) for n, i in m.spec.inputs.items()}
@@ -487,21 +501,28 @@ def feed_cmd(
     lo, hi = FD.regulator_range_deg(m)
     cyc = FD.feed_cycles(m, [lo, FD.ZERO_MARK_DEG, hi]).to_pandas()  # reverse, zero, forward
     marks = FD.scale_marks(m, step_mm)
-    timing = FD.set_feed_timing(m, 0.0) if m.spec.sewing.feed_cam else None
-    phase_now = next((u.phase_deg for u in m.spec.units if timing and
-                      u.name == m.spec.sewing.feed_cam), None)
+    timing, timing_note = None, None
+    if m.spec.sewing.feed_cam:
+        try:
+            timing = FD.set_feed_timing(m, 0.0)
+        except AnalysisError as exc:  # the figures above stand; the phase is not defined
+            timing_note = f"not defined: {exc.message}"
+    phase_now = next((u.phase_deg for u in m.spec.units
+                      if m.spec.sewing.feed_cam and u.name == m.spec.sewing.feed_cam), None)
     if as_json:
         rows = cyc.astype(object).where(cyc.notna(), None).to_dict(orient="records")
         for row in rows:  # JSON has no NaN: null, and why beside it
             for key in list(row):
                 if row[key] is None and key in FEED_UNDEFINED:
                     row[f"{key}_note"] = "not defined: " + FEED_UNDEFINED[key]
-        print_json({"machine": m.name, "settings": rows,
-                    "scale_marks": [{"stitch_mm": k.stitch_mm,
-                                     "regulator_deg": k.regulator_deg} for k in marks],
-                    "feed_cam_phase_deg": phase_now,
-                    "feed_cam_phase_for_mid_feed_at_top_deg":
-                        timing.phase_deg if timing else None})
+        data = {"machine": m.name, "settings": rows,
+                "scale_marks": [{"stitch_mm": k.stitch_mm,
+                                 "regulator_deg": k.regulator_deg} for k in marks],
+                "feed_cam_phase_deg": phase_now,
+                "feed_cam_phase_for_mid_feed_at_top_deg": timing.phase_deg if timing else None}
+        if timing_note is not None:
+            data["feed_cam_phase_for_mid_feed_at_top_deg_note"] = timing_note
+        print_json(data)
         return
     table = Table(title=f"{m.name}: feed dog (angles in deg of shaft, lengths mm)")
     cols = ("regulator_deg", "stitch_mm", "lift_mm", "rise_deg", "top_deg", "mid_feed_deg",
@@ -531,6 +552,11 @@ def feed_cmd(
     if timing is not None:
         console.print(f"feed cam phase: {phase_now:g} deg in the file; {timing.phase_deg:.4f}"
                       " deg puts the middle of the feed stroke at the top of lift")
+    elif timing_note is not None:
+        console.print(escape(f"feed cam phase: {phase_now:g} deg in the file; the phase that"
+                             " puts the middle of the feed stroke at the top of lift is"
+                             f" undefined ({timing_note.removeprefix('not defined: ')})"),
+                      highlight=False)
 
 
 @command("embroidery-take-up")
@@ -547,6 +573,10 @@ def embroidery_cmd(
     """Thread drawn L(phi) = l_max - l by the embroidery take-up for one (alpha, beta)."""
     from ...sewing import embroidery as EM
 
+    if as_json and out is not None:
+        raise OptionError("--out", f"{out} and --json contradict each other (the figure is"
+                          " drawn for the table; --json prints the numbers and writes"
+                          " nothing)", "Give one of them")
     _bounded("--alpha-deg", alpha_deg, -360.0, 360.0, "deg", "10")
     _bounded("--beta-deg", beta_deg, -360.0, 360.0, "deg", "35")
     _bounded("--points", points, 2, 3600, "positions", "12")
@@ -615,8 +645,8 @@ def report_cmd(
 
     _phi_grid(step_deg, min_step=0.1)  # validates the step
     m = _load(machine, sets)
-    variants = [_load(v) for v in (compare or m.spec.machine.variants)]
     roles(m)  # the machine's [sewing] roles, which the report reads
+    variants = _variants(m, compare)
     preflight(out, command="report")
     s = m.spec.sewing
     steps = ["kinematics", "timing checks", "figures"]
@@ -635,7 +665,8 @@ def report_cmd(
     steps += ["tables", "page"]
     if process_ends():
         _keep_freed_memory()
-    with Progress(console=console, transient=True) as progress:
+    with Progress(console=console, transient=True,
+                  disable=not console.is_terminal) as progress:
         task = progress.add_task(f"report {m.name}", total=len(steps))
         index = write_report(m, out, step_deg=step_deg, variants=variants,
                              advance=lambda name: progress.update(task, advance=1,
@@ -658,6 +689,51 @@ def demo_cmd(out: Path = typer.Option(Path("out/demo"), help="output directory (
              sets: list[str] = typer.Option(None, "--set", help=SET_HELP)):
     """Same as `sewmech report jb1-3 --out DIR` (the main job on the default machine)."""
     report_cmd.__wrapped__(DEFAULT_MACHINE, out, 1.0, None, sets)
+
+
+def _variants(m: Machine, compare: list[str] | None) -> list[Machine]:
+    """The machines a report compares with ``m``: --compare's (a shipped name or a file, as
+    every machine argument), else the file's ``[machine] variants`` (a file named relative to
+    the machine file, else a shipped name). Each is loaded and its ``[sewing]`` roles (which
+    the comparison reads) checked where it is named; comparing the machine with itself, or
+    with one machine twice, is refused."""
+    from ...sewing.timing import roles
+
+    if compare:
+        named = [(f"--compare {c}", c, c) for c in compare]
+    else:
+        base = Path(m.file).parent
+        named = []
+        for i, v in enumerate(m.spec.machine.variants):
+            where = f"{m.file}: [machine] variants[{i}]"
+            beside = base / Path(v).expanduser()
+            if not beside.is_file() and v not in shipped_machines():
+                raise SewmechError(where, f"{v}: no such file ({beside}) and no shipped machine"
+                                   " of that name", "Give a shipped machine's name ("
+                                   + ", ".join(sorted(shipped_machines())) + ") or a machine"
+                                   " file (a path relative to this file)")
+            named.append((where, v, beside if beside.is_file() else v))
+    out: list[Machine] = []
+    seen = {str(Path(m.file).resolve()): "the machine reported"} if not m.changes else {}
+    for where, name, source in named:
+        try:
+            v = load_machine(source)
+        except SewmechError as exc:
+            hint = ("Give a shipped machine's name or a machine file" +
+                    ("" if compare else " (a path relative to this file)"))
+            raise SewmechError(where, str(exc).rstrip("."), hint) from None
+        try:
+            roles(v)
+        except ValueError as exc:  # (its text says what to add)
+            raise SewmechError(where, f"cannot be compared: {exc}") from None
+        key = str(Path(v.file).resolve())
+        if key in seen:
+            raise SewmechError(where, f"{name!r} is {seen[key]} again ({v.file}): the"
+                               " comparison would show one machine twice", "Compare with"
+                               " another machine, or with a --set variant of this one")
+        seen[key] = f"the machine of {where}"
+        out.append(v)
+    return out
 
 
 def _keep_freed_memory() -> None:

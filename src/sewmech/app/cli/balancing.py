@@ -14,7 +14,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ...engine.errors import OptionError
+from ...engine.errors import AnalysisError, OptionError
 from ..display import is_round_off, number
 from .common import (
     DEFAULT_MACHINE,
@@ -39,6 +39,8 @@ class Criterion(str, Enum):
     bearings = "bearings"
     torque = "torque"
     weighted = "weighted"
+    vibration = "vibration"
+    equal_levels = "equal-levels"
 
 
 #: the largest --weight (weights are relative; each part is divided by its value before)
@@ -80,8 +82,11 @@ def _figure_rows(res, after: str = "after") -> Table:
         if b is None:
             continue
         # a figure the counterweights cancel is round-off of what it was: shown as 0
-        change = f"{100.0 * (a - b) / b:+.1f} %" if not is_round_off(b, res.before[
-            "peak_force_N"] if unit == "N" else b) else ""
+        if unit.startswith("dB"):  # a level changes by a difference of levels
+            change = f"{a - b:+.1f} dB"
+        else:
+            change = f"{100.0 * (a - b) / b:+.1f} %" if not is_round_off(b, res.before[
+                "peak_force_N"] if unit == "N" else b) else ""
         table.add_row(label, unit, number(b, scale=b), number(a, scale=b), change)
     return table
 
@@ -108,7 +113,10 @@ def balance_cmd(
                                   " peaks of Qx and Qy, one counterweight), peak or rms shaking"
                                   " force, moment (peak shaking moment about the upper shaft),"
                                   " bearings (larger peak reaction of the upper shaft's"
-                                  " bearings), torque (fluctuation) or weighted"),
+                                  " bearings), torque (fluctuation), weighted, vibration"
+                                  " (least larger x or y level at a control point of the"
+                                  " housing) or equal-levels (the paper's bench criterion"
+                                  " predicted: x and y levels equal; one counterweight)"),
     counterweights: list[str] = typer.Option(None, "--counterweight", help="a counterweight"
                                              " of the file to choose; repeatable (default:"
                                              " all; delta-q: the one on the upper shaft)"),
@@ -121,6 +129,9 @@ def balance_cmd(
                                       " peak_force_N, rms_force_N, peak_moment_Nm,"
                                       " bearings_peak_N, torque_fluctuation_Nm (default 1"
                                       " each, each part divided by its value before)"),
+    control_point: str = typer.Option(None, "--control-point", help="vibration and"
+                                      " equal-levels: the housing's control point judged"
+                                      " (default: its first)"),
     as_json: bool = typer.Option(False, "--json", help="print the result as JSON"),
     out: Path = typer.Option(None, help="also write the balancing figures (PNG, SVG, CSV),"
                              " every criterion's answer (CSV) and the result (JSON) here"),
@@ -140,7 +151,17 @@ def balance_cmd(
         raise OptionError("--weight", "only the weighted criterion reads weights",
                           "Add --criterion weighted or leave --weight out")
     names = counterweights or None
-    if criterion is Criterion.delta_q and not names and len(m.counterweights) > 1:
+    if control_point is not None and criterion not in (Criterion.vibration,
+                                                       Criterion.equal_levels):
+        raise OptionError("--control-point", "only the vibration criteria judge at a control"
+                          " point", "Add --criterion vibration or equal-levels, or leave it"
+                          " out")
+    if criterion in (Criterion.vibration, Criterion.equal_levels) and m.spec.housing is None:
+        raise OptionError("--criterion", f"{criterion.value} needs the machine's housing;"
+                          f" {m.name} has no [housing] table", "Add [housing] to the machine"
+                          " file (docs/vibration.md) or choose another criterion")
+    if criterion in (Criterion.delta_q, Criterion.equal_levels) and not names \
+            and len(m.counterweights) > 1:
         shaft = shaft_counterweight(m)
         names = [shaft] if shaft else None
     if out is not None:
@@ -149,12 +170,19 @@ def balance_cmd(
         preflight(out, command="balance")
     point = _point(moment_point)
     res = balance(m, criterion.value, names, rpm=rpm, step_deg=step_deg, weights=w,
-                  moment_point=point)
+                  moment_point=point, control_point=control_point)
     data = {"machine": m.name, **res.to_json()}
     if criterion is Criterion.delta_q:
-        paper = paper_workflow(m, next(iter(res.counterweights)), rpm=rpm, step_deg=step_deg,
-                               result=res)
-        data["paper"] = {k: v for k, v in paper.items() if k != "result"}
+        chosen = next(iter(res.counterweights))
+        link = next(c.link for c in m.counterweights if c.name == chosen)
+        if link in _shaft_cranks(m):
+            paper = paper_workflow(m, chosen, rpm=rpm, step_deg=step_deg, result=res)
+            data["paper"] = {k: v for k, v in paper.items() if k != "result"}
+        else:  # S_1 is the shaft's crank's: of a coupler it was called "the shaft's crank"
+            data["paper_note"] = (f"the balancing paper's method (S_1, S_add, the built"
+                                  f" counterweight) is for a counterweight on a crank that"
+                                  f" turns with the upper shaft; '{chosen}' is on"
+                                  f" '{link}'")
     if out is not None:
         _write_balance(m, out, res, data, names, rpm, point)
     if as_json:
@@ -171,13 +199,17 @@ def balance_cmd(
         console.print(_cw_table(alt))
         console.print(_figure_rows(alt, f"with --criterion {alt.criterion}"))
         again = [f"--set {x}" for x in sets or ()] + ([f"--rpm {rpm:g}"] if rpm else [])
-        console.print(escape(" ".join([f"the least peak shaking force: sewmech balance"
+        least = ("the least vibration" if alt.criterion == "vibration" else
+                 "the least peak shaking force")
+        console.print(escape(" ".join([f"{least}: sewmech balance"
                                        f" {machine} --criterion {alt.criterion}"
                                        f" --counterweight {next(iter(alt.counterweights))}",
                                        *again])))
     if "paper" in data:
         for line in paper_lines(data["paper"]):
             console.print(escape(line))
+    elif "paper_note" in data:
+        console.print(escape(f"note: {data['paper_note']}"), highlight=False)
     agree = ("it agrees to round-off" if is_round_off(res.basis_error,
                                                         res.before["peak_force_N"])
              else f"largest difference {res.basis_error:.2g} (N, N m)")
@@ -185,6 +217,12 @@ def balance_cmd(
     if out is not None:
         console.print(f"written: figures, {m.name}-balance.json and"
                       f" {m.name}-balance-criteria.csv in {out}")
+
+
+def _shaft_cranks(m) -> set[str]:
+    """The links that turn with the upper shaft at its speed (the paper's S_1 is of one)."""
+    return {u.link or u.name for u in m.spec.units
+            if u.type == "crank" and u.input == "shaft" and u.ratio == 1.0}
 
 
 def paper_lines(p: dict) -> list[str]:
@@ -242,7 +280,7 @@ def _write_balance(m, out: Path, res, data: dict, names, rpm, point) -> None:
     from ..files.outdir import output_dir
     from ..report.balancing import balancing_section, results_frame
 
-    with output_dir(out, command="balance") as root:
+    with output_dir(out, command="balance", machine=m.name) as root:
         figs = Figures(root, m.name)
         sec = balancing_section(figs, m, criterion=res.criterion, counterweights=names,
                                 rpm=rpm, weights=res.weights or None, moment_point=point)
@@ -261,23 +299,109 @@ def trial_balance_cmd(
                                 " allowed"),
     as_json: bool = typer.Option(False, "--json", help="print the result as JSON"),
     out: Path = typer.Option(None, help="also write the plot (PNG, SVG) and the fit (CSV)"),
+    calibrate: str = typer.Option(None, "--calibrate", metavar="MACHINE", help="also fit"
+                                  " MACHINE's housing (its mounts' stiffness and damping) to"
+                                  " the measurements: the fitted values with their"
+                                  " uncertainty and the calibrated model's crossing beside the"
+                                  " model's and Delta-Q's (needs [housing])"),
+    fit_angle: bool = typer.Option(False, "--fit-angle", help="with --calibrate: fit the extra"
+                                   " counterweight's angle too"),
+    counterweight: str = typer.Option(None, "--counterweight", help="with --calibrate: the"
+                                      " counterweight the measurements varied (default: the"
+                                      " one on the upper shaft's crank)"),
+    control_point: str = typer.Option(None, "--control-point", help="with --calibrate: the"
+                                      " housing's control point measured (default: its"
+                                      " first)"),
+    sets: list[str] = typer.Option(None, "--set", help=SET_HELP),
 ):
     """The static moment where the measured x and y vibration velocities are equal, with its
-    95 % interval (the balancing paper's correction from measurements)."""
+    95 % interval (the balancing paper's correction from measurements); with --calibrate, the
+    machine's housing fitted to them (why the model and the bench disagree)."""
     from ...design.vibration import STATIC_MOMENT_RANGE_GCM, VELOCITY_RANGE_MM_S, crossing
     from ..files.io import read_csv_columns
 
+    if calibrate is None:
+        for opt, given in (("--fit-angle", fit_angle), ("--counterweight", counterweight),
+                           ("--control-point", control_point), ("--set", sets)):
+            if given:
+                raise OptionError(opt, "it only applies to a calibration",
+                                  "Add --calibrate MACHINE or leave it out")
     cols = read_csv_columns(file, ["s_add_gcm", "vx_mm_s", "vy_mm_s"],
                             ranges={"s_add_gcm": (*STATIC_MOMENT_RANGE_GCM, "g cm"),
                                     "vx_mm_s": (*VELOCITY_RANGE_MM_S, "mm/s"),
                                     "vy_mm_s": (*VELOCITY_RANGE_MM_S, "mm/s")})
-    c = crossing(cols["s_add_gcm"], cols["vx_mm_s"], cols["vy_mm_s"], where=str(file))
-    data = c.to_json()
+    cal = None
+    if calibrate is not None:
+        cal = _calibration(calibrate, sets, file, cols, fit_angle, counterweight,
+                           control_point)
+    try:
+        c = crossing(cols["s_add_gcm"], cols["vx_mm_s"], cols["vy_mm_s"], where=str(file))
+    except AnalysisError:
+        if cal is None:
+            raise
+        c = None  # the lines do not cross; the calibration still says what the model does
+    data = c.to_json() if c is not None else {}
+    if cal is not None:
+        data["calibration"] = cal.to_json()
     if out is not None:
-        _write_trial(out, file, cols, c)
+        _write_trial(out, file, cols, c, cal)
     if as_json:
         print_json(data)
         return
+    if c is None:
+        console.print(escape(f"no crossing of the measured lines ({cal.message})"))
+    else:
+        _print_crossing(c)
+    if cal is not None:
+        _print_calibration(cal)
+    if out is not None:
+        console.print(f"written: plot and fit in {out}")
+
+
+def _calibration(machine: str, sets, file: Path, cols: dict, fit_angle: bool,
+                 counterweight: str | None, control_point: str | None):
+    """trial-balance --calibrate: the machine's housing fitted to the measurements."""
+    from ...design.calibration import calibrate
+
+    m = _load(machine, sets)
+    if counterweight is not None and counterweight not in m.spec.counterweights:
+        raise OptionError("--counterweight", f"'{counterweight}' is not a counterweight of"
+                          f" {m.name}", "Choose one of: " + ", ".join(m.spec.counterweights))
+    try:
+        return calibrate(m, cols["s_add_gcm"], cols["vx_mm_s"], cols["vy_mm_s"],
+                         counterweight=counterweight, control_point=control_point,
+                         fit_angle=fit_angle, where=str(file))
+    except AnalysisError as exc:
+        if exc.where == (m.file or m.name):
+            raise OptionError("--calibrate", f"{m.name}: {exc.message}", exc.hint) from None
+        raise
+
+
+def _print_calibration(cal) -> None:
+    t = Table(title=f"{cal.machine}'s housing fitted to the bench (control point"
+              f" '{cal.control_point}', counterweight '{cal.counterweight}')")
+    t.add_column("fitted value", justify="left")
+    t.add_column("value", justify="right")
+    t.add_column("standard deviation", justify="right")
+    for name, v in cal.values.items():
+        t.add_row(name, f"{v:.4g}", f"{cal.std[name]:.3g}")
+    console.print(t)
+
+    def g(x):
+        return "none" if x is None else f"{x:.4g} g cm"
+
+    console.print(escape(f"RMS error of the model {cal.before_rms_log_error:.3g} -> calibrated"
+                         f" {cal.rms_log_error:.3g} (of log velocity: 0.1 is about 10 %)"))
+    console.print(escape(f"crossing (x and y equal): measured lines {g(cal.measured_crossing_gcm)},"
+                         f" calibrated model {g(cal.crossing_gcm)}, model as the file has it"
+                         f" {g(cal.model_crossing_gcm)}; Delta-Q = 0 at {g(cal.delta_q_gcm)}"),
+                  highlight=False)
+    style = "" if cal.status == "fitted" else "[yellow]"
+    console.print(f"{style}{cal.status}[/]: {escape(cal.message)}" if style else
+                  f"{cal.status}: {escape(cal.message)}")
+
+
+def _print_crossing(c) -> None:
     lo, hi = c.ci95_gcm
     console.print(f"crossing: S_add = [bold]{c.s_add_gcm:.4g} g cm[/] (95 % interval {lo:.4g}"
                   f" .. {hi:.4g} g cm) from {c.n_points} measurements")
@@ -286,11 +410,9 @@ def trial_balance_cmd(
     console.print(escape(f"velocity there {c.v_at_crossing_mm_s:.4g} mm/s on each axis; level"
                          f" change against S_add = {c.s_lowest_gcm:g} g cm: {change}"),
                   highlight=False)
-    if out is not None:
-        console.print(f"written: plot and fit in {out}")
 
 
-def _write_trial(out: Path, file: Path, cols: dict, c) -> None:
+def _write_trial(out: Path, file: Path, cols: dict, c, cal=None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -304,26 +426,72 @@ def _write_trial(out: Path, file: Path, cols: dict, c) -> None:
     s = cols["s_add_gcm"]
     grid = np.linspace(s.min(), s.max(), 200)
     with output_dir(out, command="trial-balance") as root:
-        fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
-        ax.plot(s, cols["vx_mm_s"], "o", color="C0", ms=4, label="x measured")
-        ax.plot(s, cols["vy_mm_s"], "s", color="C1", ms=4, label="y measured")
-        ax.plot(grid, c.fit_x[0] + c.fit_x[1] * grid, color="C0")
-        ax.plot(grid, c.fit_y[0] + c.fit_y[1] * grid, color="C1")
-        ax.axvspan(*c.ci95_gcm, color="0.85", label="95 % interval")
-        ax.axvline(c.s_add_gcm, color="k", ls="--",
-                   label=f"crossing {c.s_add_gcm:.4g} g cm")
-        ax.set_xlabel("static moment of the extra counterweight S_add [g cm]")
-        ax.set_ylabel("vibration velocity [mm/s]")
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
-        ax.set_title(f"{file.name}: vibration velocity of the control point")
-        save_figure(fig, root, "trial-balance")
-        with atomic_write(root / "trial-balance.csv") as fh:
-            pd.DataFrame({"s_add_gcm": grid, "vx_fit_mm_s": c.fit_x[0] + c.fit_x[1] * grid,
-                          "vy_fit_mm_s": c.fit_y[0] + c.fit_y[1] * grid}).to_csv(
-                fh, index=False, float_format="%.10g")
+        if c is not None:
+            fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+            ax.plot(s, cols["vx_mm_s"], "o", color="C0", ms=4, label="x measured")
+            ax.plot(s, cols["vy_mm_s"], "s", color="C1", ms=4, label="y measured")
+            ax.plot(grid, c.fit_x[0] + c.fit_x[1] * grid, color="C0")
+            ax.plot(grid, c.fit_y[0] + c.fit_y[1] * grid, color="C1")
+            ax.axvspan(*c.ci95_gcm, color="0.85", label="95 % interval")
+            ax.axvline(c.s_add_gcm, color="k", ls="--",
+                       label=f"crossing {c.s_add_gcm:.4g} g cm")
+            ax.set_xlabel("static moment of the extra counterweight S_add [g cm]")
+            ax.set_ylabel("vibration velocity [mm/s]")
+            ax.grid(True, alpha=0.3)
+            ax.legend(fontsize=8)
+            ax.set_title(f"{file.name}: vibration velocity of the control point")
+            save_figure(fig, root, "trial-balance")
+            with atomic_write(root / "trial-balance.csv") as fh:
+                pd.DataFrame({"s_add_gcm": grid,
+                              "vx_fit_mm_s": c.fit_x[0] + c.fit_x[1] * grid,
+                              "vy_fit_mm_s": c.fit_y[0] + c.fit_y[1] * grid}).to_csv(
+                    fh, index=False, float_format="%.10g")
+        if cal is not None:
+            _calibration_figure(root, file, cal)
+            cv = cal.curves
+            with atomic_write(root / "trial-balance-calibration.csv") as fh:
+                pd.DataFrame({"s_add_gcm": cv["S_gcm"],
+                              "vx_model_mm_s": cv["model"][:, 0],
+                              "vy_model_mm_s": cv["model"][:, 1],
+                              "vx_calibrated_mm_s": cv["calibrated"][:, 0],
+                              "vy_calibrated_mm_s": cv["calibrated"][:, 1]}).to_csv(
+                    fh, index=False, float_format="%.10g")
         with atomic_write(root / "trial-balance.json") as fh:
-            dump_json(c.to_json(), fh, indent=1)
+            data = c.to_json() if c is not None else {}
+            if cal is not None:
+                data["calibration"] = cal.to_json()
+            dump_json(data, fh, indent=1)
+
+
+def _calibration_figure(root: Path, file: Path, cal) -> None:
+    """The measured velocities with the model's curves as the file has it (dashed) and
+    calibrated (solid), each crossing marked: the paper's measured figure with the model
+    beside it."""
+    import matplotlib.pyplot as plt
+
+    from ..drawing.figures import save_figure
+
+    cv = cal.curves
+    fig, ax = plt.subplots(figsize=(7.5, 4.8), constrained_layout=True)
+    for k, (axis, mark) in enumerate((("x", "o"), ("y", "s"))):
+        ax.plot(cv["measured_S_gcm"], cv["measured"][:, k], mark, color=f"C{k}", ms=4,
+                label=f"{axis} measured")
+        ax.plot(cv["S_gcm"], cv["model"][:, k], "--", color=f"C{k}", lw=1,
+                label=f"{axis} model (the file's mounts)")
+        ax.plot(cv["S_gcm"], cv["calibrated"][:, k], "-", color=f"C{k}",
+                label=f"{axis} calibrated")
+    for value, style, what in ((cal.measured_crossing_gcm, ":", "measured lines"),
+                               (cal.crossing_gcm, "-", "calibrated model"),
+                               (cal.model_crossing_gcm, "--", "model"),
+                               (cal.delta_q_gcm, "-.", "Delta-Q = 0")):
+        if value is not None:
+            ax.axvline(value, color="k", ls=style, lw=0.9, label=f"{what}: {value:.4g} g cm")
+    ax.set_xlabel("static moment of the extra counterweight S_add [g cm]")
+    ax.set_ylabel(f"vibration velocity at '{cal.control_point}' [mm/s RMS]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    ax.set_title(f"{file.name}: the housing's model fitted to the bench ({cal.status})")
+    save_figure(fig, root, "trial-balance-calibration")
 
 
 @command("influence-balance")
@@ -375,7 +543,10 @@ def influence_balance_cmd(
                             ranges={"amplitude_mm_s": (*VELOCITY_RANGE_MM_S, "mm/s"),
                                     "phase_deg": (*ANGLE_RANGE_DEG, "deg"),
                                     "trial_gcm": (*STATIC_MOMENT_RANGE_GCM, "g cm"),
-                                    "trial_angle_deg": (*ANGLE_RANGE_DEG, "deg")})
+                                    "trial_angle_deg": (*ANGLE_RANGE_DEG, "deg")},
+                            labels={"run": ("0|[1-9][0-9]*", "a run number", "Label the runs 0"
+                                            " (no trial mass),"
+                                            " 1, 2, ... (one run per correction plane)")})
     runs = list(dict.fromkeys(cols["run"]))
     places = list(dict.fromkeys(cols["place"]))
     if "0" not in runs or len(runs) < 2:
@@ -415,7 +586,7 @@ def influence_balance_cmd(
                           "Give --solver minmax, or leave it out")
     try:
         res = influence_balance(V0, Vt, [trial[r][0] for r in planes],
-                                [trial[r][1] for r in planes])
+                                [trial[r][1] for r in planes], [f"run {r}" for r in planes])
     except AnalysisError as exc:
         raise AnalysisError(str(file), exc.message, exc.hint) from None
     data = {**res.to_json([f"run {r}" for r in planes]), "n_places": len(places),
@@ -480,7 +651,7 @@ def _minmax(file, V0, Vt, planes, places, trial, weight, max_gcm, phase_lag, as_
     try:
         res = influence_minmax(V0, Vt, [trial[r][0] for r in planes],
                                [trial[r][1] for r in planes], weights=weights,
-                               limits_gcm=limits)
+                               limits_gcm=limits, names=[f"run {r}" for r in planes])
     except AnalysisError as exc:
         raise AnalysisError(str(file), exc.message, exc.hint) from None
     data = {**res.to_json([f"run {r}" for r in planes], places), "n_places": len(places),

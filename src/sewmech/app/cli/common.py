@@ -12,7 +12,9 @@ and anything unexpected is reported as an internal error (exit 70) without a tra
 from __future__ import annotations
 
 import contextlib
+import errno
 import functools
+import io
 import math
 import os
 import signal
@@ -25,7 +27,7 @@ import typer
 from rich.console import Console, ConsoleDimensions
 from rich.markup import escape
 
-from ...engine.errors import OptionError, SewmechError
+from ...engine.errors import OptionError, OutputError, SewmechError
 from ...engine.machine import Machine, load_machine
 
 DEFAULT_MACHINE = "jb1-3"
@@ -49,10 +51,21 @@ class _Group(typer.core.TyperGroup):
         if not standalone_mode:
             return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
         E = _click_exceptions()
+        if sys.stdout is None:  # started with `>&-`: Python found no file descriptor 1
+            _print_error("stdout: is closed (the command was started with >&-), so what it"
+                         " prints has nowhere to go; nothing was done. Give it a place:"
+                         " > FILE, or > /dev/null to discard it")
+            sys.exit(EXIT_ERROR)
         try:
             rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
         except E.NoArgsIsHelpError as exc:  # the help is shown already
             sys.exit(exc.exit_code)
+        except BrokenPipeError:  # the help or a usage line to a reader that went away
+            _quiet_stdout()
+            sys.exit(EXIT_PIPE)
+        except SewmechError as exc:  # a mistake found while the command line is read
+            _print_error(str(exc))
+            sys.exit(EXIT_ERROR)
         except E.UsageError as exc:
             _print_error(_usage_error_text(exc))
             sys.exit(EXIT_ERROR)
@@ -63,6 +76,71 @@ class _Group(typer.core.TyperGroup):
             _print_error("interrupted; nothing half-written was left behind")
             sys.exit(EXIT_SIGINT)
         sys.exit(rv if isinstance(rv, int) else 0)
+
+    def resolve_command(self, ctx, args):
+        name, cmd, rest = super().resolve_command(ctx, args)
+        if cmd is not None and not isinstance(cmd, typer.core.TyperGroup):
+            _refuse_repeated_options(cmd, ctx, name, rest)
+        return name, cmd, rest
+
+
+def _refuse_repeated_options(cmd, parent, name: str, args: list[str]) -> None:
+    """An option that takes one value (or a flag), given more than once, is refused
+    (docs/errors.md): click would let the last one win silently (``--rpm 1000 --rpm 2000``
+    ran at 2000 rpm, ``--gravity --no-gravity`` without gravity, ``--out a --out b`` wrote
+    into b). Options that collect a list (``--set``, ``--phi-deg``, ...) are repeatable.
+    The arguments are parsed here once more, without converting or checking anything: every
+    other mistake is left to the command's own parse, which says it."""
+    E = _click_exceptions()
+    ctx = cmd.context_class(cmd, info_name=name, parent=parent, resilient_parsing=True)
+    try:
+        _, _, order = cmd.make_parser(ctx).parse_args(list(args))
+    except E.UsageError:
+        return
+    counts: dict = {}
+    for p in order:
+        if getattr(p, "param_type_name", "") == "option" and not (
+                p.multiple or p.count or p.is_eager):
+            counts[p] = counts.get(p, 0) + 1
+    for p, n in counts.items():
+        if n < 2:
+            continue
+        names = [*p.opts, *p.secondary_opts]
+        typed = []
+        for k, token in enumerate(args):
+            if token == "--":
+                break
+            if token in names:
+                value = args[k + 1] if not p.is_flag and k + 1 < len(args) else None
+                typed.append(token if value is None else f"{token} {value}")
+            elif any(token.startswith(o + "=") for o in names if o.startswith("--")):
+                typed.append(token)
+        shown = f" ({', '.join(typed)})" if typed else ""
+        what = "a switch counts once" if p.is_flag else "it takes one value"
+        raise OptionError("/".join(names), f"is given {n} times{shown}: {what}, and only the"
+                          " last would count", "Give it once")
+
+
+def given(name: str) -> bool:
+    """Whether the running command's parameter ``name`` (its Python name: ``step_deg``) was
+    typed on the command line, not left at its default: an option that the command would
+    ignore, or that contradicts another, is refused only when it was given."""
+    try:
+        from typer._click.globals import get_current_context
+    except ImportError:  # a typer that uses the click package
+        from click import get_current_context
+    ctx = get_current_context(silent=True)
+    if ctx is None or name not in ctx.params:
+        return False
+    source = ctx.get_parameter_source(name)
+    return source is not None and source.name in ("COMMANDLINE", "ENVIRONMENT")
+
+
+def refuse_unused(name: str, option: str, why: str, hint: str) -> None:
+    """An :class:`OptionError` if the option ``option`` (parameter ``name``) was given although
+    this run does not use it (``why``): never drop an option silently (docs/errors.md)."""
+    if given(name):
+        raise OptionError(option, why, hint)
 
 
 def _usage_error_text(exc) -> str:
@@ -108,6 +186,21 @@ class _Console(Console):
 
     size = property(_size, Console.size.fset)
 
+    def on_broken_pipe(self) -> None:
+        """The reader went away (``| head``): :func:`_guard` stops the command quietly with
+        exit code 141, as SIGPIPE would, whether it printed a table or JSON (rich itself would
+        exit with 1)."""
+        self.quiet = True
+        raise BrokenPipeError(errno.EPIPE, os.strerror(errno.EPIPE))
+
+    def _check_buffer(self) -> None:
+        try:
+            super()._check_buffer()
+        except BrokenPipeError:
+            raise
+        except OSError as exc:  # /dev/full, a full disk, a file-size limit
+            raise _stream_error("stderr" if self.stderr else "stdout", exc) from None
+
 
 console = _Console()
 err_console = _Console(stderr=True)
@@ -115,6 +208,8 @@ err_console = _Console(stderr=True)
 #: exit codes: 2 a user error (bad file, option or output path), 70 an internal error,
 #: 130 interrupted by Ctrl-C; 143 / 129 by SIGTERM / SIGHUP (128 + the signal's number)
 EXIT_ERROR, EXIT_INTERNAL, EXIT_SIGINT = 2, 70, 130
+#: the reader of stdout went away (`| head`): 128 + SIGPIPE, as a program the signal ends
+EXIT_PIPE = 141
 #: the finest shaft-angle step of any command, deg (36,000 positions per turn)
 MIN_STEP_DEG = 0.01
 
@@ -136,11 +231,41 @@ class Terminated(BaseException):
 
 def print_json(data) -> None:
     """A command's result as one line of strict JSON on stdout (``--json``): no NaN or
-    infinity (:func:`sewmech.app.files.io.dump_json`)."""
+    infinity (:func:`sewmech.app.files.io.dump_json`). Written and flushed here, inside the
+    command's :func:`_guard`: a full disk or a reader that went away is the command's error,
+    not one of the interpreter's shutdown."""
     from ..files.io import dump_json
 
-    dump_json(data, sys.stdout)
-    sys.stdout.write("\n")
+    buf = io.StringIO()
+    dump_json(data, buf)
+    buf.write("\n")
+    try:
+        sys.stdout.write(buf.getvalue())
+        sys.stdout.flush()
+    except BrokenPipeError:
+        raise
+    except OSError as exc:
+        raise _stream_error("stdout", exc) from None
+
+
+def _stream_error(name: str, exc: OSError) -> OutputError:
+    """Writing to stdout (or stderr) failed: located, and what to do. What is still buffered
+    for stdout is dropped (the interpreter's last flush would fail on it again)."""
+    if name == "stdout":
+        _quiet_stdout()
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
+        return OutputError(name, "the output could not be written: the disk is full (or a"
+                           " quota or file-size limit is reached)", "Free some space, or send"
+                           " the output elsewhere")
+    return OutputError(name, f"the output could not be written ({exc.strerror or exc})",
+                       "Send it elsewhere (> FILE)")
+
+
+def _quiet_stdout() -> None:
+    """stdout to /dev/null: what is still buffered for a reader that went away is dropped
+    (the interpreter's last flush would fail on it)."""
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
 def _print_error(text: str) -> None:
@@ -184,13 +309,14 @@ def _guard():
         _print_error(f"terminated ({name}); nothing half-written was left behind")
         raise typer.Exit(128 + exc.signum) from None
     except BrokenPipeError:  # the reader went away (`| head`): stop quietly, as SIGPIPE would
-        with contextlib.suppress(OSError):
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        raise typer.Exit(141) from None
+        _quiet_stdout()
+        raise typer.Exit(EXIT_PIPE) from None
     except MemoryError:
         _print_error(_out_of_memory_text())
         raise typer.Exit(EXIT_ERROR) from None
-    except (ValueError, KeyError) as exc:  # the library's argument checks
+    except (ValueError, KeyError) as exc:  # the library's argument checks ...
+        if not _raised_by_sewmech(exc):  # ... but not numpy's "Singular matrix" (a bug)
+            return _internal_error(exc)
         text = exc.args[0] if isinstance(exc, KeyError) and exc.args else str(exc)
         _print_error(str(text))
         raise typer.Exit(EXIT_ERROR) from None
@@ -199,15 +325,36 @@ def _guard():
         _print_error(f"{where}{exc.strerror or exc}")
         raise typer.Exit(EXIT_ERROR) from None
     except Exception as exc:
-        if os.environ.get("SEWMECH_DEBUG"):
-            raise
-        _print_error(f"internal error ({type(exc).__name__}: {exc}). This is a bug in sewmech:"
-                     " please report it with the command line; SEWMECH_DEBUG=1 shows the"
-                     " traceback")
-        raise typer.Exit(EXIT_INTERNAL) from None
+        _internal_error(exc)
     finally:
         for sig, handler in old.items():
             signal.signal(sig, handler)
+
+
+def _internal_error(exc: BaseException):
+    """Anything sewmech did not expect: exit 70, one line (SEWMECH_DEBUG=1: the traceback)."""
+    if os.environ.get("SEWMECH_DEBUG"):
+        raise exc
+    _print_error(f"internal error ({type(exc).__name__}: {exc}). This is a bug in sewmech:"
+                 " please report it with the command line; SEWMECH_DEBUG=1 shows the"
+                 " traceback")
+    raise typer.Exit(EXIT_INTERNAL) from None
+
+
+_PACKAGE = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def _raised_by_sewmech(exc: BaseException) -> bool:
+    """Whether sewmech's own code raised ``exc`` (a check of an argument, a name, a file),
+    not a library it calls: a ValueError of numpy, scipy or pyarrow that reaches the command
+    (numpy's "Singular matrix" from trial-balance's fit) is a bug of sewmech's, which should
+    have refused the input first, not a user error without a place."""
+    tb = exc.__traceback__
+    if tb is None:
+        return True
+    while tb.tb_next is not None:
+        tb = tb.tb_next
+    return os.path.abspath(tb.tb_frame.f_code.co_filename).startswith(_PACKAGE + os.sep)
 
 
 #: what to do when a command runs out of memory: the options it has that size its work
@@ -329,9 +476,13 @@ def _phi_grid(step_deg: float, option: str = "--step-deg", min_step: float = MIN
 
 
 def _phi(step_deg: float, phi_deg: list[float] | None) -> np.ndarray:
-    """--phi-deg angles if given (finite, any order), else one turn in --step-deg steps."""
+    """--phi-deg angles if given (finite, any order), else one turn in --step-deg steps
+    (both at once contradict each other: refused)."""
     if not phi_deg:
         return _phi_grid(step_deg)
+    refuse_unused("step_deg", "--step-deg", f"and --phi-deg contradict each other (a turn in"
+                  f" steps of {step_deg:g} deg, or only the angles"
+                  f" {', '.join(f'{a:g}' for a in phi_deg)} deg)", "Give one of them")
     a = np.asarray(phi_deg, dtype=float)
     if not (np.abs(a) <= 1e6).all():
         raise OptionError("--phi-deg", f"must be finite angles in deg, got {list(phi_deg)}")

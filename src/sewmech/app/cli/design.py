@@ -46,7 +46,8 @@ def optimize_cmd(
         from ..files.outdir import preflight
 
         preflight(out, command="optimize")
-    with Progress(console=console, transient=True) as progress:
+    with Progress(console=console, transient=True,
+                  disable=not console.is_terminal) as progress:
         progress.add_task(f"{spec.problem.name}: {method}", total=None)
         r = optimize(p, method, seed=seed)
     data = {"problem": spec.problem.name, "machine": machine.name, "method": method,

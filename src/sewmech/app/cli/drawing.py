@@ -57,7 +57,7 @@ def export_cmd(
     d = machine_drawing(m, phi_deg=phi_deg, inputs=settings or None, part=part,
                         version=sewmech.__version__)
     written = []
-    with output_dir(out, command="export") as root:
+    with output_dir(out, command="export", machine=m.name) as root:
         for f in fmts:
             name = drawing_file_name(m.name, phi_deg, part, f)
             (write_dxf if f == "dxf" else write_svg)(d, root / name)

@@ -5,6 +5,7 @@ imports this module."""
 from __future__ import annotations
 
 import contextlib
+import errno
 import socket
 
 import typer
@@ -12,6 +13,30 @@ import typer
 from ...engine.errors import OptionError
 from ...engine.paths import user_path
 from .common import DEFAULT_MACHINE, Terminated, command, console
+
+
+_HOST_HINT = ("Give 127.0.0.1 (this computer only, the default) or an address of this"
+              " computer; 0.0.0.0 serves your network")
+
+
+def _address(host: str, port: int) -> tuple[int, tuple]:
+    """The socket family and address ``--host`` names, or an OptionError against --host: an
+    empty host (an unset variable, `--host "$HOST"`) would listen on every interface, as
+    0.0.0.0 does, without anyone having asked for it; a name that does not resolve or an
+    address that is no address was reported against --port."""
+    if not host.strip():
+        raise OptionError("--host", "is empty: the server would listen on every network"
+                          " interface (as 0.0.0.0), open to anyone who reaches this computer",
+                          _HOST_HINT + " on purpose")
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM,
+                                   flags=socket.AI_NUMERICSERV)
+    except (socket.gaierror, UnicodeError) as exc:
+        why = exc.strerror if isinstance(exc, socket.gaierror) and exc.strerror else str(exc)
+        raise OptionError("--host", f"{host!r} is neither an address nor a name that resolves"
+                          f" ({why})", _HOST_HINT) from None
+    family, _, _, _, address = infos[0]
+    return family, address
 
 
 @command("serve")
@@ -37,20 +62,25 @@ def serve_cmd(
     if not 0 <= port <= 65535:
         raise OptionError("--port", f"must be 0 .. 65535, got {port}", "Give e.g. --port 8000,"
                           " or --port 0 for any free port")
-    extra, initial = {}, machine
+    family, address = _address(host, port)
+    extra, initial, files = {}, machine, {}
     if machine not in shipped_machines() or Path(machine).exists():
         path = user_path(machine, "MACHINE")
         text = read_toml_text(path)
         spec = parse_machine(text, str(path))  # a bad file stops here, with its location
         initial = f"{spec.machine.name} ({path.name})"
         extra[initial] = (path.name, text)
-    app = create_app(extra, initial)
+        files[initial] = path.resolve()  # read again whenever a page opens it
+    app = create_app(extra, initial, files)
     try:
-        sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
+        sock = socket.socket(family)
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        sock.bind((host, port))
+        sock.bind(address)
         sock.listen(128)  # connections wait from now on, while the server starts
     except OSError as exc:
+        if exc.errno == errno.EADDRNOTAVAIL:  # an address of another computer
+            raise OptionError("--host", f"cannot listen on {host}: {exc.strerror or exc} (it is"
+                              " not an address of this computer)", _HOST_HINT) from None
         raise OptionError("--port", f"cannot listen on {host}:{port}: {exc.strerror or exc}",
                           "Choose another --port (0: any free one)") from None
     bound = sock.getsockname()[1]

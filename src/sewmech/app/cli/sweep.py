@@ -118,13 +118,11 @@ def sweep_cmd(
 
 
 def _count_feasible(root: Path) -> tuple[int, int]:
-    import pyarrow.parquet as pq
-
-    from ..sweep_run import chunk_path, done_chunks
+    from ..sweep_run import done_chunks, read_chunk
 
     feasible = total = 0
     for k in sorted(done_chunks(root)):
-        col = pq.read_table(chunk_path(root, k), columns=["feasible"]).column(0)
+        col = read_chunk(root, k, ["feasible"]).column(0)
         total += len(col)
         feasible += int(np.count_nonzero(col.to_numpy(zero_copy_only=False)))
     return feasible, total
@@ -134,16 +132,15 @@ def load_results(root: Path, option: str = "DIR") -> tuple[dict, dict[str, np.nd
     """A sweep directory's record, its columns (the chunks written, in design order) and the
     number of chunks written."""
     import pyarrow as pa
-    import pyarrow.parquet as pq
 
-    from ..sweep_run import chunk_path, done_chunks, read_record
+    from ..sweep_run import done_chunks, read_chunk, read_record
 
     record = read_record(root, option)
     have = sorted(done_chunks(root))
     if not have:
         raise OptionError(option, f"{root}: no chunk of the sweep is written yet",
                           "Run `sewmech sweep` into it first")
-    table = pa.concat_tables([pq.read_table(chunk_path(root, k)) for k in have])
+    table = pa.concat_tables([read_chunk(root, k) for k in have])
     cols = {name: table.column(name).to_numpy(zero_copy_only=False)
             for name in table.column_names}
     return record, cols, len(have)

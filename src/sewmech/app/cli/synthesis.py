@@ -19,9 +19,9 @@ from rich.markup import escape
 from rich.table import Table
 
 from ...engine.errors import OptionError
-from .common import _guard, app, console, print_json
+from .common import _Group, _guard, app, console, print_json
 
-synth = typer.Typer(name="synthesize", no_args_is_help=True, add_completion=False,
+synth = typer.Typer(name="synthesize", cls=_Group, no_args_is_help=True, add_completion=False,
                     help="Find a mechanism from requirements (classical synthesis) and write"
                          " its machine file and page (docs/synthesis.md).")
 app.add_typer(synth, name="synthesize")

@@ -286,18 +286,22 @@ MAX_CSV_BYTES = 64 * 2**20
 def read_csv_columns(path: str | Path, numbers: Sequence[str], texts: Sequence[str] = (),
                      *, what: str = "measurements",
                      nonnegative: Mapping[str, str] | None = None,
-                     ranges: Mapping[str, tuple[float, float, str]] | None = None
+                     ranges: Mapping[str, tuple[float, float, str]] | None = None,
+                     labels: Mapping[str, tuple[str, str, str]] | None = None
                      ) -> dict[str, np.ndarray]:
     """The columns ``numbers`` (as floats) and ``texts`` (as strings) of a CSV file with a
     header line; other columns are ignored, blank lines and lines starting with ``#`` skipped.
     ``nonnegative``: number columns that must be >= 0, each with what to do instead (a
     magnitude's sign belongs to an angle); ``ranges``: number columns that must lie in
-    (lo, hi, unit), a range a measurement can have.
+    (lo, hi, unit), a range a measurement can have; ``labels``: text columns whose every cell
+    must match a regular expression, each with (the pattern, what it is, what to do otherwise).
 
     Raises AnalysisError naming the file, and the line and column of a bad value, when a column
-    is missing, a number is not a finite number (or negative where it may not be, or outside
-    its range), or there are no data lines."""
+    is missing or named twice in the header, a number is not a finite number (or negative where
+    it may not be, or outside its range), a text cell is empty (or does not match its label's
+    pattern), or there are no data lines."""
     import csv
+    import re
 
     from ...engine.errors import AnalysisError
     from ...engine.paths import not_regular, user_path
@@ -335,6 +339,10 @@ def read_csv_columns(path: str | Path, numbers: Sequence[str], texts: Sequence[s
         raise AnalysisError(f"{where}:{head_line}", f"missing column(s) {', '.join(missing)}"
                             f" (the header has {', '.join(header) or 'nothing'})",
                             f"The header must name {', '.join((*numbers, *texts))}")
+    twice = [c for c in (*numbers, *texts) if header.count(c) > 1]
+    if twice:  # which one would be read is anybody's guess
+        raise AnalysisError(f"{where}:{head_line}", f"the header names column(s)"
+                            f" {', '.join(twice)} more than once", "Name each column once")
     if len(lines) < 2:
         raise AnalysisError(where, "has a header but no measurements", "Add one line each")
     idx = {c: header.index(c) for c in (*numbers, *texts)}
@@ -343,6 +351,12 @@ def read_csv_columns(path: str | Path, numbers: Sequence[str], texts: Sequence[s
         for c, j in idx.items():
             cell = row[j].strip() if j < len(row) else ""
             if c in texts:
+                if not cell:
+                    raise AnalysisError(f"{where}:{k}", f"column {c} is empty",
+                                        f"Give each line its {c}")
+                if labels and c in labels and not re.fullmatch(labels[c][0], cell):
+                    raise AnalysisError(f"{where}:{k}", f"column {c}: {cell!r} is not"
+                                        f" {labels[c][1]}", labels[c][2])
                 out[c].append(cell)
                 continue
             try:

@@ -17,8 +17,8 @@ Every command that writes files (``--out DIR``) goes through :func:`output_dir`:
   whole job has succeeded, one file at a time, each move refusing to replace anything that is
   not the unchanged file sewmech wrote there (a file the user saved into DIR during the run is
   never replaced: the result is then kept aside in ``DIR/sewmech-kept-COMMAND-TIME/`` and the
-  command says so). Files of the same command's previous run that this run did not write again
-  are removed if unchanged (they are sewmech's own). On any error or interruption (Ctrl-C,
+  command says so). Files of the same command's previous run (on the same machine) that this
+  run did not write again are removed if unchanged (they are sewmech's own). On any error or interruption (Ctrl-C,
   SIGTERM, SIGHUP) the staging directory is removed, and DIR too if this run created it. A run
   killed outright (SIGKILL, power loss) leaves its staging directory and its process id in the
   lock file: the next run removes the one, notices the other and says so.
@@ -116,6 +116,7 @@ def _plain_name(name: object) -> bool:
 
 def _valid_record(rec: object) -> bool:
     return (isinstance(rec, dict) and isinstance(rec.get("command"), str)
+            and isinstance(rec.get("machine", ""), str)
             and all(isinstance(rec.get(k), int) and not isinstance(rec.get(k), bool)
                     for k in ("size", "mtime_ns")) and rec["size"] >= 0)
 
@@ -256,6 +257,7 @@ def preflight(path: str | Path, *, command: str, option: str = "--out") -> None:
     lock."""
     root = user_path(path, option)
     try:
+        _refuse_broken_link(root, option)
         if not root.exists():
             return
         if not root.is_dir():
@@ -275,6 +277,25 @@ def preflight(path: str | Path, *, command: str, option: str = "--out") -> None:
         raise
     except OSError as exc:
         raise _os_error(root, exc, option) from None
+
+
+def _refuse_broken_link(root: Path, option: str) -> None:
+    """``root`` a symbolic link that leads nowhere (its target missing, or a loop of links):
+    said so, instead of "cannot write there (File exists)" from the directory it could not
+    make. sewmech does not make the link's target."""
+    if not root.is_symlink():
+        return
+    try:
+        root.stat()
+        return
+    except FileNotFoundError:
+        what = f"a symbolic link to {os.readlink(root)}, which does not exist"
+    except OSError as exc:
+        if exc.errno != errno.ELOOP:
+            return
+        what = "a symbolic link in a loop of links (it leads to no file or directory)"
+    raise OutputError(f"{option} {root}", f"is {what}", "Give a directory (it is created if"
+                      " missing), or make the link's target directory first")
 
 
 #: what a write into a full file system raises (the disk, the user's quota, a file size limit)
@@ -297,6 +318,18 @@ def _os_error(path: Path, exc: OSError, option: str) -> OutputError:
                            "Free some space, or choose a directory on another disk")
     return OutputError(f"{option} {path}", f"cannot write there ({exc.strerror or exc})",
                        "Choose another directory")
+
+
+def _name_too_long(root: Path, name: str, option: str) -> OutputError:
+    """A result's file name beyond the file system's 255 bytes (a machine name of 300
+    characters: the names start with it). It was the OSError of a staging temp file."""
+    m = re.fullmatch(r"\.(.+)\.[A-Za-z0-9_]+\.tmp", name)  # (atomic_write's temporary file)
+    name = m.group(1) if m else name
+    shown = name if len(name) <= 60 else f"{name[:28]}...{name[-28:]}"
+    return OutputError(f"{option} {root}", f"a file name of the result is too long for the file"
+                       f" system ({len(name.encode())} bytes, at most 255: {shown})",
+                       "The result's names start with the machine's name: give it a shorter"
+                       " [machine] name")
 
 
 @contextlib.contextmanager
@@ -369,12 +402,15 @@ def move_no_replace(src: Path, dst: Path) -> None:
 
 @contextlib.contextmanager
 def output_dir(path: str | Path, *, command: str, option: str = "--out",
-               notice: Callable[[str], None] | None = None) -> Iterator[Path]:
+               notice: Callable[[str], None] | None = None,
+               machine: str | None = None) -> Iterator[Path]:
     """Write a command's files safely into the directory ``path`` (see the module docstring).
 
     Yields the staging directory to write into (flat: files only). On normal exit its files
     replace the directory's files of the same names (which sewmech wrote, unchanged since) and
-    the files of ``command``'s previous run that were not written again are removed.
+    the files of ``command``'s previous run that were not written again are removed: of the
+    same ``machine`` (its name, recorded with each file) where the command is about one (the
+    kinematics of a second machine into the same directory deleted the first machine's file).
     ``notice``: called with a sentence when something the person should know happened (a
     killed run's leftovers recovered); default: ``note: ...`` on stderr.
 
@@ -394,6 +430,7 @@ def output_dir(path: str | Path, *, command: str, option: str = "--out",
     staging: Path | None = None
     try:
         try:
+            _refuse_broken_link(root, option)
             if root.exists() and not root.is_dir():
                 raise OutputError(f"{option} {root}", "is a file, not a directory",
                                   "Give a directory for the output (it is created if missing)")
@@ -443,10 +480,12 @@ def output_dir(path: str | Path, *, command: str, option: str = "--out",
         except OSError as exc:
             if exc.errno in _DISK_FULL:  # (a write deep inside a writer says only that)
                 raise _os_error(root, exc, option) from None
+            if exc.errno == errno.ENAMETOOLONG and exc.filename is not None:
+                raise _name_too_long(root, Path(str(exc.filename)).name, option) from None
             raise
         with _signals_held():
             try:
-                _commit(root, staging, manifest, command, option, notice)
+                _commit(root, staging, manifest, command, option, notice, machine)
             except OSError as exc:
                 raise _os_error(root, exc, option) from None
         staging = None
@@ -471,7 +510,7 @@ def _kept_dir_name(command: str) -> str:
 
 
 def _commit(root: Path, staging: Path, manifest: dict, command: str, option: str,
-            notice: Callable[[str], None]) -> None:
+            notice: Callable[[str], None], machine: str | None = None) -> None:
     """Move the staged files into place, drop the command's stale files, save the manifest.
 
     The directory was checked when the run started; it is checked again here, file by file,
@@ -501,8 +540,8 @@ def _commit(root: Path, staging: Path, manifest: dict, command: str, option: str
                 break
             moved.append(name)
     for name, rec in list(manifest.items()):
-        if rec.get("command") != command or name in written:
-            continue
+        if rec.get("command") != command or rec.get("machine") != machine or name in written:
+            continue  # another command's, or another machine's: not this run's previous one
         if conflict:
             continue  # the previous run's files stay while this run's are not all in place
         path = root / name
@@ -519,7 +558,8 @@ def _commit(root: Path, staging: Path, manifest: dict, command: str, option: str
         if not _is_ours(root / name, manifest.get(name)):
             manifest.pop(name, None)
     for name in moved:
-        manifest[name] = {"command": command, "size": None, "mtime_ns": None}
+        manifest[name] = {"command": command, "size": None, "mtime_ns": None,
+                          **({"machine": machine} if machine is not None else {})}
         manifest[name]["size"], manifest[name]["mtime_ns"] = _stamp(root / name)
     tmp = Path(aside) / MANIFEST
     tmp.write_text(json.dumps({"written_by": "sewmech", "files": manifest}, indent=1,

@@ -25,7 +25,11 @@ FIGURE_LABELS = {"delta_q_N": ("Delta-Q = | max|Qx| - max|Qy| |", "N"),
                  "bearing_rear_peak_N": ("peak rear bearing reaction", "N"),
                  "bearing_front_rms_N": ("RMS front bearing reaction", "N"),
                  "bearing_rear_rms_N": ("RMS rear bearing reaction", "N"),
-                 "torque_fluctuation_Nm": ("driving-torque fluctuation (max - min)", "N m")}
+                 "torque_fluctuation_Nm": ("driving-torque fluctuation (max - min)", "N m"),
+                 "vibration_x_db": ("vibration level at the control point along x",
+                                    "dB re 5e-8 m/s"),
+                 "vibration_y_db": ("vibration level at the control point along y",
+                                    "dB re 5e-8 m/s")}
 
 
 def results_frame(results: dict[str, BalanceResult]) -> pd.DataFrame:
@@ -79,6 +83,14 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
                 results[crit] = balance(machine, crit, basis=B)
             continue
         if crit == "bearings" and not B.has_bearings:
+            continue
+        if crit in ("vibration", "equal-levels") and B.housing is None:
+            continue  # no [housing]: no vibration to predict
+        if crit == "equal-levels":  # one counterweight along its angle: the shaft's
+            if Bq is not None:
+                results[crit] = balance(machine, crit, [shaft_cw], basis=Bq)
+            elif len(B.counterweights) == 1:
+                results[crit] = balance(machine, crit, basis=B)
             continue
         results[crit] = balance(machine, crit, basis=B, weights=weights if crit == "weighted"
                                 else None)
@@ -170,6 +182,11 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
                  f" with the {criterion} counterweights." + arc_cam_note(machine),
                  pd.DataFrame(bdata))
 
+    # ---- the paper's bench figure, predicted ---------------------------------------------------
+    Bl = Bq if Bq is not None else (B if len(B.counterweights) == 1 else None)
+    if Bl is not None and Bl.housing is not None:
+        _levels_figure(figs, machine, Bl, results)
+
     # ---- trade-off front ---------------------------------------------------------------------
     if front:
         T = tradeoff(B)
@@ -237,6 +254,45 @@ def balancing_section(figs, machine: Machine, *, criterion: str | None = None,
                        columns=["figure", "value", "unit"])
     return {"main": main, "results": results, "paper": paper, "key": key, "comparison": comp,
             "basis_error": max(r.basis_error for r in results.values())}
+
+
+def _levels_figure(figs, machine: Machine, B, results: dict) -> None:
+    """v_x(S) and v_y(S) at the control point as the balancing paper draws its measured ones,
+    predicted by the housing's model, with the predicted crossing (equal-levels) beside the
+    Delta-Q answer."""
+    from ...design._vibration_criteria import level_curves
+    from ..drawing.figures import subplots
+
+    cw = B.counterweights[0].name
+    lc = level_curves(B)
+    fig, ax = subplots(figsize=(7.5, 4.6), constrained_layout=True)
+    ax.plot(lc["S_gcm"], lc["vx_mm_s"], color="C0", label="x (predicted)")
+    ax.plot(lc["S_gcm"], lc["vy_mm_s"], color="C1", label="y (predicted)")
+    marks = []
+    for crit, style in (("equal-levels", "-"), ("delta-q", "-.")):
+        r = results.get(crit)
+        if r is not None and r.status == "optimal":
+            S = r.counterweights[cw]["static_moment_gcm"]
+            marks.append(f"{crit} {S:.4g} g cm")
+            ax.axvline(S, color="k", ls=style, lw=0.9,
+                       label=("x = y" if crit == "equal-levels" else "Delta-Q = 0")
+                       + f": {S:.4g} g cm")
+    ax.set_xlabel(f"static moment of '{cw}' along {lc['beta_deg']:.4g} deg, S [g cm]")
+    ax.set_ylabel(f"vibration velocity at '{B.control_name}' [mm/s RMS]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(f"{machine.name}: the control point's vibration against the counterweight at"
+                 f" {B.rpm:g} rpm", fontsize=10)
+    figs.add(fig, "bal-levels", "Vibration at the control point against the counterweight",
+             "The RMS vibration velocity of the housing's control point"
+             f" '{B.control_name}' along x and y as the static moment of '{cw}' grows along its"
+             " angle, predicted by the housing's model: the curves the balancing paper measures"
+             " on the bench, whose crossing is its chosen counterweight"
+             f" ({'; '.join(marks) or 'no crossing and no Delta-Q root'}). Where the x = y"
+             " crossing and Delta-Q = 0 differ, the housing (its mass, mounts and the control"
+             " point's place) is why; trial-balance --calibrate fits it to measurements.",
+             pd.DataFrame({"S_gcm": lc["S_gcm"], "vx_mm_s": lc["vx_mm_s"],
+                           "vy_mm_s": lc["vy_mm_s"]}))
 
 
 def section_html(machine: Machine, sec: dict) -> str:

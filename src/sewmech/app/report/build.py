@@ -69,7 +69,7 @@ def write_report(machine: Machine, out_dir: str | Path, *, step_deg: float = 1.0
     import matplotlib.backends.backend_svg
     import matplotlib.figure
 
-    with output_dir(out_dir, command="report") as root, _few_collections(collect_garbage):
+    with output_dir(out_dir, command="report", machine=machine.name) as root, _few_collections(collect_garbage):
         pool = figure_pool(workers)
         try:
             _build_report(machine, root, step_deg, step=advance or (lambda name: None),
@@ -122,6 +122,9 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
     names = (["feed"] if has_feed else []) + (["dynamics"] if machine.spec.masses else []) + (
         ["thread"] if machine.spec.thread is not None and machine.spec.thread.bobbin_case_radius
         else []) + (["balancing"] if machine.counterweights else []) + (
+        # the housing's section: the balancing worker's when there is one (it reuses its
+        # answer on the vibration criterion), else its own
+        ["vibration"] if _has_vibration(machine) and not machine.counterweights else []) + (
         ["accuracy"] if has_feed else []) + (["comparison"] if variants else [])
     sections = _Sections(pool, machine, root, variants, names)
     conv = machine.spec.convention
@@ -295,7 +298,13 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
             blocks.append(left_out_html(_SECTION_IDS.get(other, other), _SECTIONS[other],
                                         _left_out(machine, other)))
 
-    for name, (section_blocks, result) in sections.results():
+    def in_order():  # the balancing worker's housing section follows the balancing section
+        for name, (section_blocks, result) in sections.results():
+            yield name, (section_blocks, result)
+            if name == "balancing" and result.get("vibration") is not None:
+                yield "vibration", result["vibration"]
+
+    for name, (section_blocks, result) in in_order():
         left_out(list(_SECTIONS).index(name))
         order.pop(0)
         if name in _SECTION_IDS:  # the sections whose text has no heading of its own
@@ -311,6 +320,13 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
         elif name == "balancing":
             result["comparison"].to_csv(root / f"{machine.name}-balancing-criteria.csv",
                                         index=False, float_format="%.10g")
+            blocks.append(result["html"])
+        elif name == "vibration":
+            for what in ("table", "levels", "modes"):
+                stem = {"table": "vibration-key-figures", "levels": "vibration-levels",
+                        "modes": "housing-modes"}[what]
+                result[what].to_csv(root / f"{machine.name}-{stem}.csv", index=False,
+                                    float_format="%.10g")
             blocks.append(result["html"])
         elif name == "accuracy":
             result["table"].to_csv(root / f"{machine.name}-accuracy.csv", index=False,
@@ -372,7 +388,8 @@ def _build_report(machine: Machine, root: Path, step_deg: float, *, step, varian
 
 #: the report's sections in page order, with their titles
 _SECTIONS = {"feed": "Feed", "dynamics": "Dynamics", "thread": "Needle thread",
-             "balancing": "Balancing", "accuracy": "Accuracy", "comparison": "Variants"}
+             "balancing": "Balancing", "vibration": "Vibration and running",
+             "accuracy": "Accuracy", "comparison": "Variants"}
 #: the ids of the sections whose own text carries no heading (the others' do, with their name)
 _SECTION_IDS = {"feed": "feed", "thread": "thread", "comparison": "variants"}
 
@@ -391,11 +408,18 @@ def _left_out(machine: Machine, name: str) -> str:
         "balancing": f"Left out because {file} has no [counterweights] table: there is no"
                      " counterweight to choose. Add one to balance the machine"
                      " (docs/balancing.md).",
+        "vibration": f"Left out because {file} has no [housing] table (or no [masses]): the"
+                     " housing's vibration needs its mass and mounts and the mechanisms'"
+                     " forces (docs/vibration.md).",
         "accuracy": "Left out because the accuracy section studies the feed, and the machine"
                     " has none.",
         "comparison": "Left out because no variant was given to compare: name one in the"
                       " file's [machine] variants or with --compare.",
     }[name]
+
+
+def _has_vibration(machine: Machine) -> bool:
+    return machine.spec.housing is not None and bool(machine.spec.masses)
 
 
 def _mechanism(figs: Figures, machine: Machine, res, phi_deg: np.ndarray) -> None:
@@ -442,6 +466,16 @@ def _run_section(name: str):
 
         sec = balancing_section(figs, machine)
         result = {"comparison": sec["comparison"], "html": section_html(machine, sec)}
+        if _has_vibration(machine):  # the housing's section, with the answer on vibration
+            from .vibration import vibration_section
+
+            vfigs = Figures(root, machine.name)
+            vres = vibration_section(vfigs, machine, sec["results"].get("vibration"))
+            result["vibration"] = (vfigs.blocks, vres)
+    elif name == "vibration":
+        from .vibration import vibration_section
+
+        result = vibration_section(figs, machine)
     elif name == "accuracy":
         from .accuracy import accuracy_section
 
@@ -455,7 +489,8 @@ def _run_section(name: str):
 #: the loop solver's tenfold: dynamics 1.9 s, balancing 1.8, feed 1.5, thread 0.8, the comparison
 #: 0.4, accuracy 0.25): the two longest start in the workers, this process takes the feed when
 #: its own figures are drawn, and the short ones fill in at the end
-_SECTION_ORDER = ["dynamics", "balancing", "feed", "thread", "comparison", "accuracy"]
+_SECTION_ORDER = ["dynamics", "balancing", "feed", "vibration", "thread", "comparison",
+                  "accuracy"]
 
 
 class _Sections:

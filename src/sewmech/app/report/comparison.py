@@ -41,6 +41,11 @@ def comparison_section(figs: Figures, machines: Sequence[Machine]):
     """Key figures, dog paths and stitch curves of machine variants side by side."""
     table = pd.DataFrame({m.name: key_figures(m) for m in machines})
     table.insert(0, "figure", table.index)
+    names = " against ".join(m.name for m in machines)
+    if not any(m.spec.sewing and m.spec.sewing.feed_dog and m.spec.sewing.regulator
+               for m in machines):
+        _table_only(figs, table, names)
+        return
     fig, (ax, bx) = subplots(1, 2, figsize=(11, 4.4), constrained_layout=True)
     data = {}
     for m in machines:
@@ -65,7 +70,26 @@ def comparison_section(figs: Figures, machines: Sequence[Machine]):
     for a in (ax, bx):
         a.grid(True, alpha=0.3)
         a.legend(fontsize=8)
-    names = " against ".join(m.name for m in machines)
     figs.add(fig, "comparison", f"Variants side by side: {names}",
              "Key figures of each variant (table), the dog's path at the longest forward stitch"
              " and the stitch-length curves.", pd.DataFrame(data), table=table)
+
+
+def _table_only(figs: Figures, table: pd.DataFrame, names: str) -> None:
+    """The key figures alone, when no machine compared has a feed dog: the figure of dog paths
+    and stitch curves would be two empty axes (and matplotlib's warning of a legend without
+    lines)."""
+    import html
+
+    from ..drawing.figures import table_html
+    from ..files.io import atomic_write
+
+    stem = f"{figs.machine}-comparison"
+    with atomic_write(figs.root / f"{stem}.csv") as fh:
+        table.to_csv(fh, index=False, float_format="%.10g")
+    title = f"Variants side by side: {names}"
+    figs.insert_html(len(figs), f'<figure id="comparison"><h3>{html.escape(title)}</h3>'
+                     f"<figcaption>Key figures of each variant (no dog paths or stitch curves:"
+                     f" none of them has a feed dog and a stitch regulator). Files: "
+                     f'<a href="{stem}.csv">data (CSV)</a>.</figcaption>'
+                     f"{table_html(table)}</figure>")

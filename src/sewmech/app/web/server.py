@@ -103,8 +103,11 @@ class App:
     """The page's state: the machines it may open and the sessions of the pages."""
 
     def __init__(self, extra: dict[str, tuple[str, str]] | None = None,
-                 initial: str | None = None):
+                 initial: str | None = None, files: dict[str, Path] | None = None):
         self.machines = {**shipped_texts(), **(extra or {})}
+        #: the machines read from a file on disk (the command line's): read again whenever a
+        #: page opens one, so that an edit saved meanwhile is what the page shows and exports
+        self.files = {k: Path(v) for k, v in (files or {}).items() if k in self.machines}
         self.initial = initial if initial in self.machines else (
             "jb1-3" if "jb1-3" in self.machines else next(iter(self.machines), None))
         self.sessions: OrderedDict[str, Session] = OrderedDict()
@@ -144,8 +147,23 @@ class App:
             shown = repr(name) if len(repr(name)) <= 60 else repr(name)[:57] + "..."
             raise RequestError(404, "machine", f"{shown} is not a machine this server offers",
                                f"Choose one of {', '.join(self.machines)}, or upload a file")
+        if name in self.files:
+            await run_in_threadpool(self._reread, name)
         file, text = self.machines[name]
         return await self._open(text, file)
+
+    def _reread(self, name: str) -> None:
+        """The file's text as it is on disk now (a file deleted since: the text last read). A
+        file that can no longer be read, or is no longer a machine file, is the page's error,
+        located, as an upload's would be."""
+        from ...engine.spec import read_toml_text
+
+        path = self.files[name]
+        if not path.exists():
+            return
+        text = read_toml_text(path)
+        with self._lock:
+            self.machines[name] = (self.machines[name][0], text)
 
     async def upload(self, request: Request):
         raw = await _body(request, MAX_FILE_BYTES, "machine file")
@@ -232,10 +250,11 @@ def content_disposition(name: str) -> str:
 
 
 def create_app(extra: dict[str, tuple[str, str]] | None = None,
-               initial: str | None = None) -> Starlette:
+               initial: str | None = None, files: dict[str, Path] | None = None) -> Starlette:
     """The web application. ``extra``: more machines to offer, name -> (file name, text);
-    ``initial``: the machine the page opens with."""
-    state = App(extra, initial)
+    ``initial``: the machine the page opens with; ``files``: which of ``extra`` are files on
+    disk, name -> path, read again each time a page opens them."""
+    state = App(extra, initial, files)
 
     def guarded(fn):
         async def endpoint(request: Request):

@@ -197,6 +197,14 @@ class Session:
         else:
             self.dynamics_note = "the machine file has no [masses]: no forces"
         self._kin = None if self._dyn is not None else KinematicsPlan(m, self.phi)
+        self._housing = None  # the housing on its mounts: its control points' levels live
+        if self._dyn is not None and m.spec.housing is not None:
+            from ...engine.housing import Housing
+
+            try:
+                self._housing = Housing.of(m)
+            except SewmechError as exc:
+                self.dynamics_note = str(exc)
         self._checks_machine = machine_from_toml(self.text, self.file_name)
 
     @property
@@ -331,7 +339,8 @@ class Session:
                                "shaking_force_N": _finite(d.shaking_force),
                                "shaking_moment_Nmm": _finite(d.shaking_moment),
                                "mean_torque_Nmm": mean(d.input_torque),
-                               "friction_loss_W": None if fl is None else fl * 1e-3}
+                               "friction_loss_W": None if fl is None else fl * 1e-3,
+                               "vibration": self._vibration(d)}
         else:
             kin = self._kin(P)
             out["dynamics"] = None
@@ -349,6 +358,24 @@ class Session:
         out["feed"], stitch = self._feed(P)
         out["thread"] = self._thread(P, stitch)
         return out
+
+    def _vibration(self, d) -> dict | None:
+        """The housing's vibration at its control points for this turn (the page's angles are a
+        whole turn in equal steps: its Fourier series): name -> ``level_db`` and
+        ``rms_velocity_mm_s``, each {x, y, z}; None without ``[housing]``."""
+        if self._housing is None:
+            return None
+        from ...engine.housing import excitation, vibration
+
+        h = self._housing
+        W = excitation(self.machine, h, d)
+        if not np.all(np.isfinite(W)):
+            return None
+        v = vibration(h, W, self.machine.rpm)
+        rms, lv = v.rms_velocity, v.level_db
+        return {name: {"level_db": {ax: _num(lv[i, j]) for j, ax in enumerate("xyz")},
+                       "rms_velocity_mm_s": {ax: _num(rms[i, j]) for j, ax in enumerate("xyz")}}
+                for i, name in enumerate(h.control_names)}
 
     def _motion(self, kin) -> dict:
         s = self.machine.spec.sewing

@@ -252,6 +252,26 @@ function updateNumbers() {
     $("torque-max").textContent = $("shake-max").textContent = "– (no masses)";
     $("torque-mean").textContent = $("friction-loss").textContent = "– (no masses)";
   }
+  renderVibration(t.dynamics && t.dynamics.vibration);
+}
+
+// the housing's levels at its control points (dB re 5e-8 m/s), live with every turn
+function renderVibration(v) {
+  const box = $("vibration");
+  box.replaceChildren();
+  if (!v) { box.hidden = true; return; }
+  box.hidden = false;
+  for (const [name, cp] of Object.entries(v)) {
+    const div = document.createElement("div");
+    div.className = "level";
+    div.dataset.point = name;
+    const b = document.createElement("b");
+    const lv = cp.level_db;
+    b.textContent = ["x", "y", "z"].map((ax) => `${ax} ${lv[ax] === null ? "–" : lv[ax].toFixed(1)}`).join("  ") + " dB";
+    for (const ax of ["x", "y", "z"]) b.dataset[ax] = lv[ax] ?? "";
+    div.append(`vibration at '${name}' `, b);
+    box.append(div);
+  }
 }
 
 function renderChecks() {
