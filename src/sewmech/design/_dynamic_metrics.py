@@ -1,19 +1,22 @@
-"""The force analysis' figures as metrics of a design (values only for now), for design problems
-and sweeps: one :class:`~sewmech.engine.dynamics.DynamicsPlan` call per batch of designs and
-setting, on the grid of a ``[dynamics]`` table (``rpm``, ``step_deg``, ``gravity``: the same
-table in problem and sweep files).
+"""The force analysis' figures as metrics of a design, for design problems, sweeps, tolerances
+and ``sensitivity``: one :class:`~sewmech.engine.dynamics.DynamicsPlan` call per batch of
+designs and setting, on the grid of a ``[dynamics]`` table (``rpm``, ``step_deg``,
+``gravity``: the same table in problem and sweep files).
 
 A peak is the largest value at the grid's angles (``step_deg``), a least force the least; each
 is max-type (min-type) over its *pieces*, the grid's values, which are each smooth in the
 design (:mod:`sewmech.design.metrics`). Units: N, N m (torques and moments, as every table of
 sewmech gives them), W.
 
-The exact derivatives of these figures by the design come with the derivative of the force
-solve (issue 32, part 2). Until then they are value-only: the optimiser's derivative-free
-methods (golden, cyclic, powell, de, nsga2) take them, SLSQP and the tolerance analysis refuse
-them. **The hook**: register a metric's exact gradient in :data:`GRADIENTS`; from then on it
-comes with its derivative wherever a metric does (:func:`sewmech.design.evaluate.metric_value`),
-and SLSQP, ``sensitivity`` and ``tolerance`` accept it.
+**Exact gradients** (:data:`GRADIENTS`): the peak and RMS driving torque, the peak force in a
+pair, the peak bearing reaction, the peak shaking force and moment and the least contact force
+come with their exact derivatives by every parameter, from the derivative of the force solve
+(:func:`sewmech.engine.dynamic_sensitivity.dynamics_sensitivities`): each piece's derivative
+is that of the quantity at its grid angle (|F|' = F.F'/|F|), a peak's that of its largest
+piece (the envelope theorem at the located extreme, as for the kinematic maxima), the RMS's
+mean(T T')/RMS. The friction loss stays value-only (derivative-free methods, sweeps). Where a
+process load switches on or off at a grid angle, the force there has no derivative (the
+side the solve took is given).
 """
 
 from __future__ import annotations
@@ -44,9 +47,9 @@ DYNAMIC_METRICS = {
                                                    " over the turn"),
 }
 
-#: the exact gradients of the force analysis' metrics, where known: metric family -> function
+#: the exact gradients of the force analysis' metrics: metric family -> function
 #: (machine, settings, metric name, P (n_params,), inputs) -> MetricValue with ``d`` (and
-#: ``pieces_d``). Empty: every metric here is value-only until the dynamic gradients land.
+#: ``pieces_d``); filled below (every family but the friction loss)
 GRADIENTS: dict[str, Callable[..., MetricValue]] = {}
 
 
@@ -219,3 +222,92 @@ class ForceMetrics:
         kind = DYNAMIC_METRICS[family][2]
         pcs = got[name][0]
         return MetricValue(float(v), None, kind, pcs, None, self.phi[:len(pcs)].copy())
+
+
+# ---- the exact gradients -------------------------------------------------------------------
+#: the last design's derivatives (a problem reads several force metrics of one design)
+_LAST: dict = {}
+
+
+def _sensitivities(machine: Machine, settings, P: np.ndarray, inputs):
+    """:func:`~sewmech.engine.dynamic_sensitivity.dynamics_sensitivities` of one design on the
+    ``[dynamics]`` table's grid (the last design's kept)."""
+    from ..engine.dynamic_sensitivity import dynamics_sensitivities
+
+    rpm = getattr(settings, "rpm", None)
+    step = getattr(settings, "step_deg", 2.0)
+    gravity = getattr(settings, "gravity", True)
+    P = np.asarray(P, dtype=float)
+    key = (rpm, step, gravity, P.tobytes(),
+           None if inputs is None else tuple(sorted(inputs.items())))
+    if _LAST.get("machine") is not machine or _LAST.get("key") != key:
+        _LAST.clear()
+        _LAST["value"] = dynamics_sensitivities(machine, _grid(step), params=P, inputs=inputs,
+                                                rpm=rpm, gravity=gravity)
+        _LAST["machine"], _LAST["key"] = machine, key
+    return _LAST["value"]
+
+
+def _norm_d(v: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """|v| over the last axis but one (v (n, 2), dv (n, 2, n_p)) and its derivative."""
+    n = np.linalg.norm(v, axis=-1)
+    safe = np.where(n > 0, n, 1.0)
+    return n, np.einsum("ij,ijk->ik", v / safe[:, None], dv)
+
+
+def _curve_d(machine: Machine, ds, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """The metric's curve over the grid (its unit) and its derivative (n_phi, n_params)."""
+    r = ds.result
+    family, arg = split(name)
+    if family in ("peak_torque", "rms_torque"):
+        T, dT = r.input_torque * 1e-3, ds.input_torque * 1e-3
+        if family == "peak_torque":
+            return np.abs(T), np.sign(T)[:, None] * dT
+        return T, dT
+    if family == "peak_shaking_moment":
+        M, dM = r.shaking_moment * 1e-3, ds.shaking_moment * 1e-3
+        return np.abs(M), np.sign(M)[:, None] * dM
+    if family == "peak_shaking_force":
+        return _norm_d(r.shaking_force, ds.shaking_force)
+    if family == "peak_bearing_reaction":
+        sides = [("front", r.bearings.front, ds.bearings_front),
+                 ("rear", r.bearings.rear, ds.bearings_rear)]
+        got = [_norm_d(v, dv) for side, v, dv in sides if arg in (None, side)]
+        if len(got) == 1:
+            return got[0]
+        (a, da), (b, db) = got  # the larger side at each angle (its derivative: envelope)
+        return np.maximum(a, b), np.where((a >= b)[:, None], da, db)
+    c, pair = r._columns[arg]
+    x, dx = r.pair(arg), ds.pair(arg)
+    if family == "least_contact_force":
+        return x[:, 0], dx[:, 0, :]
+    if pair.kind == "revolute":
+        return _norm_d(x, dx)
+    return np.abs(x[:, 0]), np.sign(x[:, 0])[:, None] * dx[:, 0, :]
+
+
+def _exact(machine: Machine, settings, name: str, P, inputs) -> MetricValue:
+    """A force metric of one design with its exact derivative by every parameter (see the
+    module doc)."""
+    from ..engine.errors import AnalysisError
+
+    ds = _sensitivities(machine, settings, P, inputs)
+    v, d = _curve_d(machine, ds, name)
+    if not (np.all(np.isfinite(v)) and np.all(np.isfinite(d))):
+        raise AnalysisError(f"machine '{machine.name}'", f"{name} cannot be formed on this"
+                            " design (its force equations are singular somewhere in the"
+                            " turn)")
+    family = split(name)[0]
+    phi = _grid(getattr(settings, "step_deg", 2.0))
+    if family == "rms_torque":
+        rms = math.sqrt(float(np.mean(v * v)))
+        return MetricValue(rms, (v[:, None] * d).mean(axis=0) / rms if rms > 0 else
+                           np.zeros(d.shape[1]))
+    kind = DYNAMIC_METRICS[family][2]
+    k = int(np.argmax(v) if kind == "max" else np.argmin(v))
+    return MetricValue(float(v[k]), d[k].copy(), kind, v.copy(), d.copy(), phi.copy())
+
+
+for _family in ("peak_torque", "rms_torque", "peak_force", "peak_bearing_reaction",
+                "peak_shaking_force", "peak_shaking_moment", "least_contact_force"):
+    GRADIENTS[_family] = _exact
