@@ -9,7 +9,8 @@ calling a wrong answer a success.
 - the shortest crank of the benchmark four-bar for a swing of exactly 0.9 rad: an equality
   whose optimum is a closed form on a bound;
 - the offset of a slider-crank's guide for the least peak driving torque of a point-mass
-  slider: a minimax optimum of a value-only force metric, known by symmetry;
+  slider: a minimax optimum of a force metric, known by symmetry, its peak by a closed form
+  (slsqp with the exact gradient of the force solve, the others by values);
 - NSGA-II with an equality: its best feasible member beside its compromise."""
 
 from __future__ import annotations
@@ -224,12 +225,13 @@ def closed_form_peak_torque(e: float, r=20.0, rod=60.0, mass=0.1, rpm=1000.0, st
 
 
 @pytest.mark.parametrize("method, tol", [("golden", 2e-6), ("powell", 1e-6), ("cyclic", 1e-6),
-                                         ("de", 1e-6)])
+                                         ("de", 1e-6), ("slsqp", 1e-9)])
 def test_a_dynamic_objective_with_a_known_optimum(method, tol):
     """The slider-crank's offset for the least peak torque: mirrored offsets give mirrored
     motions with the same peak, the least at e = 0 where the torque's largest and least values
-    are equal (a kink). The peak is a value-only metric: slsqp refuses it; the others reach
-    e = 0 and the closed form's peak, and the check (Powell's polish) passes."""
+    are equal (a kink). Every method that takes one variable reaches e = 0 and the closed
+    form's peak, and the check passes; slsqp with the peak's exact gradient (the derivative of
+    the force solve) through the epigraph form, its KKT residual near 0."""
     spec, m = load_problem(PROBLEMS / "slider-crank-torque.toml")
     p = Problem(spec, m)
     assert closed_form_peak_torque(3.0) > closed_form_peak_torque(0.0) < \
@@ -241,9 +243,19 @@ def test_a_dynamic_objective_with_a_known_optimum(method, tol):
     assert abs(r.x[0]) <= tol
     got = p.metric(spec.objective.parts[0], r.x)[0]
     assert got == pytest.approx(closed_form_peak_torque(0.0), rel=1e-6)
-    assert r.check["kkt_residual"] is None and "value-only" in r.check["how"]
-    with pytest.raises(OptionError, match="peak_torque has none yet"):
-        optimize(Problem(spec, m), "slsqp")
+    assert r.check["kkt_residual"] is not None and r.check["kkt_residual"] < 1e-6
+
+
+def test_the_peak_torques_gradient_is_the_closed_forms():
+    """d(peak torque)/d(offset) from the derivative of the force solve against the closed
+    form's own central difference, on both sides of the kink."""
+    spec, m = load_problem(PROBLEMS / "slider-crank-torque.toml")
+    p = Problem(spec, m)
+    for e in (-4.0, 2.5, 6.0):
+        _, d = p.metric(spec.objective.parts[0], np.array([e]))
+        h = 1e-4
+        fd = (closed_form_peak_torque(e + h) - closed_form_peak_torque(e - h)) / (2 * h)
+        assert d[0] == pytest.approx(fd, rel=1e-6, abs=1e-12), e
 
 
 TWO_PARTS = TA.read_text().replace(
@@ -320,3 +332,28 @@ def test_optimize_prints_the_check_and_the_statuses():
     assert data["status"] == "success" and "polish" in data["status_means"]
     assert data["check"]["passed"] and data["check"]["kkt_residual"] < 1e-6
     assert data["constraints"]["range:theta_rocker"]["equals"] == pytest.approx(SWING)
+
+
+@pytest.mark.parametrize("problem, figure, column, metric", [
+    ("transmission-angle.toml", "transmission-dyad", "answer transmission angle dyad [deg]",
+     "transmission_angle_deviation:dyad"),
+    ("slider-crank-torque.toml", "force-peak_torque", "answer peak_torque [N m]",
+     "peak_torque")])
+def test_the_page_draws_what_a_metric_over_the_turn_is_read_from(tmp_path, problem, figure,
+                                                                 column, metric):
+    """sewmech optimize --out with a transmission angle or a force metric: the page draws the
+    transmission angle (its worst deviation from 90 deg is the metric) or the force analysis'
+    curve (its largest value is the peak) for the start and the answer."""
+    import pandas as pd
+
+    out = CliRunner().invoke(app, ["optimize", str(PROBLEMS / problem), "--method", "slsqp",
+                                   "--json", "--out", str(tmp_path / "o")])
+    assert out.exit_code == 0, out.output
+    o = tmp_path / "o"
+    curve = pd.read_csv(o / f"problem-{figure}.csv")[column].to_numpy()
+    answer = pd.read_csv(o / "problem-metrics.csv").set_index("metric").loc[metric, "answer"]
+    if metric == "peak_torque":
+        assert curve.max() == pytest.approx(answer, rel=1e-12)
+    else:  # 1 deg samples of the located extremes (at the crank's dead centres)
+        assert 90.0 - curve.min() == pytest.approx(answer, abs=1e-9)
+    assert "data:image/png;base64" in (o / "index.html").read_text()
