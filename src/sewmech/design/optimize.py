@@ -34,10 +34,13 @@ METHODS = ("golden", "cyclic", "powell", "slsqp", "de", "nsga2")
 MAX_SEED = 2**32 - 1
 #: what a result's status says
 STATUSES = {
-    "success": "converged, every constraint met, and a local polish from the answer does not"
-               " lower the objective by more than the check's tolerance",
+    "success": "converged, every constraint met, a local polish from the answer does not"
+               " lower the objective by more than the check's tolerance, and (with exact"
+               " derivatives) the KKT residual is within its tolerance",
     "not_optimal": "every constraint met, but a local polish from the answer lowers the"
-                   " objective by more than the check's tolerance: not a local optimum",
+                   " objective by more than the check's tolerance, or (with exact"
+                   " derivatives) the KKT residual is above its tolerance: not shown a local"
+                   " optimum",
     "infeasible": "the answer does not meet every constraint (or does not assemble over the"
                   " whole turn)",
     "failed": "no answer: the objective is not defined at the method's design, or the first"
@@ -46,6 +49,10 @@ STATUSES = {
 #: the optimality check: a polish may lower the objective by at most this (relative to
 #: max(1, |objective|)) for the answer to count as a local optimum
 CHECK_TOL = 1e-6
+#: the optimality check with exact derivatives: the KKT residual (:func:`kkt_residual`) may be
+#: at most this for the answer to count as a local optimum (a search that stopped where it
+#: started, its polish stopping there too, is caught by it)
+KKT_TOL = 1e-3
 #: how close (relative to max(1, |value|)) differential evolution and NSGA-II take an equality
 #: to be met: a population cannot hit a curve; their best member is then polished onto it
 POPULATION_EQUALITY_TOL = 1e-3
@@ -160,8 +167,13 @@ def optimize(problem: Problem, method: str = "powell", *, tol: float = 1e-7, see
     if status == "success" and not converged:
         message += " (its own stopping rule not met; the check finds no better design nearby)"
     if status == "not_optimal":
-        message += (f"; not a local optimum: {check['how']} lowered the objective by"
-                    f" {check['improvement']:.3g} (more than {check['tolerance']:.3g})")
+        if check["improvement"] > check["tolerance"]:
+            message += (f"; not a local optimum: {check['how']} lowered the objective by"
+                        f" {check['improvement']:.3g} (more than {check['tolerance']:.3g})")
+        else:
+            message += (f"; not shown a local optimum: its KKT residual from the exact"
+                        f" derivatives is {check['kkt_residual']:.3g} (more than"
+                        f" {check['kkt_tolerance']:.3g}), and {check['how']} did not move it")
         if method == "nsga2":
             message += " at the best feasible member"
     res = OptimizeResult(x=x, fun=fx, objective_start=f0, constraints=report, status=status,
@@ -458,10 +470,12 @@ def check_answer(problem: Problem, x: np.ndarray, *, tol: float = 1e-7,
     gain = f0 - fp if (xp is not None and math.isfinite(fp) and _feasible(problem, xp)) \
         else 0.0
     limit = check_tol * max(1.0, abs(f0))
+    kkt = kkt_residual(problem, x) if problem.has_gradients else None
     return {"how": how, "objective": f0, "polished_objective": fp if math.isfinite(fp) else
             None, "polished_x": None if xp is None else [float(v) for v in xp],
-            "improvement": max(gain, 0.0), "tolerance": limit, "passed": gain <= limit,
-            "kkt_residual": kkt_residual(problem, x) if problem.has_gradients else None,
+            "improvement": max(gain, 0.0), "tolerance": limit,
+            "passed": gain <= limit and (kkt is None or kkt <= KKT_TOL),
+            "kkt_residual": kkt, "kkt_tolerance": KKT_TOL if kkt is not None else None,
             "evaluations": problem.evaluations - before}
 
 

@@ -908,4 +908,9 @@ def _smallest_margin(problem: Problem, x: np.ndarray) -> tuple[float, np.ndarray
     r = kinematics(m, np.array([phi_min]), params=PP, inputs=inputs, omega=1.0,
                    points=c.points, links=c.links, variables=(), on_failure="mask")
     vals = np.asarray(c.fn(r)[0], dtype=float).reshape(2 * n)
-    return v_min, (vals[:n] - vals[n:]) / (2.0 * step)
+    up, down = vals[:n], vals[n:]
+    # a step that leaves what the parameter may be (a counterweight's static moment below 0 at
+    # its bound) has no margin: the one-sided difference on the other side
+    return v_min, np.where(np.isfinite(up) & np.isfinite(down), (up - down) / (2.0 * step),
+                           np.where(np.isfinite(up), (up - v_min) / step,
+                                    np.where(np.isfinite(down), (v_min - down) / step, 0.0)))
