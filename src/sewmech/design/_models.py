@@ -109,6 +109,16 @@ def check_limit(value: float | None, what: str = "a limit") -> float | None:
     return value
 
 
+def file_unit(unit: str) -> tuple[str, float]:
+    """A parameter's unit in problem and sweep files, as in machine files and ``--set``
+    (:data:`sewmech.engine.machine.FILE_UNITS`: deg, g, g cm) and the internal units per that
+    unit (rad per deg, kg per g, kg mm per g cm; 1 for mm and the rest)."""
+    from ..engine.machine import FILE_UNITS
+
+    shown, per_internal = FILE_UNITS.get(unit, (unit, 1.0))
+    return shown, 1.0 / per_internal
+
+
 def check_bounds(where: str, table: str, k: int, b: Bounds, machine, factor: float,
                  start: float | None = None) -> None:
     """A parameter's bounds (and a start, file units; ``factor`` turns them into internal

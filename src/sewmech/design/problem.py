@@ -64,6 +64,7 @@ from ._models import (
     check_bounds,
     check_limit,
     check_range,
+    file_unit,
     ref_key,
 )
 from .evaluate import (
@@ -220,8 +221,7 @@ def check_problem(spec: ProblemSpec, machine: Machine, where: str = "problem") -
                                    f"Did you mean {', '.join(near)}?" if near else
                                    f"`sewmech check {machine.name} --parameters` lists them")
         unit = machine.parameter_units[names.index(v.parameter)]
-        check_bounds(where, "variables", k, v, machine,
-                     math.pi / 180.0 if unit == "rad" else 1.0, v.start)
+        check_bounds(where, "variables", k, v, machine, file_unit(unit)[1], v.start)
     refs = [("objective.parts", k, p) for k, p in enumerate(spec.objective.parts)]
     refs += [("constraints", k, c) for k, c in enumerate(spec.constraints)]
     channels = None
@@ -373,9 +373,9 @@ class Problem:
         names = machine.parameter_names
         self.index = np.array([names.index(v.parameter) for v in spec.variables])
         units = [machine.parameter_units[j] for j in self.index]
-        #: internal units per file unit of each variable (deg -> rad)
-        self.factor = np.array([math.pi / 180.0 if u == "rad" else 1.0 for u in units])
-        self.units = tuple("deg" if u == "rad" else u for u in units)
+        #: internal units per file unit of each variable (deg -> rad, g -> kg, g cm -> kg mm)
+        self.factor = np.array([file_unit(u)[1] for u in units])
+        self.units = tuple(file_unit(u)[0] for u in units)
         self.lower = np.array([v.lower for v in spec.variables])
         self.upper = np.array([v.upper for v in spec.variables])
         defaults = np.asarray(machine.defaults)[self.index] / self.factor

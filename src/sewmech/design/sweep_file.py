@@ -63,6 +63,7 @@ from ._models import (
     Strict,
     check_bounds,
     check_limit,
+    file_unit,
 )
 
 DOC = "docs/sweeps.md"
@@ -167,9 +168,9 @@ class Sweep:
         names = machine.parameter_names
         self.index = [names.index(p.parameter) for p in spec.parameters]
         units = [machine.parameter_units[j] for j in self.index]
-        #: internal units per file unit of each parameter (deg -> rad)
-        self.factor = [math.pi / 180.0 if u == "rad" else 1.0 for u in units]
-        self.units = tuple("deg" if u == "rad" else u for u in units)
+        #: internal units per file unit of each parameter (deg -> rad, g -> kg, g cm -> kg mm)
+        self.factor = [file_unit(u)[1] for u in units]
+        self.units = tuple(file_unit(u)[0] for u in units)
         self.names = tuple(p.parameter for p in spec.parameters)
         #: the parameters' columns: angles in deg, named so (``regulator.phase_deg``)
         self.columns = tuple(f"{n}_deg" if u == "deg" else n
@@ -309,8 +310,7 @@ def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
                                    " given twice", "Give each parameter once")
         seen.add(p.parameter)
         unit = machine.parameter_units[names.index(p.parameter)]
-        check_bounds(where, "parameters", k, p, machine, math.pi / 180.0 if unit == "rad"
-                     else 1.0)
+        check_bounds(where, "parameters", k, p, machine, file_unit(unit)[1])
         grid = spec.sampling.method == "grid"
         if grid and p.points is None:
             raise MachineFileError(where, "parameters", f"{k}.points", "a grid needs points,"
