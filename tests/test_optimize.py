@@ -11,6 +11,8 @@ calling a wrong answer a success.
 - the offset of a slider-crank's guide for the least peak driving torque of a point-mass
   slider: a minimax optimum of a force metric, known by symmetry, its peak by a closed form
   (slsqp with the exact gradient of the force solve, the others by values);
+- the counterweight on that slider-crank's crank for the least peak shaking force: a convex
+  minimax on a force metric, its optimum by a ternary search of the closed form;
 - NSGA-II with an equality: its best feasible member beside its compromise."""
 
 from __future__ import annotations
@@ -258,6 +260,61 @@ def test_the_peak_torques_gradient_is_the_closed_forms():
         assert d[0] == pytest.approx(fd, rel=1e-6, abs=1e-12), e
 
 
+def closed_form_shaking(S_gcm: float, r=20.0, rod=60.0, e=6.0, mass=0.1, rpm=1000.0,
+                        step_deg=1.0) -> float:
+    """The largest |shaking force| (N) at the grid's angles of the offset slider-crank with a
+    point-mass slider and a counterweight of static moment S (g cm) opposite the crank pin,
+    without gravity: -(m x'' w^2 + S w^2 cos phi, S w^2 sin phi), x'' from the closed-form
+    motion (as closed_form_peak_torque)."""
+    phi = np.radians(np.arange(0.0, 360.0, step_deg))
+    s, c = np.sin(phi), np.cos(phi)
+    q = np.sqrt(rod * rod - (r * s - e) ** 2)
+    x2 = -r * c - ((r * c) ** 2 - (r * s - e) * r * s) / q - ((r * s - e) * r * c) ** 2 / q ** 3
+    w = rpm * math.pi / 30.0
+    S = S_gcm * 1e-2  # kg mm
+    return float(np.max(np.hypot(mass * x2 + S * c, S * s))) * w * w * 1e-3  # -> N
+
+
+def balance_optimum() -> float:
+    """The counterweight (g cm) of the least peak shaking force, independently: each angle's
+    force is the norm of a function affine in S, so the peak is convex in S; a ternary search
+    (exact for a convex function, to round-off) finds its minimum."""
+    a, b = 0.0, 300.0
+    for _ in range(200):
+        m1, m2 = a + (b - a) / 3.0, b - (b - a) / 3.0
+        if closed_form_shaking(m1) <= closed_form_shaking(m2):
+            b = m2
+        else:
+            a = m1
+    return 0.5 * (a + b)
+
+
+@pytest.mark.parametrize("method, tol", [("slsqp", 1e-6), ("de", 1e-6), ("golden", 1e-5),
+                                         ("powell", 1e-5), ("cyclic", 1e-5)])
+def test_a_counterweight_with_a_known_optimum(method, tol):
+    """examples/problems/slider-crank-balance.toml: the crank's counterweight for the least
+    peak shaking force of a point-mass slider. sewmech's peak equals the closed form's at three
+    counterweights; every method reaches the independent optimum (g cm, the file's unit) and
+    says success; the peak's exact gradient (the derivative of the force solve) equals the
+    closed form's on both sides of the kink."""
+    s_opt = balance_optimum()
+    spec, m = load_problem(PROBLEMS / "slider-crank-balance.toml")
+    p = Problem(spec, m)
+    assert p.units == ("g cm",)
+    for S in (0.0, 50.0, 180.0):
+        v, d = p.metric(spec.objective.parts[0], np.array([S]))
+        assert v == pytest.approx(closed_form_shaking(S), rel=1e-9)
+        h = 1e-4
+        fd = (closed_form_shaking(S + h) - closed_form_shaking(S - h)) / (2 * h)
+        assert d[0] == pytest.approx(fd, rel=1e-6)
+    assert 100.0 < s_opt < 200.0  # between none and the slider's first harmonic (m r)
+    r = optimize(p, method)
+    assert r.status == "success", r.message
+    assert r.x[0] == pytest.approx(s_opt, abs=tol * s_opt)
+    got = p.metric(spec.objective.parts[0], r.x)[0]
+    assert got == pytest.approx(closed_form_shaking(s_opt), rel=1e-8)
+
+
 TWO_PARTS = TA.read_text().replace(
     '[[constraints]]',
     '[[objective.parts]]\nmetric = "max:p_C_y"                          # the rocker pin\'s'
@@ -357,3 +414,22 @@ def test_the_page_draws_what_a_metric_over_the_turn_is_read_from(tmp_path, probl
     else:  # 1 deg samples of the located extremes (at the crank's dead centres)
         assert 90.0 - curve.min() == pytest.approx(answer, abs=1e-9)
     assert "data:image/png;base64" in (o / "index.html").read_text()
+
+
+def test_the_jb13_bearings_problem_is_solved_with_gradients():
+    """examples/problems/jb13-bearings.toml (the upper shaft's peak bearing reaction by the
+    take-up's dimensions and the needle crank's counterweight, under the take-up's
+    stitch-formation constraints): SLSQP with the exact gradients lowers the peak, meets every
+    constraint, and its answer passes the check with a KKT residual near 0; the page draws the
+    reactions over the turn."""
+    spec, m = load_problem(PROBLEMS / "jb13-bearings.toml")
+    p = Problem(spec, m)
+    assert p.units == ("mm", "mm", "mm", "g cm", "deg") and p.has_gradients
+    r = optimize(p, "slsqp")
+    assert r.status == "success", r.message
+    part = spec.objective.parts[0]
+    before, after = p.metric(part, p.start)[0], p.metric(part, r.x)[0]
+    assert after < before - 3.0  # N: 113.4 -> 110.2
+    assert all(c["satisfied"] for c in r.constraints.values())
+    assert r.check["kkt_residual"] < 1e-6
+    assert r.x[3] == pytest.approx(400.0)  # the counterweight at the most the arm carries

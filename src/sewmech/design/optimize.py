@@ -50,9 +50,11 @@ STATUSES = {
 #: max(1, |objective|)) for the answer to count as a local optimum
 CHECK_TOL = 1e-6
 #: the optimality check with exact derivatives: the KKT residual (:func:`kkt_residual`) may be
-#: at most this for the answer to count as a local optimum (a search that stopped where it
-#: started, its polish stopping there too, is caught by it)
-KKT_TOL = 1e-3
+#: at most this for the answer to count as a local optimum. It catches a search that stopped
+#: where it started, its polish stopping there too (0.94 on the JB1-3 bearings problem), not
+#: an answer within the objective's tolerance on a flat valley (cyclic search 0.01 mm along the
+#: transmission-angle problem's kink, where the objective is 1e-6 from its least: 1.7e-3)
+KKT_TOL = 5e-2
 #: how close (relative to max(1, |value|)) differential evolution and NSGA-II take an equality
 #: to be met: a population cannot hit a curve; their best member is then polished onto it
 POPULATION_EQUALITY_TOL = 1e-3
