@@ -10,9 +10,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sewmech.cli import app
 from typer.testing import CliRunner
 
-from sewmech.cli import app
 from sewmech.design._dynamic_metrics import ForceMetrics
 from sewmech.design._models import MetricRef
 from sewmech.design.evaluate import metric_value
