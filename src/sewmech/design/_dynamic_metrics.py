@@ -240,12 +240,13 @@ def _sensitivities(machine: Machine, settings, P: np.ndarray, inputs):
     P = np.asarray(P, dtype=float)
     key = (rpm, step, gravity, P.tobytes(),
            None if inputs is None else tuple(sorted(inputs.items())))
-    if _LAST.get("machine") is not machine or _LAST.get("key") != key:
-        _LAST.clear()
-        _LAST["value"] = dynamics_sensitivities(machine, _grid(step), params=P, inputs=inputs,
-                                                rpm=rpm, gravity=gravity)
-        _LAST["machine"], _LAST["key"] = machine, key
-    return _LAST["value"]
+    entry = _LAST.get("entry")  # (one read and one write: no other thread's half-made entry)
+    if entry is not None and entry[0] is machine and entry[1] == key:
+        return entry[2]
+    value = dynamics_sensitivities(machine, _grid(step), params=P, inputs=inputs, rpm=rpm,
+                                   gravity=gravity)
+    _LAST["entry"] = (machine, key, value)
+    return value
 
 
 def _norm_d(v: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
