@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import math
 
-from pydantic import BaseModel, ConfigDict, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from ..engine.errors import MachineFileError
+from ..engine.kinematics import MIN_RPM
 from ..engine.spec import ValueHint
 
 #: the largest magnitude of a metric's value in a design file (a target, a constraint's or an
@@ -79,11 +80,14 @@ class Bounds(Strict):
 
 
 class MetricRef(Strict):
-    """A metric, at a regulator setting (deg) where it reads one, or a channel at phi_deg."""
+    """A metric, at a regulator setting (deg) where it reads one, or a channel at phi_deg or at
+    an event (``at``: ``max:CHANNEL``, ``min:CHANNEL``, ``rising:CHANNEL=LEVEL``,
+    ``falling:CHANNEL=LEVEL``; a crossing the first at or after phi_deg)."""
 
     metric: str
     regulator_deg: float | None = None
     phi_deg: float = 0.0
+    at: str | None = Field(None, min_length=1, max_length=200)
 
     @field_validator("regulator_deg")
     @classmethod
@@ -105,6 +109,16 @@ def check_limit(value: float | None, what: str = "a limit") -> float | None:
     return value
 
 
+def file_unit(unit: str) -> tuple[str, float]:
+    """A parameter's unit in problem and sweep files, as in machine files and ``--set``
+    (:data:`sewmech.engine.machine.FILE_UNITS`: deg, g, g cm) and the internal units per that
+    unit (rad per deg, kg per g, kg mm per g cm; 1 for mm and the rest)."""
+    from ..engine.machine import FILE_UNITS
+
+    shown, per_internal = FILE_UNITS.get(unit, (unit, 1.0))
+    return shown, 1.0 / per_internal
+
+
 def check_bounds(where: str, table: str, k: int, b: Bounds, machine, factor: float,
                  start: float | None = None) -> None:
     """A parameter's bounds (and a start, file units; ``factor`` turns them into internal
@@ -124,3 +138,20 @@ def check_bounds(where: str, table: str, k: int, b: Bounds, machine, factor: flo
         if not lo <= x <= hi:
             what, hint = domain_message(b.parameter, x, unit, lo, hi, file_units=True)
             raise MachineFileError(where, table, f"{k}.{key}", f"{b.parameter} {what}", hint)
+
+
+class DynamicsTable(Strict):
+    """A ``[dynamics]`` table (problem and sweep files): the force analysis' speed (rev/min;
+    default the machine file's), its grid of shaft angles (deg, dividing 360) and gravity."""
+
+    rpm: float | None = Field(None, ge=MIN_RPM, le=20_000.0)
+    step_deg: float = Field(2.0, ge=0.1, le=30.0)
+    gravity: bool = True
+
+
+def ref_key(ref) -> tuple:
+    """The key of a metric reference in the evaluations' tables: (metric, regulator_deg,
+    phi_deg), and the event where one is given."""
+    key = (ref.metric, ref.regulator_deg, ref.phi_deg)
+    at = getattr(ref, "at", None)
+    return key if at is None else key + (at,)

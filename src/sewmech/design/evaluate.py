@@ -16,6 +16,7 @@ import numpy as np
 from ..engine.errors import OptionError, SewmechError
 from ..engine.machine import Machine
 from ..sewing.thread_gradients import THREAD_FIGURES, thread_gradient
+from ._models import ref_key
 
 #: how far (mm) every closed-form unit must stay from failing to assemble at the grid angles of
 #: the searches' assembly check: a margin m(phi) that clears this at 1 deg steps cannot fall
@@ -92,10 +93,15 @@ THREAD_METRICS = THREAD_FIGURES
 def _channel_inputs(machine: Machine, ref) -> dict | None:
     """The setting inputs (rad) a channel or range metric is read at: the stitch regulator at
     ``ref.regulator_deg`` where given, else the machine's working setting (None)."""
+    return _regulator_inputs(machine, ref.regulator_deg)
+
+
+def _regulator_inputs(machine: Machine, regulator_deg: float | None) -> dict | None:
+    """The stitch regulator at ``regulator_deg`` (rad), or None (the working setting)."""
     s = machine.spec.sewing
-    if ref.regulator_deg is None or s is None or s.regulator is None:
+    if regulator_deg is None or s is None or s.regulator is None:
         return None
-    return {s.regulator: math.radians(ref.regulator_deg)}
+    return {s.regulator: math.radians(regulator_deg)}
 
 
 #: the prefixes of the channels of rates and accelerations (their derivatives need the
@@ -103,16 +109,22 @@ def _channel_inputs(machine: Machine, ref) -> dict | None:
 RATE_PREFIXES = ("v", "a", "omega", "epsilon", "qd", "qdd")
 
 
-def _metric(machine: Machine, ref, P: np.ndarray) -> tuple[float, np.ndarray | None]:
-    """A metric's value and its derivative by every parameter (None for a value-only metric),
-    for the design P; ``ref`` names it (``metric``, ``regulator_deg``, ``phi_deg``, as a
-    problem file's :class:`~sewmech.design.problem.MetricRef`)."""
+def metric_value(machine: Machine, ref, P: np.ndarray, *, forces=None):
+    """A metric of the design P with its derivative by every parameter where sewmech has it
+    (:class:`~sewmech.design.metrics.MetricValue`: ``d`` None for a value-only metric; a
+    max- or min-type metric with its pieces); ``ref`` names it (``metric``, ``regulator_deg``,
+    ``phi_deg``, ``at``, as a problem file's :class:`~sewmech.design.problem.MetricRef`);
+    ``forces``: the force analysis prepared for the force metrics
+    (:class:`~sewmech.design._dynamic_metrics.ForceMetrics`; default the file's speed, 2 deg,
+    gravity). Raises SewmechError where the design cannot be evaluated."""
     from ..sewing.gradients import METRICS
+    from . import metrics as km
+    from ._dynamic_metrics import ForceMetrics, is_dynamic
 
     name = ref.metric
     if name in THREAD_METRICS:
         g = thread_gradient(machine, name, params=P)
-        return g.value, g.d_dparam
+        return km.MetricValue(g.value, g.d_dparam)
     if name in METRICS:
         feed = name in ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
         reg = ref.regulator_deg
@@ -122,63 +134,85 @@ def _metric(machine: Machine, ref, P: np.ndarray) -> tuple[float, np.ndarray | N
                 raise OptionError("metric", f"{name} needs a machine with a stitch regulator")
             reg = machine.spec.inputs[s.regulator].default_deg
         g = METRICS[name](machine, reg, params=P)
-        return g.value, g.d_dparam
+        return km.MetricValue(g.value, g.d_dparam)
+    inputs = _channel_inputs(machine, ref)
+    if is_dynamic(name):
+        return (forces or ForceMetrics(machine)).value(name, P, inputs)
+    if km.is_kinematic_family(name):
+        return km.metric_value(machine, name, P, inputs)
+    if getattr(ref, "at", None):
+        return km.event_value(machine, name, ref.at, P, inputs, math.radians(ref.phi_deg))
     from ..engine.sensitivity import sensitivities
 
-    if name.startswith("range:"):
-        from ..engine.extremes import extremes
-
-        channel = name.split(":", 1)[1]
-        inputs = _channel_inputs(machine, ref)
-        ex = extremes(machine, channel, params=P, inputs=inputs)
-        phi = np.array([ex.maximum.phi, ex.minimum.phi])
-        S = sensitivities(machine, phi, params=P, inputs=inputs, outputs=[channel])
-        v, d, _ = S.channel(channel)
-        return float(v[0] - v[1]), d[0] - d[1]
     try:  # (a rate or an acceleration at the file's speed, as the batches read them)
-        S = sensitivities(machine, np.radians([ref.phi_deg]), params=P,
-                          inputs=_channel_inputs(machine, ref), outputs=[name],
-                          rates=name.split("_")[0] in RATE_PREFIXES)
+        S = sensitivities(machine, np.radians([ref.phi_deg]), params=P, inputs=inputs,
+                          outputs=[name], rates=name.split("_")[0] in RATE_PREFIXES)
         v, d, _ = S.channel(name)
     except KeyError as exc:
         raise OptionError("metric", exc.args[0]) from None
-    return float(v[0]), d[0]
+    return km.MetricValue(float(v[0]), d[0])
 
 
-def _channel_rates(channel: str) -> tuple[str, str]:
-    """The rate and acceleration channels of a position channel (for locating its extremes)."""
-    kind, _, rest = channel.partition("_")
-    pairs = {"p": ("v", "a"), "theta": ("omega", "epsilon"), "q": ("qd", "qdd")}
-    if kind not in pairs:
-        raise OptionError("metric", f"range:{channel}: a range is of a position channel"
-                          " (p_POINT_x, theta_LINK, q_VAR)")
-    return f"{pairs[kind][0]}_{rest}", f"{pairs[kind][1]}_{rest}"
+def _metric(machine: Machine, ref, P: np.ndarray) -> tuple[float, np.ndarray | None]:
+    """:func:`metric_value` as (value, derivative by every parameter or None)."""
+    mv = metric_value(machine, ref, P)
+    return mv.value, mv.d
 
 
-def metric_batch(machine: Machine, refs, P: np.ndarray, ok: np.ndarray | None = None
-                 ) -> tuple[dict, np.ndarray]:
-    """The metrics ``refs`` (each with ``metric``, ``regulator_deg``, ``phi_deg``: a sewing
-    metric, a thread metric, ``range:CHANNEL`` or a channel at ``phi_deg``) for the batch of
-    designs P (m, n_parameters; internal units), values only, and which designs assemble over
-    the whole turn (:func:`assembles_batch`, unless given as ``ok``): ({(metric,
-    regulator_deg, phi_deg): values (m,)}, (m,) bool). Values of designs that do not assemble
-    are NaN."""
-    from ..engine._events import extreme_rows
+def metric_batch(machine: Machine, refs, P: np.ndarray, ok: np.ndarray | None = None, *,
+                 forces=None, pieces: dict | None = None) -> tuple[dict, np.ndarray]:
+    """The metrics ``refs`` (each with ``metric``, ``regulator_deg``, ``phi_deg`` and ``at``:
+    a sewing metric, a thread metric, a metric of :mod:`sewmech.design.metrics` or of the force
+    analysis, or a channel at ``phi_deg`` or at an event) for the batch of designs P (m,
+    n_parameters; internal units), values only, and which designs assemble over the whole turn
+    (:func:`assembles_batch`, unless given as ``ok``): ({:func:`ref_key`: values (m,)}, (m,)
+    bool). Values of designs that do not assemble are NaN. ``forces``: as for
+    :func:`metric_value`. ``pieces`` (a dict) receives, per key of a max- or min-type metric,
+    each design's pieces (a list of arrays)."""
     from ..engine.kinematics import kinematics
     from ..sewing.gradients import METRICS, metric_values
+    from . import metrics as km
+    from ._dynamic_metrics import ForceMetrics, is_dynamic
 
     m = machine
     P = np.atleast_2d(np.asarray(P, dtype=float))
-    phi = np.radians(np.arange(360.0))
     if ok is None:
         ok = assembles_batch(m, P)
     out = {}
+    dynamic = [ref for ref in refs if is_dynamic(ref.metric)]
+    if dynamic:  # one force analysis per regulator setting
+        forces = forces or ForceMetrics(m)
+        rows = np.nonzero(ok)[0]
+        for reg in {ref.regulator_deg for ref in dynamic}:
+            names = sorted({ref.metric for ref in dynamic if ref.regulator_deg == reg})
+            got: dict = {}
+            vals = forces.values(names, P[rows], _regulator_inputs(m, reg),
+                                 got if pieces is not None else None)
+            for name in names:
+                key = ref_key(next(r for r in dynamic if r.metric == name
+                                   and r.regulator_deg == reg))
+                full = np.full(len(P), np.nan)
+                full[rows] = vals[name]
+                out[key] = full
+                if pieces is not None:
+                    per = [np.zeros(0)] * len(P)
+                    for j, k in enumerate(rows):
+                        per[k] = got[name][j]
+                    pieces[key] = per
     for ref in refs:
-        key = (ref.metric, ref.regulator_deg, ref.phi_deg)
+        key = ref_key(ref)
         if key in out:
             continue
         name = ref.metric
-        if name in THREAD_METRICS:  # (one design at a time: the thread balance has no batch)
+        if km.is_kinematic_family(name):
+            got_p: list = []
+            vals = km.metric_batch_values(m, name, P, _channel_inputs(m, ref), got_p)
+            if pieces is not None:
+                pieces[key] = got_p
+        elif getattr(ref, "at", None):
+            vals = km.event_batch(m, name, ref.at, P, _channel_inputs(m, ref),
+                                  math.radians(ref.phi_deg))
+        elif name in THREAD_METRICS:  # (one design at a time: the thread balance has no batch)
             from ..sewing.thread import thread_balance
 
             vals = np.full(len(P), np.nan)
@@ -192,16 +226,6 @@ def metric_batch(machine: Machine, refs, P: np.ndarray, ok: np.ndarray | None = 
             if reg is None and m.spec.sewing is not None and m.spec.sewing.regulator:
                 reg = m.spec.inputs[m.spec.sewing.regulator].default_deg
             vals = metric_values(m, name, reg, P)
-        elif name.startswith("range:"):
-            channel = name.split(":", 1)[1]
-            rate, acc = _channel_rates(channel)
-            k = kinematics(m, phi, params=P, inputs=_channel_inputs(m, ref), omega=1.0,
-                           on_failure="mask")
-            V, S, C = (k.channel(c)[0].reshape(len(P), len(phi)) for c in (channel, rate, acc))
-            if channel.startswith("theta_"):
-                V = np.unwrap(V, axis=1)
-            h = 2.0 * math.pi / len(phi)
-            vals = extreme_rows(V, S, C, h, +1)[1] - extreme_rows(V, S, C, h, -1)[1]
         else:
             k = kinematics(m, np.radians([ref.phi_deg]), params=P,
                            inputs=_channel_inputs(m, ref), on_failure="mask")

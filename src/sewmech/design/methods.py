@@ -160,16 +160,21 @@ def cyclic_coordinate(f: Callable[[np.ndarray], float], x0: ArrayLike, *,
 
 
 def powell(f: Callable[[np.ndarray], float], x0: ArrayLike, *, step: float | ArrayLike = 0.1,
-           tol: float = 1e-8, maxiter: int = 500) -> OptimizeResult:
-    """Powell's conjugate directions: line searches along n directions (at first the axes); the
-    round's total move becomes a new direction in place of the one that helped most, unless
-    that would make the set degenerate (Powell's test), so that on a quadratic the directions
-    become conjugate and n rounds reach the minimum."""
+           tol: float = 1e-8, maxiter: int = 500, directions: ArrayLike | None = None
+           ) -> OptimizeResult:
+    """Powell's conjugate directions: line searches along n directions (at first the axes),
+    then along the round's total move, which becomes a new direction in place of the one that
+    helped most unless that would make the set degenerate (Powell's test), so that on a
+    quadratic the directions become conjugate and n rounds reach the minimum. A round is judged
+    (the change of f below ``tol``, relative with an absolute floor, and the move below 1000
+    ``tol`` per unit of ``step``) after the search along its move. ``directions`` (n, n rows)
+    starts from a set of an earlier search (the result's ``directions``) instead of the
+    axes."""
     g, calls = _counted(f)
     x = np.array(x0, dtype=float)
     n = x.size
     scale = np.broadcast_to(np.asarray(step, dtype=float), x.shape).copy()
-    D = np.diag(scale)  # directions as rows, each one step long
+    D = np.diag(scale) if directions is None else np.array(directions, dtype=float)
     fx = g(x)
     history, status, it = [fx], 1, 0
     for it in range(1, maxiter + 1):
@@ -182,85 +187,229 @@ def powell(f: Callable[[np.ndarray], float], x0: ArrayLike, *, step: float | Arr
             if ft < fx:
                 x = x + t * D[k]
                 fx = ft
+        move = x - x_start
+        if np.any(move != 0.0):
+            f_round = fx
+            f_ext = g(x + move)  # the point one round further
+            # the round's whole move is searched along before the round is judged: in a
+            # narrow valley at an angle to the directions (an interior penalty's barrier, an
+            # epigraph's kink) each direction gains almost nothing and the move is the valley
+            t, ft, _ = line_minimum(g, x, move, 1.0, tol)
+            if ft < fx:
+                x = x + t * move
+                fx = ft
+            # Powell's test: the move replaces the direction that helped most only if the
+            # extrapolated point is better and the drop along the move is not dominated by
+            # that direction's (else the set would become degenerate)
+            if f_ext < f_start and 2.0 * (f_start - 2.0 * f_round + f_ext) * (
+                    (f_start - f_round - best_drop) ** 2) < best_drop * (f_start - f_ext) ** 2:
+                D = np.vstack([np.delete(D, best_k, axis=0), move])
         history.append(fx)
         if f_start - fx <= tol * max(abs(fx), 1.0) and np.all(
                 np.abs(x - x_start) <= tol * 1e3 * np.maximum(scale, 1e-300)):
             status = 0
             break
-        move = x - x_start
-        f_ext = g(x + move)  # the point one round further
-        # Powell's test: replace only if the extrapolated point is better and the drop along
-        # the new direction is not dominated by the one direction that helped most
-        if f_ext < f_start and 2.0 * (f_start - 2.0 * fx + f_ext) * (
-                (f_start - fx - best_drop) ** 2) < best_drop * (f_start - f_ext) ** 2:
-            t, ft, _ = line_minimum(g, x, move, 1.0, tol)
-            if ft < fx:
-                x = x + t * move
-                fx = ft
-            D = np.vstack([np.delete(D, best_k, axis=0), move])
     return _result(x=x, fun=fx, nfev=calls[0], nit=it, status=status,
                           success=status == 0,
                           message="converged" if status == 0 else "maximum rounds reached",
-                          history=history)
+                          history=history, directions=D)
+
+
+def epigraph_value(q: np.ndarray, r: float) -> tuple[float, float]:
+    """The epigraph variable t of max_i q_i under the interior penalty: t minimises
+    t + r sum_i 1 / (t - q_i) over t > max q (one-dimensional and convex: Newton's method from
+    max q + sqrt(r), where r sum 1 / (t - q)^2 >= 1, climbs to the root without overshooting).
+    Returns (t, t + r sum 1 / (t - q)), the group's part of the penalty function; as r -> 0
+    both tend to max q."""
+    q = np.asarray(q, dtype=float)
+    if q.size == 0:
+        return -math.inf, 0.0
+    if not np.all(np.isfinite(q)):
+        return math.inf, math.inf
+    top = float(q.max())
+    if r <= 0.0:
+        return top, top
+    t = top + max(math.sqrt(r), 4.0 * np.finfo(float).eps * max(abs(top), 1.0))
+    for _ in range(200):
+        u = t - q
+        g = r * float(np.sum(u ** -2)) - 1.0
+        dg = -2.0 * r * float(np.sum(u ** -3))
+        step = -g / dg
+        nxt = t + step if t + step > top else 0.5 * (t + top)  # (never onto a q_i)
+        if nxt == t or abs(nxt - t) <= 1e-15 * max(abs(t), 1.0):
+            break
+        t = nxt
+    return t, t + r * float(np.sum(1.0 / (t - q)))
 
 
 def interior_penalty(f: Callable[[np.ndarray], float],
                      constraints: Callable[[np.ndarray], ArrayLike], x0: ArrayLike, *,
                      method: str = "powell", r0: float | None = None, c: float = 0.1,
-                     tol: float = 1e-7, max_outer: int = 30, step: float | ArrayLike = 0.1
-                     ) -> OptimizeResult:
-    """Minimise f subject to g(x) >= 0 (every component) by the interior penalty function:
-    minimise phi(x, r) = f(x) + r sum_j 1 / g_j(x) from a strictly feasible start, for
-    r = r0, c r0, c^2 r0, ... (each minimisation by ``method``: "powell" or "cyclic", started
-    where the last ended); outside the feasible region phi is infinite, so no search leaves it.
-    Stops when r sum 1/g_j and the change of f are below ``tol`` (relative). ``constraints``
-    returns the vector g(x); the result adds ``constr`` (g at the answer) and ``r`` (the last
-    penalty factor)."""
+                     tol: float = 1e-7, max_outer: int = 30, step: float | ArrayLike = 0.1,
+                     equalities: Callable[[np.ndarray], ArrayLike] | None = None,
+                     epigraph: Callable[[np.ndarray], Sequence[ArrayLike]] | None = None,
+                     equality_tol: float = 1e-6, phase_one: bool = False) -> OptimizeResult:
+    """Minimise f(x) + sum_j max_i q_ji(x) subject to g(x) >= 0 (every component) and
+    h(x) = 0 by the sequential unconstrained minimisation technique (SUMT) of the report's era:
+    the mixed interior-exterior penalty function
+
+        phi(x, r) = f(x) + sum_j T_j(x, r) + r sum_k 1 / g_k(x) + r^(-1/2) sum_l h_l(x)^2,
+
+    minimised for r = r0, c r0, c^2 r0, ... (each by ``method``: "powell" or "cyclic", started
+    where the last ended, after a line search along the last step: the extrapolation along the
+    sequence of answers; Powell keeps its directions from one to the next). Outside g > 0 phi
+    is infinite, so no search leaves the region; the
+    equalities are pulled in from outside as r^(-1/2) grows. A max-type objective enters in its
+    epigraph form: one more variable t_j per group with q_ji(x) <= t_j, barred as the
+    constraints are, t_j + r sum_i 1 / (t_j - q_ji(x)); its own coordinate is minimised exactly
+    at every x (:func:`epigraph_value`, ``T_j``), so the searches move on a smooth function
+    where the maximum itself has a kink on which cyclic search and Powell stall.
+
+    ``constraints`` returns the vector g(x), ``equalities`` h(x) (default none), ``epigraph``
+    the groups [q_1(x), q_2(x), ...] (default none). A start that is not strictly inside
+    g > 0 is refused unless ``phase_one``: then a first phase minimises the worst violation
+    max_k -g_k(x) the same way (its epigraph form) until every g_k > 0, and the second starts
+    there. Stops when the penalty terms, the change of the objective and the largest |h| are
+    below ``tol`` (relative to the objective; |h| below ``equality_tol``). The result adds
+    ``constr`` (g at the answer), ``eq`` (h), ``t`` (the epigraph variables), ``r`` (the last
+    penalty factor) and ``phase_one`` (the first phase's result, or None)."""
     if method not in ("powell", "cyclic"):
         raise ValueError(f"interior_penalty: method must be 'powell' or 'cyclic', got {method!r}")
     x = np.array(x0, dtype=float)
-    g0 = np.atleast_1d(np.asarray(constraints(x), dtype=float))
+
+    def g_of(xx):
+        return np.atleast_1d(np.asarray(constraints(xx), dtype=float))
+
+    def h_of(xx):
+        return np.zeros(0) if equalities is None else \
+            np.atleast_1d(np.asarray(equalities(xx), dtype=float))
+
+    def groups_of(xx):
+        return [] if epigraph is None else [np.atleast_1d(np.asarray(q, dtype=float))
+                                            for q in epigraph(xx)]
+
+    g0 = g_of(x)
+    first = None
     if not np.all(g0 > 0):
         bad = int(np.argmin(g0))
-        raise ValueError(f"interior_penalty: the start is not strictly feasible (constraint"
-                         f" {bad} = {g0[bad]:g}); start inside every constraint")
+        if not phase_one:
+            raise ValueError(f"interior_penalty: the start is not strictly feasible (constraint"
+                             f" {bad} = {g0[bad]:g}); start inside every constraint")
+        first = _phase_one(g_of, x, method=method, tol=tol, max_outer=max_outer, step=step)
+        if not np.all(g_of(first.x) > 0):
+            return _result(x=first.x, fun=math.inf, nfev=first.nfev, nit=0, status=2,
+                           success=False, message="the first phase found no design strictly"
+                           f" inside every constraint (the worst violation is {first.fun:.3g})",
+                           history=[], constr=g_of(first.x), eq=h_of(first.x), t=[], r=0.0,
+                           phase_one=first)
+        x = np.array(first.x, dtype=float)
     fcalls = [0]
 
+    def objective(xx):  # the problem's own: f + sum of the groups' maxima
+        return float(f(xx)) + sum(float(q.max()) for q in groups_of(xx) if q.size)
+
     def barrier(xx):
-        return float(np.sum(1.0 / np.atleast_1d(np.asarray(constraints(xx), dtype=float))))
+        return float(np.sum(1.0 / g_of(xx)))
 
     def phi_of(r):
         def phi(xx):
-            gg = np.atleast_1d(np.asarray(constraints(xx), dtype=float))
+            gg = g_of(xx)
             if not np.all(gg > 0):
                 return math.inf
             fcalls[0] += 1
-            return float(f(xx)) + r * float(np.sum(1.0 / gg))
+            total = float(f(xx)) + r * float(np.sum(1.0 / gg))
+            for q in groups_of(xx):
+                total += epigraph_value(q, r)[1]
+            hh = h_of(xx)
+            if hh.size:
+                total += float(np.sum(hh * hh)) / math.sqrt(r)
+            return total
         return phi
 
-    f_x = float(f(x))
-    r = r0 if r0 is not None else max(abs(f_x), 1.0) / max(barrier(x), 1e-300) * 0.1
-    inner = powell if method == "powell" else cyclic_coordinate
+    f_x = objective(x)
+    if r0 is None:
+        r0 = max(abs(f_x), 1.0) / max(barrier(x), 1e-300) * 0.1 if g0.size else \
+            max(abs(f_x), 1.0) * 0.1
+    r = r0
     history, status, k = [f_x], 1, 0
+    directions, last = None, None
     for k in range(1, max_outer + 1):
-        res = inner(phi_of(r), x, step=step, tol=tol * 0.1)
+        phi = phi_of(r)
+        if last is not None and np.any(x != last):
+            # the extrapolation of the penalty methods: the answers x(r) of the sequence run
+            # toward the optimum, so the next one is searched for along the last step first
+            # (in a valley of the kink or the barrier no single direction of the inner search
+            # follows them)
+            t, _, _ = line_minimum(phi, x, x - last, 1.0, tol * 0.1)
+            x_from = x + t * (x - last)
+        else:
+            x_from = x
+        last = x
+        if method == "powell":  # (its directions carried from one minimisation to the next)
+            res = powell(phi, x_from, step=step, tol=tol * 0.1, directions=directions)
+            directions = res.directions
+        else:
+            res = cyclic_coordinate(phi, x_from, step=step, tol=tol * 0.1)
         x = res.x
-        f_new = float(f(x))
-        pen = r * barrier(x)
+        f_new = objective(x)
+        gg = g_of(x)
+        pen = r * float(np.sum(1.0 / gg)) if gg.size else 0.0
+        pen += sum(epigraph_value(q, r)[1] - float(q.max()) for q in groups_of(x) if q.size)
+        hh = h_of(x)
         history.append(f_new)
-        done = pen <= tol * max(abs(f_new), 1.0) and abs(f_new - f_x) <= tol * max(
-            abs(f_new), 1.0)
+        size = max(abs(f_new), 1.0)
+        done = (pen <= tol * size and abs(f_new - f_x) <= tol * size
+                and (hh.size == 0 or float(np.max(np.abs(hh))) <= equality_tol))
         f_x = f_new
         if done:
             status = 0
             break
         r *= c
-    gx = np.atleast_1d(np.asarray(constraints(x), dtype=float))
-    return _result(x=x, fun=f_x, nfev=fcalls[0], nit=k, status=status,
-                          success=status == 0 and bool(np.all(gx >= 0)),
-                          message=("converged" if status == 0 else "maximum outer iterations"
-                                   " reached") + f" ({method} inside, last r = {r:.3g})",
-                          history=history, constr=gx, r=r)
+    gx = g_of(x)
+    hx = h_of(x)
+    ts = [epigraph_value(q, r)[0] for q in groups_of(x)]
+    met = bool(np.all(gx >= 0)) and (hx.size == 0 or float(np.max(np.abs(hx))) <= equality_tol)
+    return _result(x=x, fun=f_x, nfev=fcalls[0] + (first.nfev if first else 0), nit=k,
+                   status=status, success=status == 0 and met,
+                   message=("converged" if status == 0 else "maximum outer iterations"
+                            " reached") + f" ({method} inside, last r = {r:.3g})",
+                   history=history, constr=gx, eq=hx, t=ts, r=r, phase_one=first)
+
+
+#: how far inside every constraint (in the constraints' units) the first phase looks for a start
+PHASE_ONE_DEPTH = 0.01
+
+
+def _phase_one(g_of, x0: np.ndarray, *, method: str, tol: float, max_outer: int, step
+               ) -> OptimizeResult:
+    """The first phase: minimise the worst violation max_k -g_k(x) (its epigraph form, no
+    constraints) until a design strictly inside every constraint is found: at least
+    :data:`PHASE_ONE_DEPTH` inside each, where the phase's objective stops falling (each
+    violation is taken no lower than that floor). ``fun`` is the worst violation at the answer (< 0: strictly
+    inside)."""
+    inner = powell if method == "powell" else cyclic_coordinate
+    x = np.array(x0, dtype=float)
+    calls = [0]
+
+    def phi_of(r):
+        def phi(xx):
+            calls[0] += 1
+            return epigraph_value(np.maximum(-g_of(xx), -PHASE_ONE_DEPTH), r)[1]
+        return phi
+
+    worst = float(np.max(-g_of(x)))
+    r = max(abs(worst), 1.0) * 0.1
+    k = 0
+    for k in range(1, max_outer + 1):
+        x = inner(phi_of(r), x, step=step, tol=tol * 0.1).x
+        worst = float(np.max(-g_of(x)))
+        if worst < 0:
+            break
+        r *= 0.1
+    return _result(x=x, fun=worst, nfev=calls[0], nit=k, status=0 if worst < 0 else 1,
+                   success=worst < 0, message="a design strictly inside every constraint"
+                   if worst < 0 else "no design strictly inside every constraint found",
+                   history=[])
 
 
 def weighted_sum(objectives: Sequence[Callable[[np.ndarray], float]], weights: ArrayLike,
@@ -275,7 +424,7 @@ def weighted_sum(objectives: Sequence[Callable[[np.ndarray], float]], weights: A
         raise ValueError(f"weighted_sum: {len(scale)} objectives and {w.size} weights")
 
     def total(x):
-        return float(sum(wi * fi(x) / si for wi, fi, si in zip(w, objectives, scale)))
+        return float(sum(wi * fi(x) / si for wi, fi, si in zip(w, objectives, scale, strict=True)))
 
     return total
 
@@ -292,6 +441,6 @@ def weighted_uniform(objectives: Sequence[Callable[[np.ndarray], float]], weight
 
     def worst(x):
         return float(max(wi * abs(fi(x) - ti) / si
-                         for wi, fi, ti, si in zip(w, objectives, t, s)))
+                         for wi, fi, ti, si in zip(w, objectives, t, s, strict=True)))
 
     return worst

@@ -41,6 +41,7 @@ solves a problem.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
@@ -56,18 +57,21 @@ from ._models import (
     SCALE_RANGE,
     VALUE_LIMIT,
     Bounds,
+    DynamicsTable,
     Header,
     MetricRef,
     Strict,
     check_bounds,
     check_limit,
     check_range,
+    file_unit,
+    ref_key,
 )
 from .evaluate import (
-    _metric,
     _setting_extremes,
     assembles_batch,
     metric_batch,
+    metric_value,
 )
 
 
@@ -139,20 +143,42 @@ class Objective(Strict):
 class Constraint(MetricRef):
     min: float | None = None
     max: float | None = None
+    equals: float | None = None
 
-    @field_validator("min", "max")
+    @field_validator("min", "max", "equals")
     @classmethod
     def _limit(cls, v):
         return check_limit(v)
 
     @model_validator(mode="after")
     def _bound(self):
+        if self.equals is not None:
+            if self.min is not None or self.max is not None:
+                raise ValueHint("give equals, or min and/or max, not both", "An equality is"
+                                " equals = VALUE (or min = max = VALUE)")
+            return self
         if self.min is None and self.max is None:
-            raise ValueError("give min, max or both")
+            raise ValueError("give min, max, both, or equals")
         if self.min is not None and self.max is not None and self.min > self.max:
             raise ValueHint(f"need min <= max, got {self.min:g} .. {self.max:g}: no design"
                             " could meet it", "Swap them, or give the bound you meant")
         return self
+
+    @property
+    def equality(self) -> float | None:
+        """The value of an equality (``equals``, or min = max), else None."""
+        if self.equals is not None:
+            return self.equals
+        if self.min is not None and self.min == self.max:
+            return self.min
+        return None
+
+    @property
+    def bounds(self) -> list[tuple[str, float]]:
+        """("min", b) and ("max", b) for each bound (an equality both at its value)."""
+        lo = self.equals if self.equals is not None else self.min
+        hi = self.equals if self.equals is not None else self.max
+        return [(k, b) for k, b in (("min", lo), ("max", hi)) if b is not None]
 
 
 class ProblemSpec(Strict):
@@ -160,6 +186,7 @@ class ProblemSpec(Strict):
     variables: list[Variable] = Field(min_length=1)
     objective: Objective
     constraints: list[Constraint] = Field(default_factory=list)
+    dynamics: DynamicsTable | None = None
 
 
 def load_problem(path: str | Path) -> tuple[ProblemSpec, Machine]:
@@ -194,13 +221,17 @@ def check_problem(spec: ProblemSpec, machine: Machine, where: str = "problem") -
                                    f"Did you mean {', '.join(near)}?" if near else
                                    f"`sewmech check {machine.name} --parameters` lists them")
         unit = machine.parameter_units[names.index(v.parameter)]
-        check_bounds(where, "variables", k, v, machine,
-                     math.pi / 180.0 if unit == "rad" else 1.0, v.start)
+        check_bounds(where, "variables", k, v, machine, file_unit(unit)[1], v.start)
     refs = [("objective.parts", k, p) for k, p in enumerate(spec.objective.parts)]
     refs += [("constraints", k, c) for k, c in enumerate(spec.constraints)]
     channels = None
     for table, k, ref in refs:
         channels = _check_metric(where, table, k, ref, machine, channels)
+    if spec.dynamics is not None:
+        n = round(360.0 / spec.dynamics.step_deg)
+        if not math.isclose(n * spec.dynamics.step_deg, 360.0, rel_tol=1e-9):
+            raise MachineFileError(where, "dynamics", "step_deg", f"{spec.dynamics.step_deg:g}"
+                                   " deg does not divide 360", "Give a step such as 1, 2 or 5")
 
 
 #: how each form of objective is made dimensionless from its parts' values f (their own units):
@@ -218,11 +249,18 @@ def metric_unit(machine: Machine, name: str) -> str:
     metrics, a channel's own unit: rad for link angles)."""
     from ..engine.kinematics import kinematics
     from ..sewing.gradients import METRICS
+    from . import metrics as km
+    from ._dynamic_metrics import is_dynamic
+    from ._dynamic_metrics import unit_of as dynamic_unit
     from .evaluate import THREAD_METRICS
 
     if name in METRICS or name in THREAD_METRICS:
         return "deg" if name.endswith("_deg") else "mm"
-    channel = name.split(":", 1)[1] if name.startswith("range:") else name
+    if is_dynamic(name):
+        return dynamic_unit(name)
+    if km.is_kinematic_family(name):
+        return km.unit_of(machine, name)
+    channel = name
     try:
         return kinematics(machine, [0.0], on_failure="mask").channel(channel)[1]
     except KeyError:
@@ -279,12 +317,31 @@ def _check_metric(where: str, table: str, k: int, ref: MetricRef, machine: Machi
             raise MachineFileError(where, table, f"{k}.regulator_deg", f"{name} does not"
                                    " depend on the regulator", "Leave out regulator_deg")
         return channels
+    from . import metrics as km
+    from ._dynamic_metrics import check_name as check_dynamic
+
+    if ref.at is not None and not (name in channels and not name.startswith("range:")):
+        raise MachineFileError(where, table, f"{k}.at", f"{name}: only a channel is read at an"
+                               " event", "Leave out at, or give a channel (p_POINT_x,"
+                               " theta_LINK, q_VAR, or a rate)")
+    try:
+        if ref.at is not None:
+            km.check_event(machine, ref.at, channels)
+            km.check_read_at_event(name)
+        known_family = km.check_name(machine, name, channels) or check_dynamic(machine, name)
+    except km.MetricNameError as exc:
+        raise MachineFileError(where, table, f"{k}.at" if ref.at is not None and
+                               name in channels else key, exc.what, exc.hint) from None
+    if known_family:
+        if ref.regulator_deg is not None:  # (read at that setting)
+            if s is None or s.regulator is None:
+                raise MachineFileError(where, table, f"{k}.regulator_deg", f"machine"
+                                       f" '{machine.name}' has no stitch regulator",
+                                       "Leave out regulator_deg")
+            _in_range(where, table, k, ref, machine)
+        return channels
     channel = name.split(":", 1)[1] if name.startswith("range:") else name
     if channel in channels:
-        if name.startswith("range:") and channel.split("_")[0] not in ("p", "theta", "q"):
-            raise MachineFileError(where, table, key, f"{name}: a range is of a position"
-                                   " channel (p_POINT_x, theta_LINK, q_VAR)",
-                                   "Give range: and a position channel")
         if ref.regulator_deg is not None:  # the channel at that setting
             if s is None or s.regulator is None:
                 raise MachineFileError(where, table, f"{k}.regulator_deg", f"machine"
@@ -292,15 +349,16 @@ def _check_metric(where: str, table: str, k: int, ref: MetricRef, machine: Machi
                                        "Leave out regulator_deg")
             _in_range(where, table, k, ref, machine)
         return channels
-    known = [*METRICS, *THREAD_METRICS]
-    ranges = [f"range:{c}" for c in channels if c.split("_")[0] in ("p", "theta", "q")]
-    near = difflib.get_close_matches(name, ranges if name.startswith("range:") else
-                                     [*known, *channels, *ranges], n=3)
-    what = f"'{channel}' is not a channel of '{machine.name}'" if name.startswith("range:") \
-        else f"unknown metric '{name}'"
-    raise MachineFileError(where, table, key, what, f"Did you mean {', '.join(near)}?" if near
-                           else f"Metrics: {', '.join(known)}, range:CHANNEL, or a channel"
-                           " (p_POINT_x, theta_LINK, q_VAR) at phi_deg (docs/design.md)")
+    from ._dynamic_metrics import DYNAMIC_METRICS
+
+    known = [*METRICS, *THREAD_METRICS, *DYNAMIC_METRICS]
+    near = difflib.get_close_matches(name, [*known, *channels], n=3)
+    raise MachineFileError(where, table, key, f"unknown metric '{name}'",
+                           f"Did you mean {', '.join(near)}?" if near
+                           else f"Metrics: {', '.join(known)}; min:, max:, range:, mean:,"
+                           " rms:CHANNEL; transmission_angle_min:, transmission_angle_"
+                           "deviation:UNIT; pressure_angle_max:CAM; or a channel (p_POINT_x,"
+                           " theta_LINK, q_VAR) at phi_deg or at an event (docs/design.md)")
 
 
 class Problem:
@@ -315,19 +373,20 @@ class Problem:
         names = machine.parameter_names
         self.index = np.array([names.index(v.parameter) for v in spec.variables])
         units = [machine.parameter_units[j] for j in self.index]
-        #: internal units per file unit of each variable (deg -> rad)
-        self.factor = np.array([math.pi / 180.0 if u == "rad" else 1.0 for u in units])
-        self.units = tuple("deg" if u == "rad" else u for u in units)
+        #: internal units per file unit of each variable (deg -> rad, g -> kg, g cm -> kg mm)
+        self.factor = np.array([file_unit(u)[1] for u in units])
+        self.units = tuple(file_unit(u)[0] for u in units)
         self.lower = np.array([v.lower for v in spec.variables])
         self.upper = np.array([v.upper for v in spec.variables])
         defaults = np.asarray(machine.defaults)[self.index] / self.factor
         self.start = np.array([v.start if v.start is not None else d
-                               for v, d in zip(spec.variables, defaults)])
+                               for v, d in zip(spec.variables, defaults, strict=True)])
         self.names = tuple(v.parameter for v in spec.variables)
         self.evaluations = 0
         self._designs: set = set()
         self._memo: dict = {}
         self._scales = None
+        self._forces = None
 
     # ---- metrics -------------------------------------------------------------------------------
     def params(self, x: np.ndarray) -> np.ndarray:
@@ -335,17 +394,70 @@ class Problem:
         P[self.index] = np.asarray(x, dtype=float) * self.factor
         return P
 
-    def metric(self, ref: MetricRef, x: np.ndarray) -> tuple[float, np.ndarray]:
-        """A metric's value and its derivative by the variables (per file unit) at x; raises
-        SewmechError where the design cannot be evaluated (it does not assemble)."""
+    @property
+    def forces(self):
+        """The force analysis prepared for the problem's force metrics (its ``[dynamics]``
+        table), made on first use."""
+        if self._forces is None:
+            from ._dynamic_metrics import ForceMetrics
+
+            self._forces = ForceMetrics(self.machine, self.spec.dynamics)
+        return self._forces
+
+    def metric(self, ref: MetricRef, x: np.ndarray) -> tuple[float, np.ndarray | None]:
+        """A metric's value and its derivative by the variables (per file unit) at x (None for
+        a value-only metric); raises SewmechError where the design cannot be evaluated (it
+        does not assemble)."""
+        mv = self.metric_value(ref, x)
+        return mv.value, mv.d
+
+    def metric_value(self, ref: MetricRef, x: np.ndarray):
+        """:func:`~sewmech.design.evaluate.metric_value` of the design x, its derivatives (and
+        its pieces') by the variables (per file unit)."""
+        from dataclasses import replace
+
         design = tuple(np.asarray(x, dtype=float))
 
         def compute():
-            value, d = _metric(self.machine, ref, self.params(x))
-            return value, None if d is None else d[self.index] * self.factor
+            from ._dynamic_metrics import is_dynamic
 
-        return self._remember((ref.metric, ref.regulator_deg, ref.phi_deg, design), design,
-                              compute)
+            mv = metric_value(self.machine, ref, self.params(x),
+                              forces=self.forces if is_dynamic(ref.metric) else None)
+            scale = self.factor
+            return replace(mv, d=None if mv.d is None else mv.d[self.index] * scale,
+                           pieces_d=None if mv.pieces_d is None else
+                           mv.pieces_d[:, self.index] * scale)
+
+        return self._remember(("metric", ref_key(ref), design), design, compute)
+
+    @property
+    def has_gradients(self) -> bool:
+        """Whether every metric of the problem comes with its exact derivative (SLSQP needs
+        it)."""
+        from . import metrics as km
+        from ._dynamic_metrics import has_gradient, is_dynamic
+
+        for ref in self.refs:
+            name = ref.metric
+            if is_dynamic(name) and not has_gradient(name):
+                return False
+            if km.is_kinematic_family(name) and not km.has_gradient(name):
+                return False
+        return True
+
+    def value_only_metrics(self) -> list[str]:
+        """The problem's metrics without an exact derivative (yet)."""
+        from . import metrics as km
+        from ._dynamic_metrics import has_gradient, is_dynamic
+
+        return sorted({r.metric for r in self.refs
+                       if (is_dynamic(r.metric) and not has_gradient(r.metric))
+                       or (km.is_kinematic_family(r.metric) and not km.has_gradient(r.metric))})
+
+    @property
+    def refs(self) -> list[MetricRef]:
+        """Every metric reference of the objective and the constraints."""
+        return [*self.spec.objective.parts, *self.spec.constraints]
 
     def _remember(self, key, design: tuple, compute):
         """``compute()`` once per key (the last 256 kept), each distinct design counted once in
@@ -391,7 +503,7 @@ class Problem:
         ``phi_deg``, ``unit``, ``sense``, ``target``, ``weight``, ``scale`` (the s that
         divides it, :data:`OBJECTIVE_FORMS`) and ``value`` (None where it cannot be formed)."""
         out = []
-        for p, sc in zip(self.spec.objective.parts, self._part_scales()):
+        for p, sc in zip(self.spec.objective.parts, self._part_scales(), strict=True):
             try:
                 v = float(self.metric(p, x)[0])
             except SewmechError:
@@ -408,7 +520,7 @@ class Problem:
         parts = self.spec.objective.parts
         s = self._part_scales()
         terms, grads = [], []
-        for p, sc in zip(parts, s):
+        for p, sc in zip(parts, s, strict=True):
             v, d = self.metric(p, x)
             if d is None:  # a value-only metric: no gradient of the whole
                 d = np.full(len(x), np.nan)
@@ -436,14 +548,11 @@ class Problem:
             v, d = self.metric(c, x)
             if d is None:
                 d = np.full(len(x), np.nan)
-            if c.min is not None:
-                g.append(v - c.min)
-                J.append(d)
-                names.append(f"{c.metric} >= {c.min:g}")
-            if c.max is not None:
-                g.append(c.max - v)
-                J.append(-d)
-                names.append(f"{c.metric} <= {c.max:g}")
+            for side, b in c.bounds:
+                sign = 1.0 if side == "min" else -1.0
+                g.append(sign * (v - b))
+                J.append(sign * d)
+                names.append(f"{c.metric} {'>=' if side == 'min' else '<='} {b:g}")
         return np.array(g), np.array(J).reshape(len(g), len(x)), names
 
     def assembly_margin(self, x: np.ndarray) -> tuple[float, np.ndarray]:
@@ -472,8 +581,8 @@ class Problem:
         spec = self.spec
         uniform = spec.objective.form == "weighted_uniform"
         terms = []
-        for p, sc in zip(spec.objective.parts, self._part_scales()):
-            v = vals[(p.metric, p.regulator_deg, p.phi_deg)]
+        for p, sc in zip(spec.objective.parts, self._part_scales(), strict=True):
+            v = vals[ref_key(p)]
             if p.sense == "target":
                 dev = (v - p.target) / sc
                 terms.append(p.weight * (np.abs(dev) if uniform else dev ** 2))
@@ -482,17 +591,15 @@ class Problem:
         f = np.max(terms, axis=0) if uniform else np.sum(terms, axis=0)
         g = []
         for c in spec.constraints:
-            v = vals[(c.metric, c.regulator_deg, c.phi_deg)]
-            if c.min is not None:
-                g.append(v - c.min)
-            if c.max is not None:
-                g.append(c.max - v)
+            v = vals[ref_key(c)]
+            for side, b in c.bounds:
+                g.append(v - b if side == "min" else b - v)
         return f, (np.column_stack(g) if g else np.zeros((len(f), 0))), ok
 
     def constraint_scales(self) -> np.ndarray:
         """The size of each bound of :meth:`constraints` (at least 1), to compare violations."""
         return np.array([max(abs(b), 1.0) for c in self.spec.constraints
-                         for b in (c.min, c.max) if b is not None])
+                         for _, b in c.bounds])
 
     def value(self, x: np.ndarray) -> tuple[float, np.ndarray, bool]:
         """:meth:`batch` of one design (remembered): objective, constraints, assembles."""
@@ -503,6 +610,127 @@ class Problem:
             return float(f[0]), g[0], bool(ok[0])
 
         return self._remember(("value", design), design, compute)
+
+    # ---- the epigraph form: what every method solves -----------------------------------------
+    def form(self, x: np.ndarray) -> FormPoint:
+        """The problem at the design x in its epigraph form (:class:`FormPoint`), from the
+        exact metrics with their derivatives by the variables (NaN for a value-only metric);
+        ``ok`` False where a metric cannot be formed on the design."""
+        design = tuple(np.asarray(x, dtype=float))
+
+        def compute():
+            try:
+                mvs = [self.metric_value(r, x) for r in self.refs]
+            except SewmechError:
+                return FormPoint.undefined(len(x))
+            return self._form(mvs, len(x))
+
+        return self._remember(("form", design), design, compute)
+
+    def form_values(self, x: np.ndarray) -> FormPoint:
+        """:meth:`form` from values alone (:func:`batch_values`, one kinematics call per
+        metric), as the derivative-free methods read it; ``ok`` False where the design does not
+        assemble over the whole turn or a metric cannot be formed."""
+        from .metrics import MetricValue
+
+        design = tuple(np.asarray(x, dtype=float))
+
+        def compute():
+            pieces: dict = {}
+            try:
+                vals, ok = batch_values(self, np.asarray(design)[None, :], pieces)
+            except SewmechError:
+                return FormPoint.undefined(len(x))
+            if not ok[0]:
+                return FormPoint.undefined(len(x))
+            mvs = []
+            for r in self.refs:
+                key = ref_key(r)
+                v = float(vals[key][0])
+                if not math.isfinite(v):
+                    return FormPoint.undefined(len(x))
+                pcs = pieces.get(key, [np.zeros(0)])[0]
+                mvs.append(MetricValue(v, None, _kind_of(r.metric) if len(pcs) else None,
+                                       np.asarray(pcs, dtype=float)))
+            return self._form(mvs, len(x), exact=False)
+
+        return self._remember(("form_values", design), design, compute)
+
+    def _form(self, mvs: list, n: int, exact: bool = True) -> FormPoint:
+        """The epigraph form from every metric's value (and pieces) in :attr:`refs` order."""
+        spec = self.spec
+        parts = spec.objective.parts
+        uniform = spec.objective.form == "weighted_uniform"
+        nan = np.full(n, np.nan)
+
+        def grad(mv):
+            return mv.d if mv.d is not None else nan
+
+        def pieces(mv, kind):
+            """The pieces (values, derivatives, angles) of a max- or min-type metric of that
+            kind, else the value itself as one piece."""
+            if mv.kind == kind and len(mv.pieces):
+                pd = mv.pieces_d if mv.pieces_d is not None else np.full((len(mv.pieces), n),
+                                                                        np.nan)
+                ph = mv.pieces_phi if len(mv.pieces_phi) == len(mv.pieces) else \
+                    np.full(len(mv.pieces), np.nan)
+                return np.asarray(mv.pieces, dtype=float), pd, ph
+            return np.array([mv.value]), grad(mv)[None, :], np.array([np.nan])
+
+        smooth, smooth_d = 0.0, np.zeros(n)
+        groups = []  # (values, derivatives, tags)
+        uni_v, uni_d, uni_t = [], [], []
+        for i, (p, sc, mv) in enumerate(zip(parts, self._part_scales(), mvs[:len(parts)],
+                                            strict=True)):
+            w = p.weight
+            if uniform:
+                for side, kind in ((1.0, "max"), (-1.0, "min")):
+                    v, d, ph = pieces(mv, kind) if (mv.kind == kind) else (
+                        np.array([mv.value]), grad(mv)[None, :], np.array([np.nan]))
+                    uni_v.append(side * w * (v - p.target) / sc)
+                    uni_d.append(side * w * d / sc)
+                    uni_t.append(np.stack([np.full(len(v), 2 * i + (side < 0)), ph], axis=1))
+                continue
+            if p.sense == "min" and mv.kind == "max" and len(mv.pieces):
+                v, d, ph = pieces(mv, "max")
+                groups.append((w * v / sc, w * d / sc, np.stack([np.full(len(v), i), ph], 1)))
+            elif p.sense == "max" and mv.kind == "min" and len(mv.pieces):
+                v, d, ph = pieces(mv, "min")
+                groups.append((-w * v / sc, -w * d / sc,
+                               np.stack([np.full(len(v), i), ph], 1)))
+            elif p.sense == "target":
+                smooth += w * ((mv.value - p.target) / sc) ** 2
+                smooth_d = smooth_d + w * 2.0 * (mv.value - p.target) / sc ** 2 * grad(mv)
+            else:
+                sign = 1.0 if p.sense == "min" else -1.0
+                smooth += sign * w * mv.value / sc
+                smooth_d = smooth_d + sign * w * grad(mv) / sc
+        if uniform:
+            groups.append((np.concatenate(uni_v), np.concatenate(uni_d),
+                           np.concatenate(uni_t)))
+        g, gd, gt, h, hd = [], [], [], [], []
+        for i, (c, mv) in enumerate(zip(spec.constraints, mvs[len(parts):], strict=True)):
+            eq = c.equality
+            if eq is not None:
+                sc = max(abs(eq), 1.0)
+                h.append((mv.value - eq) / sc)
+                hd.append(grad(mv) / sc)
+                continue
+            for side, b in c.bounds:
+                sc = max(abs(b), 1.0)
+                v, d, ph = pieces(mv, side == "max" and "max" or "min")
+                sign = 1.0 if side == "min" else -1.0
+                g.append(sign * (v - b) / sc)
+                gd.append(sign * d / sc)
+                gt.append(np.stack([np.full(len(v), 2 * i + (side == "max")), ph], axis=1))
+        cat = np.concatenate
+        return FormPoint(
+            smooth=float(smooth), smooth_d=smooth_d if exact else None,
+            groups=[q[0] for q in groups], groups_d=[q[1] for q in groups] if exact else None,
+            groups_tag=[q[2] for q in groups],
+            g=cat(g) if g else np.zeros(0), g_d=(cat(gd) if gd else np.zeros((0, n)))
+            if exact else None, g_tag=cat(gt) if gt else np.zeros((0, 2)),
+            h=np.array(h), h_d=(np.array(hd).reshape(len(h), n)) if exact else None, ok=True)
 
     def report(self, x: np.ndarray) -> dict:
         """Each constraint's value and whether it holds (to 1e-9 of its scale), and whether the
@@ -530,27 +758,104 @@ class Problem:
                 v, _ = self.metric(c, x)
             except SewmechError:
                 v = math.nan
-            ok = (c.min is None or v >= c.min - 1e-9 * max(1.0, abs(c.min))) and (
-                c.max is None or v <= c.max + 1e-9 * max(1.0, abs(c.max)))
+            eq = c.equality
+            if eq is not None:
+                ok = abs(v - eq) <= EQUALITY_TOL * max(1.0, abs(eq))
+            else:
+                ok = (c.min is None or v >= c.min - 1e-9 * max(1.0, abs(c.min))) and (
+                    c.max is None or v <= c.max + 1e-9 * max(1.0, abs(c.max)))
             name = c.metric if c.metric not in out else f"{c.metric} ({len(out)})"
             out[name] = {"value": v if math.isfinite(v) else None, "satisfied": bool(ok),
-                         "min": c.min, "max": c.max}
+                         "min": c.min if eq is None else eq, "max": c.max if eq is None else eq}
+            if eq is not None:
+                out[name]["equals"] = eq
+                out[name]["tolerance"] = EQUALITY_TOL * max(1.0, abs(eq))
             if not math.isfinite(v):  # JSON has no NaN: null, and why beside it
                 out[name]["note"] = ("not defined: the metric cannot be formed on the design"
                                      " (it does not assemble where the metric is read)")
         return out
 
 
-def batch_values(problem: Problem, X: np.ndarray) -> tuple[dict, np.ndarray]:
+@dataclass
+class FormPoint:
+    """A problem at one design in its epigraph form, what every method solves: minimise
+
+        smooth(x) + sum_j max_i q_ji(x)   subject to   g(x) >= 0,  h(x) = 0
+
+    where ``smooth`` is the sum of the objective's smooth parts, each group q_j the pieces of
+    one max-type part (a largest value over the turn to minimise, a least to maximise: its
+    local extremes, each smooth; every part's two sides in the weighted uniform form), ``g``
+    every inequality, a max-type metric's bound once per piece, and ``h`` the equalities, each
+    divided by its bound's size (at least 1). With an epigraph variable t_j per group
+    (q_ji <= t_j) the problem is smooth where the maximum has a kink.
+
+    ``*_d`` are the derivatives by the variables (per file unit; None from values alone, NaN
+    rows for a value-only metric); ``*_tag`` tell the pieces apart: (source, shaft angle rad or
+    NaN) per piece, the source a part (groups) or a constraint's side (g)."""
+
+    smooth: float
+    groups: list
+    g: np.ndarray
+    h: np.ndarray
+    ok: bool
+    smooth_d: np.ndarray | None = None
+    groups_d: list | None = None
+    g_d: np.ndarray | None = None
+    h_d: np.ndarray | None = None
+    groups_tag: list = field(default_factory=list)
+    g_tag: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+
+    @classmethod
+    def undefined(cls, n: int) -> FormPoint:
+        return cls(math.inf, [], np.zeros(0), np.zeros(0), False)
+
+    @property
+    def objective(self) -> float:
+        """The problem's objective (as :meth:`Problem.objective`)."""
+        if not self.ok:
+            return math.inf
+        return self.smooth + sum(float(q.max()) for q in self.groups if len(q))
+
+
+def _kind_of(name: str) -> str | None:
+    """Whether a metric is max-type ("max"), min-type ("min") or neither (None)."""
+    from . import metrics as km
+    from ._dynamic_metrics import DYNAMIC_METRICS
+
+    family = name.partition(":")[0]
+    if family in DYNAMIC_METRICS:
+        return DYNAMIC_METRICS[family][2]
+    if family in ("max", "range", "transmission_angle_deviation", km.PRESSURE):
+        return "max"
+    if family in ("min", "transmission_angle_min"):
+        return "min"
+    return None
+
+
+#: how close (relative to max(1, |value|), in the metric's unit) an equality constraint must be
+#: met for an answer to meet it
+EQUALITY_TOL = 1e-6
+
+
+def batch_values(problem: Problem, X: np.ndarray, pieces: dict | None = None
+                 ) -> tuple[dict, np.ndarray]:
     """Every metric of the problem for a batch of designs X (m, n_variables; file units), one
     kinematics batch call per metric, and which designs assemble over the whole turn (at both
-    ends of every setting input): ({(metric, regulator_deg, phi_deg): values (m,)}, (m,) bool).
-    Values of designs that do not assemble are NaN (masked by the caller, never used)."""
+    ends of every setting input): ({:func:`~sewmech.design._models.ref_key`: values (m,)},
+    (m,) bool). Values of designs that do not assemble are NaN (masked by the caller, never
+    used). ``pieces`` (a dict) receives the max- and min-type metrics' pieces per design."""
     m = problem.machine
     X = np.atleast_2d(np.asarray(X, dtype=float))
     P = np.tile(np.asarray(m.defaults, dtype=float), (len(X), 1))
     P[:, problem.index] = X * problem.factor
-    return metric_batch(m, [*problem.spec.objective.parts, *problem.spec.constraints], P)
+    forces = problem.forces if any(_is_dynamic(r.metric) for r in problem.refs) else None
+    return metric_batch(m, problem.refs, P, forces=forces, pieces=pieces)
+
+
+def _is_dynamic(name: str) -> bool:
+    from ._dynamic_metrics import is_dynamic
+
+    return is_dynamic(name)
 
 
 def _smallest_margin(problem: Problem, x: np.ndarray) -> tuple[float, np.ndarray]:
@@ -603,4 +908,9 @@ def _smallest_margin(problem: Problem, x: np.ndarray) -> tuple[float, np.ndarray
     r = kinematics(m, np.array([phi_min]), params=PP, inputs=inputs, omega=1.0,
                    points=c.points, links=c.links, variables=(), on_failure="mask")
     vals = np.asarray(c.fn(r)[0], dtype=float).reshape(2 * n)
-    return v_min, (vals[:n] - vals[n:]) / (2.0 * step)
+    up, down = vals[:n], vals[n:]
+    # a step that leaves what the parameter may be (a counterweight's static moment below 0 at
+    # its bound) has no margin: the one-sided difference on the other side
+    return v_min, np.where(np.isfinite(up) & np.isfinite(down), (up - down) / (2.0 * step),
+                           np.where(np.isfinite(up), (up - v_min) / step,
+                                    np.where(np.isfinite(down), (v_min - down) / step, 0.0)))

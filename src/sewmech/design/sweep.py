@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .sweep_file import DYNAMICS_METRICS, Sweep
+from .sweep_file import Sweep
 
 #: random designs are drawn in blocks of this many, each from its own seed (seed, block)
 BLOCK = 4096
@@ -103,16 +103,21 @@ class Chunk:
 def column_units(sweep: Sweep) -> dict[str, str]:
     """Every column of the sweep's table with its unit, in order."""
     from ..sewing.gradients import METRICS
+    from . import metrics as km
+    from ._dynamic_metrics import is_dynamic
+    from ._dynamic_metrics import unit_of as dynamic_unit
 
-    out = {"design": "", **dict(zip(sweep.columns, sweep.units)), "assembles": ""}
+    out = {"design": "", **dict(zip(sweep.columns, sweep.units, strict=True)), "assembles": ""}
     ch_units = {"p": "mm", "v": "mm/s", "a": "mm/s^2", "theta": "rad", "omega": "rad/s",
                 "epsilon": "rad/s^2"}
     for o in sweep.spec.outputs:
         name = o.metric
-        if name in DYNAMICS_METRICS:
-            unit = DYNAMICS_METRICS[name]
+        if is_dynamic(name):
+            unit = dynamic_unit(name)
         elif name in METRICS:
             unit = "deg" if name.endswith("_deg") else "mm"
+        elif km.is_kinematic_family(name) and not name.startswith("range:"):
+            unit = km.unit_of(sweep.machine, name)
         else:
             channel = name.split(":", 1)[-1]
             kind = channel.split("_")[0]
@@ -136,13 +141,15 @@ def curve_phi_deg(sweep: Sweep) -> np.ndarray:
 
 def evaluate_chunk(sweep: Sweep, start: int, stop: int) -> Chunk:
     """Designs ``start .. stop - 1`` evaluated in batch calls (see the module doc)."""
+    from ._dynamic_metrics import is_dynamic
+    from ._models import ref_key
     from .evaluate import assembles_batch, metric_batch
 
     spec = sweep.spec
     X = sample(sweep, start, stop)
     P = params_of(sweep, X)
     ok = assembles_batch(sweep.machine, P)
-    kin_outputs = [o for o in spec.outputs if o.metric not in DYNAMICS_METRICS]
+    kin_outputs = [o for o in spec.outputs if not is_dynamic(o.metric)]
     values, _ = metric_batch(sweep.machine, kin_outputs, P, ok)
     dyn = _dynamics(sweep, P, ok) if spec.dynamics is not None else {}
     cols: dict[str, np.ndarray] = {"design": np.arange(start, stop, dtype=np.int64)}
@@ -151,8 +158,7 @@ def evaluate_chunk(sweep: Sweep, start: int, stop: int) -> Chunk:
     cols["assembles"] = ok
     feasible = ok.copy()
     for o in spec.outputs:
-        v = dyn[o.metric] if o.metric in DYNAMICS_METRICS else \
-            values[(o.metric, o.regulator_deg, o.phi_deg)]
+        v = dyn[o.metric] if is_dynamic(o.metric) else values[ref_key(o)]
         v = np.asarray(v, dtype=float).copy()
         cols[o.column] = v
         with np.errstate(invalid="ignore"):
@@ -167,45 +173,31 @@ def evaluate_chunk(sweep: Sweep, start: int, stop: int) -> Chunk:
 
 
 def _dynamics(sweep: Sweep, P: np.ndarray, ok: np.ndarray) -> dict[str, np.ndarray]:
-    """Peak |driving torque| (N m) and peak |shaking force| (N) over a turn, at the
-    machine's working setting and the sweep's speed, the machine's loads and masses; NaN for
-    designs that do not assemble or whose force equations are singular somewhere."""
-    from ..engine.dynamics import SingularForceSystem
+    """Every force metric of the sweep's outputs (peak |driving torque| N m, peak |shaking
+    force| N, ...: :mod:`sewmech.design._dynamic_metrics`), at the machine's working setting
+    and the sweep's speed, the machine's loads and masses, one DynamicsPlan call for the
+    designs that assemble; NaN for those that do not or whose force equations are singular
+    somewhere."""
+    from ._dynamic_metrics import is_dynamic
 
-    plan = _dynamics_plan(sweep)
-    torque = np.full(len(P), np.nan)
-    shaking = np.full(len(P), np.nan)
+    names = sorted({o.metric for o in sweep.spec.outputs if is_dynamic(o.metric)})
+    out = {n: np.full(len(P), np.nan) for n in names}
     rows = np.nonzero(ok)[0]
-    if rows.size == 0:
-        return {"peak_torque": torque, "peak_shaking_force": shaking}
-
-    def peaks(Q):
-        r = plan(Q)
-        return (np.abs(r.input_torque).max(axis=-1) * 1e-3,  # N mm -> N m
-                np.linalg.norm(r.shaking_force, axis=-1).max(axis=-1))
-
-    try:
-        torque[rows], shaking[rows] = peaks(P[rows])
-    except SingularForceSystem:  # one design at a time, the singular ones left NaN
-        for k in rows:
-            try:
-                torque[k], shaking[k] = (x[0] for x in peaks(P[k:k + 1]))
-            except SingularForceSystem:
-                pass
-    return {"peak_torque": torque, "peak_shaking_force": shaking}
+    if rows.size == 0 or not names:
+        return out
+    got = _force_metrics(sweep).values(names, P[rows])
+    for n in names:
+        out[n][rows] = got[n]
+    return out
 
 
-def _dynamics_plan(sweep: Sweep):
-    plan = getattr(sweep, "_dynamics_plan", None)
-    if plan is None:
-        from ..engine.dynamics import DynamicsPlan
+def _force_metrics(sweep: Sweep):
+    fm = getattr(sweep, "_force_metrics", None)
+    if fm is None:
+        from ._dynamic_metrics import ForceMetrics
 
-        d = sweep.spec.dynamics
-        phi = np.radians(np.arange(round(360.0 / d.step_deg)) * d.step_deg)
-        plan = DynamicsPlan(sweep.machine, phi, rpm=d.rpm, gravity=d.gravity,
-                            on_failure="mask")
-        sweep._dynamics_plan = plan
-    return plan
+        fm = sweep._force_metrics = ForceMetrics(sweep.machine, sweep.spec.dynamics)
+    return fm
 
 
 def _curves(sweep: Sweep, P: np.ndarray) -> dict[str, np.ndarray]:

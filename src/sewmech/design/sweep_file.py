@@ -18,13 +18,13 @@ upper = 1.8
 # points = 5                       # grid only: values from lower to upper, both included
 
 [[outputs]]                        # one column per output
-metric = "stitch_length"           # a sewing metric, peak_torque, peak_shaking_force,
-regulator_deg = 30.0               # range:CHANNEL, or a channel at phi_deg
-name = "stitch_30"                 # the column (default: the metric, and its setting)
-min = 3.6                          # limits: a design outside them is not feasible
-max = 4.2
+metric = "stitch_length"           # a problem file's metric (docs/design.md): a sewing metric,
+regulator_deg = 30.0               # min:, max:, range:, mean:, rms:CHANNEL, a transmission
+name = "stitch_30"                 # angle, a force metric (peak_torque, ...), or a channel at
+min = 3.6                          # phi_deg or at an event; name: the column (default: the
+max = 4.2                          # metric and its setting); limits: else not feasible
 
-[dynamics]                         # for peak_torque (N m) and peak_shaking_force (N)
+[dynamics]                         # for the force metrics (peak_torque N m, ...)
 rpm = 1000.0                       # default: the machine file's [speed]
 step_deg = 2.0
 
@@ -51,16 +51,22 @@ from typing import Literal
 from pydantic import Field, field_validator, model_validator
 
 from ..engine.errors import MachineFileError
-from ..engine.kinematics import MIN_RPM
 from ..engine.machine import Machine, load_machine, machine_from_toml, shipped_machines
 from ..engine.paths import user_path
 from ..engine.spec import ValueHint, load_toml_model, read_toml_text
-from ._models import Bounds, Header, MetricRef, Strict, check_bounds, check_limit
+from . import metrics as km
+from ._models import (
+    Bounds,
+    DynamicsTable,
+    Header,
+    MetricRef,
+    Strict,
+    check_bounds,
+    check_limit,
+    file_unit,
+)
 
 DOC = "docs/sweeps.md"
-#: the outputs the force analysis gives (one DynamicsPlan call per chunk of designs)
-#: (N m, as every table and figure of sewmech gives a torque; N mm inside)
-DYNAMICS_METRICS = {"peak_torque": "N m", "peak_shaking_force": "N"}
 #: the most designs a sweep file may ask for (a grid's product included)
 MAX_DESIGNS = 10**10
 
@@ -111,16 +117,14 @@ class Output(MetricRef):
             return self.name
         if self.regulator_deg is not None:
             return f"{self.metric}@{self.regulator_deg:g}deg"
-        if self.metric in DYNAMICS_METRICS or self.metric.startswith("range:") \
-                or _is_sewing_metric(self.metric):
+        if self.at is not None:
+            return f"{self.metric}@{self.at}"
+        if ":" in self.metric or _is_sewing_metric(self.metric) or _is_dynamic(self.metric):
             return self.metric
         return f"{self.metric}@{self.phi_deg:g}deg"
 
 
-class Dynamics(Strict):
-    rpm: float | None = Field(None, ge=MIN_RPM, le=20_000.0)
-    step_deg: float = Field(2.0, ge=0.1, le=30.0)
-    gravity: bool = True
+Dynamics = DynamicsTable  # (the same table in problem files)
 
 
 class Curves(Strict):
@@ -136,6 +140,12 @@ class SweepSpec(Strict):
     outputs: list[Output] = Field(default_factory=list)
     dynamics: Dynamics | None = None
     curves: Curves | None = None
+
+
+def _is_dynamic(name: str) -> bool:
+    from ._dynamic_metrics import is_dynamic
+
+    return is_dynamic(name)
 
 
 def _is_sewing_metric(name: str) -> bool:
@@ -158,9 +168,9 @@ class Sweep:
         names = machine.parameter_names
         self.index = [names.index(p.parameter) for p in spec.parameters]
         units = [machine.parameter_units[j] for j in self.index]
-        #: internal units per file unit of each parameter (deg -> rad)
-        self.factor = [math.pi / 180.0 if u == "rad" else 1.0 for u in units]
-        self.units = tuple("deg" if u == "rad" else u for u in units)
+        #: internal units per file unit of each parameter (deg -> rad, g -> kg, g cm -> kg mm)
+        self.factor = [file_unit(u)[1] for u in units]
+        self.units = tuple(file_unit(u)[0] for u in units)
         self.names = tuple(p.parameter for p in spec.parameters)
         #: the parameters' columns: angles in deg, named so (``regulator.phase_deg``)
         self.columns = tuple(f"{n}_deg" if u == "deg" else n
@@ -267,6 +277,17 @@ def _check_lhs_memory(n: int, d: int, where: str) -> None:
                                " any number of designs), or fewer designs")
 
 
+def _family(where: str, k: int, o, machine: Machine, channels) -> None:
+    """An output of a metric family (docs/design.md) against the machine: the located error of
+    :mod:`sewmech.design.metrics` or :mod:`sewmech.design._dynamic_metrics`."""
+    from ._dynamic_metrics import check_name as check_dynamic
+
+    try:
+        km.check_name(machine, o.metric, channels) or check_dynamic(machine, o.metric)
+    except km.MetricNameError as exc:
+        raise MachineFileError(where, "outputs", f"{k}.metric", exc.what, exc.hint) from None
+
+
 def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
     """What the schema cannot know: names against the machine, grid points, column names."""
     from ..engine.kinematics import kinematics
@@ -289,8 +310,7 @@ def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
                                    " given twice", "Give each parameter once")
         seen.add(p.parameter)
         unit = machine.parameter_units[names.index(p.parameter)]
-        check_bounds(where, "parameters", k, p, machine, math.pi / 180.0 if unit == "rad"
-                     else 1.0)
+        check_bounds(where, "parameters", k, p, machine, file_unit(unit)[1])
         grid = spec.sampling.method == "grid"
         if grid and p.points is None:
             raise MachineFileError(where, "parameters", f"{k}.points", "a grid needs points,"
@@ -334,7 +354,7 @@ def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
                                        " regulator_deg")
             if feed and o.regulator_deg is not None:
                 _regulator_in_range(where, k, o, machine)
-        elif name in DYNAMICS_METRICS:
+        elif _is_dynamic(name):
             if spec.dynamics is None:
                 raise MachineFileError(where, "outputs", f"{k}.metric", f"{name} comes from"
                                        " the force analysis, which needs a [dynamics] table",
@@ -343,6 +363,15 @@ def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
                 raise MachineFileError(where, "outputs", f"{k}.regulator_deg", "the force"
                                        " analysis runs at the machine's working setting",
                                        "Leave out regulator_deg")
+            _family(where, k, o, machine, channels)
+        elif km.is_kinematic_family(name) and not name.startswith("range:"):
+            _family(where, k, o, machine, channels)
+            if o.regulator_deg is not None:  # (read at that setting)
+                if s is None or s.regulator is None:
+                    raise MachineFileError(where, "outputs", f"{k}.regulator_deg", f"machine"
+                                           f" '{machine.name}' has no stitch regulator",
+                                           "Leave out regulator_deg")
+                _regulator_in_range(where, k, o, machine)
         elif name.startswith("range:") or name in channels:
             channel = name.split(":", 1)[1] if name.startswith("range:") else name
             if channel not in channels:
@@ -357,12 +386,26 @@ def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
                                            f" '{machine.name}' has no stitch regulator",
                                            "Leave out regulator_deg")
                 _regulator_in_range(where, k, o, machine)
+            if name.startswith("range:"):
+                _family(where, k, o, machine, channels)
         else:
-            known = [*METRICS, *DYNAMICS_METRICS]
+            from ._dynamic_metrics import DYNAMIC_METRICS
+
+            known = [*METRICS, *DYNAMIC_METRICS]
             raise MachineFileError(where, "outputs", f"{k}.metric", f"unknown metric '{name}'",
                                    _near(name, [*known, *channels]) or
                                    f"Metrics: {', '.join(known)}, range:CHANNEL, or a channel"
                                    " (p_POINT_x, theta_LINK, q_VAR) at phi_deg")
+        if o.at is not None:
+            if name not in channels:
+                raise MachineFileError(where, "outputs", f"{k}.at", f"{name}: only a channel is"
+                                       " read at an event", "Leave out at, or give a channel")
+            try:
+                km.check_event(machine, o.at, channels)
+                km.check_read_at_event(name)
+            except km.MetricNameError as exc:
+                raise MachineFileError(where, "outputs", f"{k}.at", exc.what, exc.hint) \
+                    from None
         if o.column in columns:
             raise MachineFileError(where, "outputs", f"{k}.name", f"the column '{o.column}' is"
                                    " already taken (by a parameter or another output)",
@@ -372,11 +415,10 @@ def _check(spec: SweepSpec, machine: Machine, where: str) -> None:
         raise MachineFileError(where, "outputs", "", "the sweep records nothing but whether"
                                " each design assembles", "Add [[outputs]] (e.g. metric ="
                                " \"stitch_length\") or [curves]")
-    if spec.dynamics is not None and not any(o.metric in DYNAMICS_METRICS
-                                             for o in spec.outputs):
+    if spec.dynamics is not None and not any(_is_dynamic(o.metric) for o in spec.outputs):
         raise MachineFileError(where, "dynamics", "", "no output reads the force analysis",
-                               "Add an output peak_torque or peak_shaking_force, or remove"
-                               " [dynamics]")
+                               "Add an output peak_torque or peak_shaking_force (or another"
+                               " force metric, docs/design.md), or remove [dynamics]")
     if spec.curves is not None:
         c = spec.curves
         for j, ch in enumerate(c.channels):

@@ -91,22 +91,70 @@ FEED = ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
 
 
 def metric_gradient(machine: Machine, metric: str, *, regulator_deg: float | None = None,
-                    phi_deg: float = 0.0) -> tuple[float, np.ndarray, str]:
-    """A metric (a key of :data:`sewmech.sewing.gradients.METRICS`) or a position channel at
-    ``phi_deg``: its value, its derivatives by every parameter and its unit. A metric that is
-    degenerate at the setting (a stitch of round-off length at the zero mark) is refused
-    (:func:`sewmech.sewing.gradients.require_a_stitch`)."""
-    value, d, unit, _ = _gradient(machine, metric, regulator_deg, phi_deg)
+                    phi_deg: float = 0.0, at: str | None = None
+                    ) -> tuple[float, np.ndarray, str]:
+    """A metric (a key of :data:`sewmech.sewing.gradients.METRICS`, a metric over the turn or
+    a transmission angle of :mod:`sewmech.design.metrics`, a force metric with its exact
+    derivative) or a channel at ``phi_deg`` or at the event ``at``: its value, its derivatives
+    by every parameter and its unit. A metric that is degenerate at the setting (a stitch of
+    round-off length at the zero mark) is refused
+    (:func:`sewmech.sewing.gradients.require_a_stitch`), as is a value-only metric (the force
+    metrics until their exact derivatives land, the cam pressure angle)."""
+    value, d, unit, _ = _gradient(machine, metric, regulator_deg, phi_deg, at=at)
     return value, d, unit
+
+
+def is_family_metric(metric: str) -> bool:
+    """A metric of :mod:`sewmech.design.metrics` or of the force analysis (a name with its
+    family: ``max:p_C_y``, ``transmission_angle_min:dyad``, ``peak_torque``)."""
+    from . import metrics as km
+    from ._dynamic_metrics import is_dynamic
+
+    return km.is_kinematic_family(metric) or is_dynamic(metric)
+
+
+def family_ref(machine: Machine, metric: str, regulator_deg: float | None, phi_deg: float,
+               at: str | None, option: str = "--output"):
+    """A metric reference (as a problem file's) for a family metric or a channel at an event,
+    checked against the machine: an OptionError at ``option`` (or ``--at``) otherwise."""
+    from ..engine.kinematics import kinematics
+    from . import metrics as km
+    from ._dynamic_metrics import check_name as check_dynamic
+    from ._models import MetricRef
+
+    channels = kinematics(machine, [0.0], on_failure="mask").channel_names()
+    try:
+        if at is not None:
+            if metric not in channels:
+                raise km.MetricNameError(f"{metric}: only a channel is read at an event",
+                                         "Give a channel, or leave out --at")
+            km.check_event(machine, at, channels)
+            km.check_read_at_event(metric)
+        elif not (km.check_name(machine, metric, channels) or check_dynamic(machine, metric)):
+            raise km.MetricNameError(f"unknown metric '{metric}'")
+    except km.MetricNameError as exc:
+        raise OptionError("--at" if at is not None else option, exc.what, exc.hint) from None
+    return MetricRef(metric=metric, regulator_deg=regulator_deg, phi_deg=phi_deg, at=at)
 
 
 def _gradient(machine: Machine, metric: str, regulator_deg: float | None, phi_deg: float,
               option: str = "regulator_deg", give: str = "regulator_deg={deg:g}",
-              working_deg: float | None = None
+              working_deg: float | None = None, at: str | None = None
               ) -> tuple[float, np.ndarray, str, Gradient | None]:
     """:func:`metric_gradient` and the metric's :class:`Gradient` (its events; None for a
-    channel); ``option``, ``give`` and ``working_deg`` name the setting in a refusal
-    (:func:`~sewmech.sewing.gradients.require_a_stitch`)."""
+    channel or a family metric); ``option``, ``give`` and ``working_deg`` name the setting in
+    a refusal (:func:`~sewmech.sewing.gradients.require_a_stitch`)."""
+    if at is not None or is_family_metric(metric):
+        from .evaluate import metric_value
+        from .problem import metric_unit
+
+        ref = family_ref(machine, metric, regulator_deg, phi_deg, at)
+        mv = metric_value(machine, ref, np.asarray(machine.defaults, dtype=float))
+        if mv.d is None:
+            raise OptionError("--output", f"{metric} has no exact derivative yet (value only:"
+                              " the force metrics' derivatives come with the derivative of the"
+                              " force solve)", "Choose a kinematic metric or a channel")
+        return mv.value, mv.d, metric_unit(machine, metric), None
     if metric in METRICS:
         reg = _setting(machine, regulator_deg) if metric in FEED else None
         g = METRICS[metric](machine, reg)
@@ -147,11 +195,22 @@ MC_STEP_DEG = 5.0
 
 def sample_values(machine: Machine, metric: str, P: np.ndarray, *,
                   regulator_deg: float | None = None, phi_deg: float = 0.0,
-                  nominal: Gradient | None = None) -> tuple[np.ndarray, dict]:
+                  nominal: Gradient | None = None, at: str | None = None
+                  ) -> tuple[np.ndarray, dict]:
     """The metric for a batch of designs ``P`` (n, n_params; row 0 the nominal design) and
     how it was evaluated. The feed metrics, given their ``nominal`` :class:`Gradient`, in
-    windows around its events (:mod:`sewmech.sewing.samples`); the other metrics in one batch
-    call on a ``MC_STEP_DEG`` grid; a channel at ``phi_deg``."""
+    windows around its events (:mod:`sewmech.sewing.samples`); the other sewing metrics in one
+    batch call on a ``MC_STEP_DEG`` grid; a metric over the turn or a transmission angle on its
+    batches' 1 deg grid (:mod:`sewmech.design.metrics`); a channel at ``phi_deg`` or at the
+    event ``at``."""
+    if at is not None or is_family_metric(metric):
+        from ._dynamic_metrics import is_dynamic
+        from ._models import ref_key
+        from .evaluate import metric_batch
+
+        ref = family_ref(machine, metric, regulator_deg, phi_deg, at)
+        vals, _ = metric_batch(machine, [ref], P, np.ones(len(P), dtype=bool))
+        return vals[ref_key(ref)], {"grid_deg": 2.0 if is_dynamic(metric) else 1.0}
     if metric in WINDOWED and nominal is not None:
         return sample_feed_values(machine, metric, _setting(machine, regulator_deg), P, nominal)
     if metric in METRICS:
@@ -169,7 +228,8 @@ def tolerance_analysis(machine: Machine, metric: str, spec: ToleranceSpec | None
                        samples: int = 10_000, seed: int = 0, band: float | None = None,
                        where: str = "tolerances", option: str = "regulator_deg",
                        give: str = "regulator_deg={deg:g}",
-                       working_deg: float | None = None) -> ToleranceResult:
+                       working_deg: float | None = None, at: str | None = None
+                       ) -> ToleranceResult:
     """Worst case, RSS, Monte Carlo (``samples`` designs, ``seed``), contributions and, with
     ``band`` (+- in the metric's unit), the allocated tolerances, for ``metric`` under the
     tolerances of ``spec`` (default: IT9 on every length, see
@@ -191,7 +251,7 @@ def tolerance_analysis(machine: Machine, metric: str, spec: ToleranceSpec | None
     tol = tolerances_of(machine, spec, where)
     dist = (spec or ToleranceSpec()).defaults.distribution
     value, d, unit, nominal = _gradient(machine, metric, regulator_deg, phi_deg, option, give,
-                                        working_deg)
+                                        working_deg, at)
     on = tol > 0
     contrib = (d * tol) ** 2
     rss = float(np.sqrt(contrib.sum()))
@@ -217,7 +277,7 @@ def tolerance_analysis(machine: Machine, metric: str, spec: ToleranceSpec | None
     P[:] = base
     P[1:, np.flatnonzero(on)] += dev
     vals, how = sample_values(machine, metric, P, regulator_deg=regulator_deg,
-                              phi_deg=phi_deg, nominal=nominal)
+                              phi_deg=phi_deg, nominal=nominal, at=at)
     ok = np.isfinite(vals[1:])
     dv = vals[1:][ok] - vals[0]
     n_ok = int(ok.sum())

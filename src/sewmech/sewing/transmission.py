@@ -54,8 +54,10 @@ def _between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def pressure_angles(machine: Machine, phi: ArrayLike, *,
-                    inputs: Mapping[str, ArrayLike] | None = None) -> PressureAngles:
-    """Pressure angles of every dyad, slider and cam/slot contact of a machine (one design).
+                    inputs: Mapping[str, ArrayLike] | None = None,
+                    params: ArrayLike | None = None) -> PressureAngles:
+    """Pressure angles of every dyad, slider and cam/slot contact of a machine (one design:
+    ``params``, default the file's).
 
     - RRR dyad: the force comes along the first link (a two-force member) and the new joint
       moves square to the second link: 90 deg minus the transmission angle between them.
@@ -65,8 +67,11 @@ def pressure_angles(machine: Machine, phi: ArrayLike, *,
       slot or a flat): the same against the slotted link's point (NaN where it stands still,
       as a stitch regulator's slot does).
     """
-    kin = kinematics(machine, phi, inputs=inputs, omega=1.0)
-    P = machine.defaults if not inputs else machine.parameters(inputs=inputs)
+    kin = kinematics(machine, phi, params=params, inputs=inputs, omega=1.0)
+    if params is None:
+        P = machine.defaults if not inputs else machine.parameters(inputs=inputs)
+    else:
+        P = machine.parameters(inputs=inputs, base=params) if inputs else np.asarray(params)
     out: dict[str, np.ndarray] = {}
     what: dict[str, str] = {}
     for u in machine.spec.units:

@@ -27,13 +27,45 @@ METRICS = ("stitch_length", "feed_lift", "dog_height_at_needle_plate", "needle_t
 FEED_METRICS = ("stitch_length", "feed_lift", "dog_height_at_needle_plate")
 
 
-def _refuse_phi_for_a_metric(output: str) -> None:
-    """--phi-deg places a position channel; a metric is read at its own events."""
-    if output in METRICS:
+#: what --output takes besides the sewing metrics and the channels (docs/design.md)
+FAMILY_HELP = (" or a metric over the turn: min:, max:, range:, mean:, rms:CHANNEL,"
+               " transmission_angle_min:UNIT, transmission_angle_deviation:UNIT (deg), or a"
+               " force metric (peak_torque, rms_torque N m, peak_force:PAIR,"
+               " peak_bearing_reaction, peak_shaking_force N, peak_shaking_moment N m, at the"
+               " file's speed on a 2 deg grid)")
+#: --at: a channel read at an event
+AT_HELP = ("read the channel at an event instead of --phi-deg: max:CHANNEL, min:CHANNEL,"
+           " rising:CHANNEL=LEVEL or falling:CHANNEL=LEVEL (a position channel; a crossing"
+           " the first at or after --phi-deg)")
+
+
+def _refuse_phi_for_a_metric(output: str, at: str | None = None) -> None:
+    """--phi-deg places a position channel (or where a crossing is looked for from); a metric
+    is read at its own events or over the whole turn."""
+    from ...design.tolerances import is_family_metric
+
+    if output in METRICS or (at is None and is_family_metric(output)):
         refuse_unused("phi_deg", "--phi-deg", f"is the shaft angle of a position channel, and"
-                      f" {output} is a metric read at its own events: the angle would be"
-                      " ignored", "Leave --phi-deg out, or give a channel such as"
-                      " p_needle.point_y")
+                      f" {output} is a metric read at its own events or over the whole turn:"
+                      " the angle would be ignored", "Leave --phi-deg out, or give a channel"
+                      " such as p_needle.point_y")
+    if at is not None and output in METRICS:
+        raise OptionError("--at", f"{output} is a metric read at its own events: only a"
+                          " channel is read at an event", "Leave --at out, or give a channel")
+
+
+def _family_setting(m, settings: dict) -> float | None:
+    """The stitch-regulator setting (deg) a metric over the turn or at an event is read at,
+    from --input: only the regulator may be given (None: the working setting)."""
+    s = m.spec.sewing
+    regulator = s.regulator if s is not None else None
+    other = [k for k in settings if k != regulator]
+    if other:
+        raise OptionError("--input", f"a metric over the turn or at an event is read at the"
+                          f" working setting or at a stitch-regulator setting; '{other[0]}'"
+                          " would be ignored", "Leave --input out, or give only the"
+                          " regulator" + (f" ({regulator})" if regulator else ""))
+    return math.degrees(settings[regulator]) if regulator in settings else None
 
 
 def _metric(m, name: str, settings: dict) -> tuple[float, np.ndarray, str, dict]:
@@ -83,9 +115,11 @@ def sensitivity_cmd(
                                " metric: stitch_length, feed_lift, dog_height_at_needle_plate"
                                " (at --input regulator=DEG, default the file's setting),"
                                " needle_top_deg, take_up_lag_deg,"
-                               " needle_descent_at_take_up_top, loop_lift, shuttle_swing_deg"),
+                               " needle_descent_at_take_up_top, loop_lift, shuttle_swing_deg,"
+                               + FAMILY_HELP),
     phi_deg: float = typer.Option(0.0, "--phi-deg", help="shaft angle, deg (position"
                                   " channels)"),
+    at: str = typer.Option(None, "--at", help=AT_HELP),
     inputs: list[str] = typer.Option(None, "--input", help="a setting input NAME=DEG, e.g."
                                      " regulator=30; repeatable (default: the machine's"
                                      " working setting)"),
@@ -109,7 +143,7 @@ def sensitivity_cmd(
         raise OptionError("--phi-deg", f"must be a finite angle in deg, got {phi_deg}")
     if top < 1:
         raise OptionError("--top", f"must be at least 1, got {top}")
-    _refuse_phi_for_a_metric(output)
+    _refuse_phi_for_a_metric(output, at)
     m = _load(machine, sets)
     settings = _settings(m, inputs)
     if settings and output in METRICS and output not in FEED_METRICS:
@@ -121,9 +155,17 @@ def sensitivity_cmd(
     ranked_by = (f"the tolerances of {tolerances}" if tolerances else
                  f"IT9 on lengths, +-{RANKING_ANGLE_DEG:g} deg on angles")
     names = m.parameter_names
-    if output in METRICS:
+    from ...design.tolerances import is_family_metric, metric_gradient
+
+    if at is not None or is_family_metric(output):
+        value, d, unit = metric_gradient(m, output, regulator_deg=_family_setting(m, settings),
+                                         phi_deg=phi_deg, at=at)
+        where = f"at {at}" + (f" (from phi = {phi_deg:g} deg)" if phi_deg else "") \
+            if at is not None else "over the turn"
+        data = {"output": output, "phi_deg": phi_deg if at is not None else None, "at": at}
+    elif output in METRICS:
         value, d, unit, events = _metric(m, output, settings)
-        at = "at " + ", ".join(f"{k} {v:.6g} deg" for k, v in events.items())
+        where = "at " + ", ".join(f"{k} {v:.6g} deg" for k, v in events.items())
         data = {"output": output, "phi_deg": None, "events_deg": events}
     else:
         try:
@@ -135,7 +177,7 @@ def sensitivity_cmd(
             raise OptionError("--output", exc.args[0], "Give e.g. p_needle.point_y,"
                               " theta_take_up_lever or a metric: " + ", ".join(METRICS)) from None
         value, d = float(value[0]), d[0]
-        at = f"at phi = {phi_deg:g} deg"
+        where = f"at phi = {phi_deg:g} deg"
         data = {"output": output, "phi_deg": phi_deg}
     effect = d * tol
     data.update({"value": float(value), "unit": unit,
@@ -150,7 +192,7 @@ def sensitivity_cmd(
     out_scale, per_unit = _scales(m, unit)
     moves = np.array([not is_round_off(x, out_scale / per_unit(u))
                       for x, u in zip(d, m.parameter_units)])
-    table = Table(title=f"{m.name}: d {output} / d parameter {at} ({output} ="
+    table = Table(title=f"{m.name}: d {output} / d parameter {where} ({output} ="
                         f" {value:.6g} {unit}), ranked by what each tolerance moves it by",
                   caption=f"effect: derivative x tolerance ({ranked_by}), {unit}")
     for col in ("parameter", "tolerance", "effect", "derivative", "unit"):
@@ -168,7 +210,7 @@ def sensitivity_cmd(
                              " held exact): " + ", ".join(
                                  f"{names[j]} {number(d[j], digits=6)} {unit} per"
                                  f" {m.parameter_units[j]}" for j in exact)), highlight=False)
-    console.print(f"{len(names)} parameters; {int(np.sum(~moves))} do not move {output} {at}",
+    console.print(f"{len(names)} parameters; {int(np.sum(~moves))} do not move {output} {where}",
                   highlight=False)
 
 
@@ -191,7 +233,7 @@ def tolerance_cmd(
     machine: str = typer.Argument(DEFAULT_MACHINE, help="shipped machine name or TOML file"),
     output: str = typer.Option(..., help="a metric (stitch_length, feed_lift,"
                                " dog_height_at_needle_plate) or a position channel (p_POINT_y,"
-                               " theta_LINK, q_VAR at --phi-deg)"),
+                               " theta_LINK, q_VAR at --phi-deg or --at)," + FAMILY_HELP),
     tolerances: Path = typer.Option(None, help="tolerance file (TOML, docs/accuracy.md);"
                                     " default: IT9 on every length, angles exact"),
     samples: int = typer.Option(10_000, help="Monte Carlo designs (one batch call)"),
@@ -203,6 +245,7 @@ def tolerance_cmd(
                                         " setting)"),
     phi_deg: float = typer.Option(0.0, "--phi-deg", help="shaft angle of a position channel,"
                                   " deg"),
+    at: str = typer.Option(None, "--at", help=AT_HELP),
     top: int = typer.Option(12, help="rows of the contributions table"),
     as_json: bool = typer.Option(False, "--json", help="print worst_case, rss, monte_carlo,"
                                  " contributions (and allocation) as JSON"),
@@ -221,7 +264,7 @@ def tolerance_cmd(
         raise OptionError("--phi-deg", f"must be a finite angle in deg, got {phi_deg}")
     if top < 1:
         raise OptionError("--top", f"must be at least 1, got {top}")
-    _refuse_phi_for_a_metric(output)
+    _refuse_phi_for_a_metric(output, at)
     m = _load(machine, sets)
     if regulator_deg is not None:
         regulator = m.spec.sewing.regulator if m.spec.sewing is not None else None
@@ -247,7 +290,7 @@ def tolerance_cmd(
                                "--regulator-deg {deg:g}")
                if m.spec.sewing is not None and m.spec.sewing.regulator else {})
         res = tolerance_analysis(m, output, spec, regulator_deg=regulator_deg, phi_deg=phi_deg,
-                                 samples=samples, seed=seed, band=band,
+                                 samples=samples, seed=seed, band=band, at=at,
                                  where=str(tolerances or "tolerances"),
                                  **{"option": "--regulator-deg",
                                     "give": "--regulator-deg {deg:g}", **how})

@@ -37,7 +37,7 @@ def optimize_cmd(
     meet the objective while every constraint holds."""
     from rich.progress import Progress
 
-    from ...design.optimize import optimize
+    from ...design.optimize import STATUSES, optimize
     from ...design.problem import OBJECTIVE_FORMS, Problem, load_problem, metric_unit
 
     spec, machine = load_problem(problem)
@@ -74,8 +74,12 @@ def optimize_cmd(
         data["history_note"] = ("null: the step's best design does not assemble over the whole"
                                 " turn, or a metric cannot be formed on it (the searches count"
                                 " it infinitely bad)")
+    data["status_means"] = STATUSES[r.status]
+    data["check"] = _json_safe(getattr(r, "check", None))
     if "front" in r:
         data["front"] = r.front
+    if "best" in r:
+        data["best"] = _json_safe(r.best)
     if out is not None:
         _write(out, p, data, problem)
     if as_json:
@@ -92,6 +96,19 @@ def optimize_cmd(
                          f" ({r.message})"), highlight=False)
     console.print(f"  (normalised, dimensionless: {OBJECTIVE_FORMS[spec.objective.form]})",
                   highlight=False)
+    if getattr(r, "check", None) is not None:
+        c = r.check
+        kkt = "" if c["kkt_residual"] is None else f"; KKT residual {c['kkt_residual']:.2g}"
+        console.print(escape(f"  check: {c['how']} lowered the objective by"
+                             f" {c['improvement']:.3g} (at most {c['tolerance']:.3g} allowed:"
+                             f" {'passed' if c['passed'] else 'FAILED'}){kkt}"), highlight=False)
+    if getattr(r, "best", None):
+        b = r.best
+        console.print(escape(f"  best feasible member by the objective: {b['member_objective']:.6g}"
+                             f", polished by {b['polished_by']} to {b['objective']:.6g} at "
+                             + ", ".join(f"{n} = {v:.6g}" for n, v in zip(p.names, b["x"],
+                                                                          strict=True))
+                             + f" ({b['status']})"), highlight=False)
     pt = Table(title="the objective's parts in their own units")
     for col in ("part", "at", "goal", "scale s", "start", "answer", "unit"):
         pt.add_column(col, justify="right" if col in ("scale s", "start", "answer") else "left",
@@ -121,6 +138,24 @@ def optimize_cmd(
 #: why an objective part has no value at a design, in words
 UNDEFINED_PART = ("not defined: the design does not assemble, or the metric cannot be formed"
                   " on it")
+
+
+def _json_safe(x):
+    """``x`` with every number that is not finite as None (JSON has neither NaN nor
+    infinity), numpy numbers and arrays as Python's."""
+    import numpy as np
+
+    if isinstance(x, dict):
+        return {k: _json_safe(v) for k, v in x.items()}
+    if isinstance(x, list | tuple | np.ndarray):
+        return [_json_safe(v) for v in x]
+    if isinstance(x, bool | np.bool_):
+        return bool(x)
+    if isinstance(x, int | np.integer):
+        return int(x)
+    if isinstance(x, float | np.floating):
+        return _defined(x)
+    return x
 
 
 def _defined(x) -> float | None:

@@ -28,11 +28,25 @@ def _start_and_answer(before, after):
 
 
 def _is_channel(metric: str) -> bool:
-    """A kinematic channel at an angle (p_POINT_x, theta_LINK, ...), not a named metric."""
+    """A kinematic channel at an angle or an event (p_POINT_x, theta_LINK, ...), not a named
+    metric."""
+    from ...design._dynamic_metrics import is_dynamic
     from ...design.evaluate import THREAD_METRICS
     from ...sewing.gradients import METRICS
 
-    return not (metric in METRICS or metric in THREAD_METRICS or metric.startswith("range:"))
+    return not (metric in METRICS or metric in THREAD_METRICS or ":" in metric
+                or is_dynamic(metric))
+
+
+def _channel_of(metric: str) -> str | None:
+    """The channel a metric is read from (a channel itself, or the channel of ``min:``,
+    ``max:``, ``range:``, ``mean:``, ``rms:``), else None."""
+    from ...design import metrics as km
+
+    family, arg = km.split(metric)
+    if arg is not None and family in km.AGGREGATES:
+        return arg
+    return metric if _is_channel(metric) else None
 
 
 def problem_page(root: Path, problem, data: dict, problem_file: Path) -> None:
@@ -58,11 +72,21 @@ def problem_page(root: Path, problem, data: dict, problem_file: Path) -> None:
         _feed_paths(figs, machine, reg, before, after)
     if any(r.metric.startswith("thread_") for r in refs):
         _overfeed(figs, machine, before, after)
-    channels = sorted({(r.metric.split(":", 1)[-1], r.regulator_deg) for r in refs
-                       if r.metric.startswith("range:") or _is_channel(r.metric)},
+    channels = sorted({(_channel_of(r.metric), r.regulator_deg) for r in refs
+                       if _channel_of(r.metric) is not None},
                       key=lambda c: (c[0], -1e9 if c[1] is None else c[1]))
     for channel, reg in channels:
         _channel(figs, machine, channel, before, after, reg)
+    from ...design import metrics as km
+    from ...design._dynamic_metrics import is_dynamic
+
+    for unit, reg in sorted({(km.split(r.metric)[1], r.regulator_deg) for r in refs
+                             if km.split(r.metric)[0] in km.TRANSMISSION},
+                            key=lambda c: (c[0], -1e9 if c[1] is None else c[1])):
+        _transmission(figs, machine, unit, before, after, reg)
+    for name, reg in sorted({(r.metric, r.regulator_deg) for r in refs if is_dynamic(r.metric)},
+                            key=lambda c: (c[0], -1e9 if c[1] is None else c[1])):
+        _force_curve(figs, problem, name, before, after, reg)
     metrics = _metrics_table(problem, x_after)
     text = problem_file.read_text(encoding="utf-8")
     page = page_html(data, problem, metrics, figs.blocks, text, problem_file.name)
@@ -82,6 +106,7 @@ def _metrics_table(problem, x_after: np.ndarray) -> pd.DataFrame:
                        ("constraint", problem.spec.constraints)):
         for ref in refs:
             where = (f"regulator {ref.regulator_deg:g} deg" if ref.regulator_deg is not None
+                     else f"at {ref.at}" if getattr(ref, "at", None)
                      else f"phi {ref.phi_deg:g} deg" if _is_channel(ref.metric) else "")
             vals = []
             for x in (problem.start, x_after):
@@ -238,20 +263,87 @@ def _channel(figs: Figures, machine, channel: str, before, after, reg: float | N
     angle = channel.startswith("theta_")
     s = machine.spec.sewing
     inputs = {s.regulator: math.radians(reg)} if reg is not None else None
+    unit = "mm"
     for params, style, label in _start_and_answer(before, after):
-        v = kinematics(machine, phi, params=params, inputs=inputs,
-                       on_failure="mask").channel(channel)[0]
+        v, unit = kinematics(machine, phi, params=params, inputs=inputs,
+                             on_failure="mask").channel(channel)
         v = np.degrees(np.unwrap(v)) if angle else v
+        unit = "deg" if angle else unit
         ax.plot(np.degrees(phi), v, label=label, **style)
-        cols[f"{label} {channel} [{'deg' if angle else 'mm'}]"] = v
+        cols[f"{label} {channel} [{unit}]"] = v
     ax.set_xlabel("shaft angle phi [deg]")
-    ax.set_ylabel(f"{channel} [{'deg' if angle else 'mm'}]")
+    ax.set_ylabel(f"{channel} [{unit}]")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     at = "" if reg is None else f" at regulator {reg:g} deg"
     figs.add(fig, f"channel-{channel}" + ("" if reg is None else f"-{reg:g}"),
              f"{channel} over a turn{at}",
              f"{channel} for the start (dashed) and the answer{at}.", pd.DataFrame(cols))
+
+
+def _inputs(machine, reg: float | None):
+    s = machine.spec.sewing
+    return {s.regulator: math.radians(reg)} if reg is not None else None
+
+
+def _transmission(figs: Figures, machine, unit: str, before, after, reg: float | None = None
+                  ) -> None:
+    """A unit's transmission angle over a turn (deg, 90 less |psi|) for the start and the
+    answer."""
+    from ...design.metrics import psi_curve
+
+    phi = np.radians(np.arange(0.0, 361.0, 1.0))
+    fig, ax = subplots(figsize=(7, 4.2), constrained_layout=True)
+    cols = {"phi_deg": np.degrees(phi)}
+    for params, style, label in _start_and_answer(before, after):
+        mu = 90.0 - np.abs(psi_curve(machine, unit, phi, params, _inputs(machine, reg)))
+        ax.plot(np.degrees(phi), mu, label=label, **style)
+        cols[f"{label} transmission angle {unit} [deg]"] = mu
+    ax.axhline(90.0, color="0.7", lw=0.8)
+    ax.set_xlabel("shaft angle phi [deg]")
+    ax.set_ylabel(f"transmission angle of {unit} [deg]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    at = "" if reg is None else f" at regulator {reg:g} deg"
+    figs.add(fig, f"transmission-{unit}" + ("" if reg is None else f"-{reg:g}"),
+             f"transmission angle of {unit} over a turn{at}",
+             f"The transmission angle of {unit} (90 deg is best) for the start (dashed) and the"
+             f" answer{at}.", pd.DataFrame(cols))
+
+
+def _force_curve(figs: Figures, problem, name: str, before, after, reg: float | None = None
+                 ) -> None:
+    """A force metric's curve over the turn on its grid (the quantity whose peak, RMS, mean or
+    least value the metric is) for the start and the answer."""
+    from ...design._dynamic_metrics import split, unit_of
+
+    family, arg = split(name)
+    quantity = {"peak_torque": "|driving torque|", "rms_torque": "driving torque",
+                "peak_force": f"|force| in {arg}", "peak_bearing_reaction":
+                    "|bearing reaction|" + (f" ({arg})" if arg else " (the larger bearing)"),
+                "peak_shaking_force": "|shaking force|", "peak_shaking_moment":
+                    "|shaking moment|", "friction_loss": "friction power",
+                "least_contact_force": f"force of the contact {arg}"}[family]
+    fm = problem.forces
+    inputs = _inputs(problem.machine, reg)
+    c = fm.curves([name], np.stack([before, after]), inputs)[name]
+    phi = np.degrees(fm.phi)
+    unit = unit_of(name)
+    fig, ax = subplots(figsize=(7, 4.2), constrained_layout=True)
+    cols = {"phi_deg": phi}
+    for k, (_, style, label) in enumerate(_start_and_answer(before, after)):
+        ax.plot(phi, c[k], label=label, **style)
+        cols[f"{label} {name} [{unit}]"] = c[k]
+    ax.set_xlabel("shaft angle phi [deg]")
+    ax.set_ylabel(f"{quantity} [{unit}]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    at = "" if reg is None else f" at regulator {reg:g} deg"
+    figs.add(fig, "force-" + name.replace(":", "-") + ("" if reg is None else f"-{reg:g}"),
+             f"{quantity} over a turn ({name}){at}",
+             f"The {quantity} {name} is read from, at every {360.0 / len(phi):g} deg of the turn (the"
+             f" problem's [dynamics] grid), for the start (dashed) and the answer{at}.",
+             pd.DataFrame(cols))
 
 
 def _objective(data: dict, key: str) -> str:
@@ -278,6 +370,13 @@ def page_html(data: dict, problem, metrics: pd.DataFrame, blocks, text: str, fil
     ok = data["status"] == "success"
     verdict = (f'<p class="{"pass" if ok else "fail"}">{e(data["status"])}: {e(data["message"])}'
                f" ({data['n_evaluations']} designs evaluated)</p>")
+    check = data.get("check")
+    if check:
+        kkt = "" if check.get("kkt_residual") is None else \
+            f"; the KKT residual of the exact derivatives is {check['kkt_residual']:.2g}"
+        verdict += (f"<p>Optimality check: {e(check['how'])} lowered the objective by"
+                    f" {check['improvement']:.3g} (at most {check['tolerance']:.3g} allowed:"
+                    f" {'passed' if check['passed'] else 'failed'}){e(kkt)}.</p>")
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <title>sewmech problem: {e(data['problem'])}</title><style>{CSS}</style></head><body>
