@@ -1034,7 +1034,9 @@ class DynamicsPlan:
         fr = self._friction
         X, XB, XB0, Xold = out["X"], out["XB"], out["XB0"], out["Xold"]
         CP, CN = out["CP"], out["CN"]
-        K.pair_geometry(*head, kp_params, a["P"], a["TH"], a["S"], CP, CN)
+        # the solved positions read-only, as pair_geometry() passes them: one compiled kernel
+        K.pair_geometry(*head, kp_params, *(kernel_input(a[k]) for k in ("P", "TH", "S")),
+                        CP, CN)
         idx = list(fr.pair_index)
         cp, cn = np.ascontiguousarray(CP[:, :, idx]), np.ascontiguousarray(CN[:, :, idx])
         XB0[...] = XB
