@@ -25,7 +25,10 @@ import math
 import numpy as np
 from numba import njit
 
+from . import _compiling
 from ._blocks import CHUNK, MAX_BLOCK, block_qr
+
+_compiling.install()  # a kernel compiled on its first use says so on stderr
 
 # ---- opcodes (column 0 of the unit table) -----------------------------------------------------
 OP_FIXED = 0  # point, x_param, y_param

@@ -32,6 +32,7 @@ import math
 import numpy as np
 from numba import njit
 
+from . import _compiling
 from ._kernels import (
     OP_CRANK,
     OP_FIXED,
@@ -46,6 +47,8 @@ from ._kernels import (
     TERM_VEC,
     arc_of,
 )
+
+_compiling.install()  # a kernel compiled on its first use says so on stderr
 
 _OPTS = dict(cache=True, error_model="numpy", fastmath={"contract"})
 
