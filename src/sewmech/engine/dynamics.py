@@ -1095,7 +1095,9 @@ class DynamicsPlan:
         scratch = dict(
             GP=np.zeros((n_d, n_phi, n_links, 2)), GA=np.zeros((n_d, n_phi, n_links, 2)),
             unit=units, nothing=nothing,
-            XB=kernel_input(np.zeros((n_d, n_phi, n_eq))),  # no applied forces
+            # no applied forces; writable like the machine's own XB, so that the force kernel is
+            # compiled for one array type (a read-only one here cost a second 15 s compile)
+            XB=np.zeros((n_d, n_phi, n_eq)),
             MINPIV=np.empty((n_d, n_phi)),
             X=np.empty((len(self._cw_links), 4, n_d, n_phi, n_eq)),
             cp=np.empty((n_d, n_phi, n_cw, 2)), cv=np.empty((n_d, n_phi, n_cw, 2)),
