@@ -27,7 +27,7 @@ from numba.core import event
 #: machine, callees included: benchmarks/results/compile.json). Smaller kernels (a second or
 #: two) compile without a word.
 FAMILIES = {
-    ("sewmech.engine._kernels", "evaluate_program"): ("the kinematics interpreter", 15),
+    ("sewmech.engine._kernels", "evaluate_program"): ("the kinematics interpreter", 20),
     ("sewmech.engine._kernels", "force_solve"): ("the force solver", 15),
     ("sewmech.engine._tangents", "tangents"): ("the design sensitivities' tangent kernel", 40),
     ("sewmech.engine._running", None): ("the run in time's integrator", 10),

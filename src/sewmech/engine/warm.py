@@ -3,8 +3,8 @@
 numba compiles a kernel on its first call and keeps the machine code on disk (beside the
 sources, or in ``NUMBA_CACHE_DIR``). ``make install`` (and so ``make demo`` and ``make test``)
 runs this right after installing: it compiles the kinematics interpreter and the force solver,
-which nearly every command calls first, in about 30 s of CPU from an empty cache
-(benchmarks/results/compile.json). The two big kernels that only some commands call, the design
+which nearly every command calls first, in about 45 s of CPU from an empty cache on the busy
+2-core machine (35-40 s user; benchmarks/results/compile.json). The two big kernels that only some commands call, the design
 sensitivities' tangent kernel (sensitivities, tolerances, gradients; about 40 s) and the run in
 time's integrator (about 10 s), are compiled by the first command that needs them, which says
 so on stderr (:mod:`sewmech.engine._compiling`); ``--all`` compiles them here too (``make
@@ -111,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
             " compiler later (about 1.5 min of CPU; each step is listed as it is compiled)")
     else:
         say("sewmech: compiling the numerical kernels the commands call first, so that they"
-            " need not wait for the compiler (about 30 s of CPU; each step is listed as it is"
+            " need not wait for the compiler (about 45 s of CPU; each step is listed as it is"
             " compiled; the design sensitivities' and the run in time's kernels are compiled"
             " on their first use)")
     bytecode()
