@@ -36,7 +36,10 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/sewmech report jb1-3 --out $(OUT)
 
+# the tests call every kernel: the ones the install leaves to their first use are compiled here
+# (a second when they are already compiled), so that no test waits for the compiler
 test: $(STAMP)
+	$(BIN)/python -m sewmech.engine.warm --all
 	$(BIN)/python -m pytest -q
 
 test-latest:
@@ -46,7 +49,7 @@ test-latest:
 	$(LATEST)/bin/python -m pip install --quiet --upgrade --upgrade-strategy eager -e ".[test,bench,dev]"
 	$(LATEST)/bin/python -m pip list --format=freeze > $(LATEST)/versions.txt
 	@echo "sewmech: the versions tested are listed in $(LATEST)/versions.txt"
-	NUMBA_CACHE_DIR=$(abspath $(LATEST))/numba-cache $(LATEST)/bin/python -m sewmech.engine.warm
+	NUMBA_CACHE_DIR=$(abspath $(LATEST))/numba-cache $(LATEST)/bin/python -m sewmech.engine.warm --all
 	NUMBA_CACHE_DIR=$(abspath $(LATEST))/numba-cache $(LATEST)/bin/python -m pytest -q -p no:cacheprovider
 
 # the runtime, test, bench and dev dependencies and the build tools (given on stdin), for every

@@ -483,6 +483,25 @@ def test_one_compiled_kernel_for_read_only_and_writable_inputs():
     assert len(K.force_solve.signatures) == n_force
 
 
+def test_counterweights_and_friction_use_the_installs_force_kernel():
+    """A counterweight of some mass adds force solves with no applied forces, and friction
+    solves the pairs' directions again: both with the same array types as the machine's own
+    solve, which the install compiles (a read-only array there cost a second 15 s compile in
+    the first report, issue 34)."""
+    from sewmech.engine import _kernels as K
+    from sewmech.engine.dynamics import inverse_dynamics, pair_geometry
+
+    m = sewmech.load_machine("jb1-3")  # [friction], and an extra counterweight of 0 g cm
+    phi = np.radians([0.0, 90.0])
+    inverse_dynamics(m, phi)
+    n_force, n_pairs = len(K.force_solve.signatures), len(K.pair_geometry.signatures)
+    pair_geometry(m, sewmech.kinematics(m, phi))
+    heavy = m.parameters({"extra.static_moment": 200.0})
+    inverse_dynamics(m, phi, params=heavy)
+    assert len(K.force_solve.signatures) == n_force
+    assert len(K.pair_geometry.signatures) == n_pairs
+
+
 def test_one_off_calls_share_a_plan_but_not_their_arrays():
     """kinematics() keeps the plan of a call like an earlier one, yet every result owns its
     arrays: a later call never changes an earlier result."""

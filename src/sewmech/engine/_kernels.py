@@ -25,7 +25,10 @@ import math
 import numpy as np
 from numba import njit
 
+from . import _compiling
 from ._blocks import CHUNK, MAX_BLOCK, block_qr
+
+_compiling.install()  # a kernel compiled on its first use says so on stderr
 
 # ---- opcodes (column 0 of the unit table) -----------------------------------------------------
 OP_FIXED = 0  # point, x_param, y_param
@@ -1017,6 +1020,10 @@ _DOC = """Evaluate the program for every design (axis 0 of params) along the mar
     """
 
 
+# A one-line wrapper: numba compiles _eval_designs alone and then again inside this kernel's
+# module (about 4 s more of the install's compile), and the twice-optimised code is measurably
+# faster on big batches (the four-bar's 1000 designs x 360 angles 5-7 % slower as one function,
+# issue 34), so the wrapper stays.
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def evaluate_program(d0, d1, units, params, p_lo, p_hi, march_phi, mc, ms, march_store,
                      march_omega, march_eps, grp, unk, terms, cams_i, arcs_i, n_points, n_links,
@@ -1115,206 +1122,6 @@ PIVOT_MIN = 1e-12
 FORCE_CHUNK = CHUNK
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH, GP, GA, mass,
-                  inertia, gravity, XB, blk_ptr, blk_off, rperm, cperm, cpl_ptr, cpl_row,
-                  cpl_col, pslot, X, MINPIV, W, B, XV, t1, t2, t3, t4, worst, rpos, cpos,
-                  max_written):
-    """One design, positions in chunks of FORCE_CHUNK. W (n_slots * chunk, flat: slot s of
-    position kk at s * chunk + kk) holds the blocks' entries (row-major within a block) and
-    then the coupling entries; B the right-hand sides and XV the unknowns (n_eq * chunk, flat),
-    both in block order (row rperm[p] and unknown cperm[p] at p); t1..t4, worst scratch (chunk);
-    rpos, cpos (n_eq) scratch for the inverse permutations. Returns the number of positions
-    whose smallest relative pivot is not above PIVOT_MIN."""
-    n_phi = X.shape[1]
-    n_eq = X.shape[2]
-    n_links = mass.shape[0]
-    n_blocks = blk_ptr.shape[0] - 1
-    n_blk_slots = blk_off[n_blocks]
-    n_low = 0
-    n_written = min(max_written, MAX_BLOCK)
-    for p in range(n_eq):
-        rpos[rperm[p]] = p
-        cpos[cperm[p]] = p
-    Wf = W
-    Bf = B
-    XVf = XV
-    W = Wf.reshape((Wf.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
-    B = Bf.reshape((Bf.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
-    XV = XVf.reshape((XVf.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
-    # flat views with unsigned offsets for the loops over positions (no wrap-around checks)
-    Pf = P.reshape(P.size)
-    Xf = X.reshape(X.size)
-    GPf = GP.reshape(GP.size)
-    GAf = GA.reshape(GA.size)
-    EPf = EP.reshape(EP.size)
-    XBf = XB.reshape(XB.size)
-    n_pt = P.shape[2]
-    n_g = GP.shape[2]
-    sp = _U(2 * n_pt)  # P's step from one position to the next
-    sg_ = _U(2 * n_g)  # GP's and GA's
-    sl = _U(EP.shape[2])  # EP's
-    CH = _U(FORCE_CHUNK)
-    for k0 in range(0, n_phi, FORCE_CHUNK):
-        nk = min(FORCE_CHUNK, n_phi - k0)
-        # W starts zeroed and every chunk writes the same entries, which the written solvers
-        # only read: only the blocks of the generic loop, which works in place, are re-zeroed
-        for blk in range(n_blocks):
-            if blk_ptr[blk + 1] - blk_ptr[blk] > n_written:
-                W[blk_off[blk]:blk_off[blk + 1], :] = 0.0
-        # right-hand side per moving link: m a_G - m g - sum F ; I alpha - sum (X - G) x F,
-        # the applied forces and their moments about the centre of mass given in XB
-        for li in range(1, n_links):
-            rx = rpos[3 * (li - 1)]
-            ry = rpos[3 * (li - 1) + 1]
-            rm = rpos[3 * (li - 1) + 2]
-            m = 1e-3 * mass[li]
-            mg = gravity * mass[li]
-            ii = 1e-3 * inertia[li]
-            ga = _U(((d * n_phi + k0) * n_g + li) * 2)
-            el = _U((d * n_phi + k0) * EP.shape[2] + li)
-            xb = _U((d * n_phi + k0) * n_eq + 3 * (li - 1))
-            bx, by, bm = _U(rx) * CH, _U(ry) * CH, _U(rm) * CH
-            for kk in range(_U(nk)):
-                ix = xb + kk * _U(n_eq)
-                Bf[bx + kk] = m * GAf[ga + kk * sg_] - XBf[ix]
-                Bf[by + kk] = m * GAf[ga + kk * sg_ + _U(1)] + mg - XBf[ix + _U(1)]
-                Bf[bm + kk] = ii * EPf[el + kk * sl] - XBf[ix + _U(2)]
-        # the matrix entries of every pair (pslot: where each of its entries goes in W)
-        for i in range(pairs.shape[0]):
-            kind = pairs[i, 0]
-            if kind == PAIR_DRIVER:
-                s = pslot[i, 0]
-                for kk in range(nk):
-                    W[s, kk] = 1.0
-                continue
-            for side in range(2):
-                link = pairs[i, 2] if side == 0 else pairs[i, 1]
-                if link == 0:
-                    continue
-                sg = 1.0 if side == 0 else -1.0
-                if kind == PAIR_REVOLUTE:  # the forces along x and y at the pin
-                    bp = _U(((d * n_phi + k0) * n_pt + pairs[i, 3]) * 2)
-                    bg = _U(((d * n_phi + k0) * n_g + link) * 2)
-                    sx = _U(pslot[i, 3 * side]) * CH
-                    smx = _U(pslot[i, 3 * side + 2]) * CH
-                    sy = _U(pslot[i, 6 + 3 * side + 1]) * CH
-                    smy = _U(pslot[i, 6 + 3 * side + 2]) * CH
-                    for kk in range(_U(nk)):
-                        ip = bp + kk * sp
-                        ig = bg + kk * sg_
-                        Wf[sx + kk] = sg
-                        Wf[smx + kk] = -sg * (Pf[ip + _U(1)] - GPf[ig + _U(1)])
-                        Wf[sy + kk] = sg
-                        Wf[smy + kk] = sg * (Pf[ip] - GPf[ig])
-                else:  # one force along the contact normal
-                    sx = pslot[i, 3 * side]
-                    sy = pslot[i, 3 * side + 1]
-                    sm = pslot[i, 3 * side + 2]
-                    for kk in range(nk):
-                        k = k0 + kk
-                        xx, xy, fx, fy = _pair_geometry(i, pairs, pair_angle, cam_rows, terms,
-                                                        params, d, k, P, TH, Q)
-                        dx = xx - GP[d, k, link, 0]
-                        dy = xy - GP[d, k, link, 1]
-                        W[sx, kk] = sg * fx
-                        W[sy, kk] = sg * fy
-                        W[sm, kk] = sg * (dx * fy - dy * fx)
-                if kind == PAIR_PRISMATIC:  # the guide's couple
-                    s = pslot[i, 12 + side]
-                    for kk in range(nk):
-                        W[s, kk] = sg
-        # block upper-triangular form: the last block first, each with the unknowns of the
-        # later blocks known (coupling terms to the right-hand side); every block by
-        # Householder QR, which is stable without pivoting and so runs the same
-        # instructions at every position
-        for kk in range(nk):
-            worst[kk] = np.inf
-        for blk in range(n_blocks - 1, -1, -1):
-            r0 = blk_ptr[blk]
-            nb = blk_ptr[blk + 1] - r0
-            off = blk_off[blk]
-            for c in range(cpl_ptr[blk], cpl_ptr[blk + 1]):  # known unknowns to the right
-                ri = _U(r0 + cpl_row[c]) * CH
-                col = _U(cpos[cpl_col[c]]) * CH
-                s = _U(n_blk_slots + c) * CH
-                for kk in range(_U(nk)):
-                    Bf[ri + kk] -= Wf[s + kk] * XVf[col + kk]
-            if nb <= n_written and block_qr(nb, Wf, off, Bf, XVf, r0, nk, worst):
-                continue
-            for kk in range(nk):  # scale: the block's largest entry
-                t3[kk] = 0.0
-            for e in range(nb * nb):
-                for kk in range(nk):
-                    t3[kk] = max(t3[kk], abs(W[off + e, kk]))
-            for j in range(nb):
-                sj = off + j * nb + j
-                for kk in range(nk):
-                    t1[kk] = 0.0
-                for i in range(j, nb):
-                    s = off + i * nb + j
-                    for kk in range(nk):
-                        t1[kk] += W[s, kk] * W[s, kk]
-                for kk in range(nk):
-                    ajj = W[sj, kk]
-                    alpha = -math.copysign(math.sqrt(t1[kk]), ajj)
-                    v0 = ajj - alpha
-                    vn2 = t1[kk] - ajj * ajj + v0 * v0
-                    t2[kk] = 2.0 / vn2 if vn2 > 0.0 else 0.0
-                    W[sj, kk] = v0  # the reflector's vector replaces column j ...
-                    t1[kk] = alpha  # ... and R_jj waits in t1
-                    worst[kk] = min(worst[kk], abs(alpha) / t3[kk] if t3[kk] > 0.0 else 0.0)
-                for c in range(j + 1, nb + 1):  # the later columns, then the right-hand side
-                    for kk in range(nk):
-                        t4[kk] = 0.0
-                    for i in range(j, nb):
-                        sv = off + i * nb + j
-                        if c < nb:
-                            sc = off + i * nb + c
-                            for kk in range(nk):
-                                t4[kk] += W[sv, kk] * W[sc, kk]
-                        else:
-                            ri = r0 + i
-                            for kk in range(nk):
-                                t4[kk] += W[sv, kk] * B[ri, kk]
-                    for kk in range(nk):
-                        t4[kk] *= t2[kk]
-                    for i in range(j, nb):
-                        sv = off + i * nb + j
-                        if c < nb:
-                            sc = off + i * nb + c
-                            for kk in range(nk):
-                                W[sc, kk] -= t4[kk] * W[sv, kk]
-                        else:
-                            ri = r0 + i
-                            for kk in range(nk):
-                                B[ri, kk] -= t4[kk] * W[sv, kk]
-                for kk in range(nk):
-                    W[sj, kk] = t1[kk]  # R_jj on the diagonal
-            for j in range(nb - 1, -1, -1):  # back substitution with R
-                rj = r0 + j
-                for kk in range(nk):
-                    t4[kk] = B[rj, kk]
-                for c in range(j + 1, nb):
-                    s = off + j * nb + c
-                    cc = r0 + c
-                    for kk in range(nk):
-                        t4[kk] -= W[s, kk] * XV[cc, kk]
-                cj = r0 + j
-                sj = off + j * nb + j
-                for kk in range(nk):
-                    XV[cj, kk] = t4[kk] / W[sj, kk]
-        for kk in range(nk):
-            MINPIV[d, k0 + kk] = worst[kk]
-            if not worst[kk] > PIVOT_MIN:  # NaN (a position that did not assemble) included
-                n_low += 1
-        bx = _U((d * n_phi + k0) * n_eq)
-        for e in range(n_eq):
-            xo = bx + _U(cperm[e])
-            xi = _U(e) * CH
-            for kk in range(_U(nk)):
-                Xf[xo + kk * _U(n_eq)] = XVf[xi + kk]
-    return n_low
 
 
 _FORCE_DOC = """Right-hand sides and pair forces of every design and position.
@@ -1354,11 +1161,201 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
                 cpl_col, pslot, n_slots, X, MINPIV, max_written):
     W, B, XV, t1, t2, t3, t4, worst, rpos, cpos = _force_scratch(n_slots, X.shape[2])
     n_low = 0
+    # One design at a time, positions in chunks of FORCE_CHUNK, all in this one function: numba
+    # compiles a called function twice (alone, and again inside its caller), which cost 6 s of
+    # the install's compile for a per-design function. W (n_slots * chunk, flat: slot s of
+    # position kk at s * chunk + kk) holds the blocks' entries (row-major within a block) and
+    # then the coupling entries; B the right-hand sides and XV the unknowns (n_eq * chunk, flat),
+    # both in block order (row rperm[p] and unknown cperm[p] at p); t1..t4, worst scratch
+    # (chunk); rpos, cpos (n_eq) the inverse permutations.
+    n_phi = X.shape[1]
+    n_eq = X.shape[2]
+    n_links = mass.shape[0]
+    n_blocks = blk_ptr.shape[0] - 1
+    n_blk_slots = blk_off[n_blocks]
+    n_written = min(max_written, MAX_BLOCK)
+    for p in range(n_eq):
+        rpos[rperm[p]] = p
+        cpos[cperm[p]] = p
+    Wf = W
+    Bf = B
+    XVf = XV
+    W = Wf.reshape((Wf.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
+    B = Bf.reshape((Bf.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
+    XV = XVf.reshape((XVf.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
+    # flat views with unsigned offsets for the loops over positions (no wrap-around checks)
+    Pf = P.reshape(P.size)
+    Xf = X.reshape(X.size)
+    GPf = GP.reshape(GP.size)
+    GAf = GA.reshape(GA.size)
+    EPf = EP.reshape(EP.size)
+    XBf = XB.reshape(XB.size)
+    n_pt = P.shape[2]
+    n_g = GP.shape[2]
+    sp = _U(2 * n_pt)  # P's step from one position to the next
+    sg_ = _U(2 * n_g)  # GP's and GA's
+    sl = _U(EP.shape[2])  # EP's
+    CH = _U(FORCE_CHUNK)
     for d in range(d0, d1):
-        n_low += _force_design(d, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH,
-                               GP, GA, mass, inertia, gravity, XB, blk_ptr, blk_off, rperm,
-                               cperm, cpl_ptr, cpl_row, cpl_col, pslot, X, MINPIV, W, B, XV,
-                               t1, t2, t3, t4, worst, rpos, cpos, max_written)
+        for k0 in range(0, n_phi, FORCE_CHUNK):
+            nk = min(FORCE_CHUNK, n_phi - k0)
+            # W starts zeroed and every chunk writes the same entries, which the written solvers
+            # only read: only the blocks of the generic loop, which works in place, are re-zeroed
+            for blk in range(n_blocks):
+                if blk_ptr[blk + 1] - blk_ptr[blk] > n_written:
+                    W[blk_off[blk]:blk_off[blk + 1], :] = 0.0
+            # right-hand side per moving link: m a_G - m g - sum F ; I alpha - sum (X - G) x F,
+            # the applied forces and their moments about the centre of mass given in XB
+            for li in range(1, n_links):
+                rx = rpos[3 * (li - 1)]
+                ry = rpos[3 * (li - 1) + 1]
+                rm = rpos[3 * (li - 1) + 2]
+                m = 1e-3 * mass[li]
+                mg = gravity * mass[li]
+                ii = 1e-3 * inertia[li]
+                ga = _U(((d * n_phi + k0) * n_g + li) * 2)
+                el = _U((d * n_phi + k0) * EP.shape[2] + li)
+                xb = _U((d * n_phi + k0) * n_eq + 3 * (li - 1))
+                bx, by, bm = _U(rx) * CH, _U(ry) * CH, _U(rm) * CH
+                for kk in range(_U(nk)):
+                    ix = xb + kk * _U(n_eq)
+                    Bf[bx + kk] = m * GAf[ga + kk * sg_] - XBf[ix]
+                    Bf[by + kk] = m * GAf[ga + kk * sg_ + _U(1)] + mg - XBf[ix + _U(1)]
+                    Bf[bm + kk] = ii * EPf[el + kk * sl] - XBf[ix + _U(2)]
+            # the matrix entries of every pair (pslot: where each of its entries goes in W)
+            for i in range(pairs.shape[0]):
+                kind = pairs[i, 0]
+                if kind == PAIR_DRIVER:
+                    s = pslot[i, 0]
+                    for kk in range(nk):
+                        W[s, kk] = 1.0
+                    continue
+                for side in range(2):
+                    link = pairs[i, 2] if side == 0 else pairs[i, 1]
+                    if link == 0:
+                        continue
+                    sg = 1.0 if side == 0 else -1.0
+                    if kind == PAIR_REVOLUTE:  # the forces along x and y at the pin
+                        bp = _U(((d * n_phi + k0) * n_pt + pairs[i, 3]) * 2)
+                        bg = _U(((d * n_phi + k0) * n_g + link) * 2)
+                        sx = _U(pslot[i, 3 * side]) * CH
+                        smx = _U(pslot[i, 3 * side + 2]) * CH
+                        sy = _U(pslot[i, 6 + 3 * side + 1]) * CH
+                        smy = _U(pslot[i, 6 + 3 * side + 2]) * CH
+                        for kk in range(_U(nk)):
+                            ip = bp + kk * sp
+                            ig = bg + kk * sg_
+                            Wf[sx + kk] = sg
+                            Wf[smx + kk] = -sg * (Pf[ip + _U(1)] - GPf[ig + _U(1)])
+                            Wf[sy + kk] = sg
+                            Wf[smy + kk] = sg * (Pf[ip] - GPf[ig])
+                    else:  # one force along the contact normal
+                        sx = pslot[i, 3 * side]
+                        sy = pslot[i, 3 * side + 1]
+                        sm = pslot[i, 3 * side + 2]
+                        for kk in range(nk):
+                            k = k0 + kk
+                            xx, xy, fx, fy = _pair_geometry(i, pairs, pair_angle, cam_rows, terms,
+                                                            params, d, k, P, TH, Q)
+                            dx = xx - GP[d, k, link, 0]
+                            dy = xy - GP[d, k, link, 1]
+                            W[sx, kk] = sg * fx
+                            W[sy, kk] = sg * fy
+                            W[sm, kk] = sg * (dx * fy - dy * fx)
+                    if kind == PAIR_PRISMATIC:  # the guide's couple
+                        s = pslot[i, 12 + side]
+                        for kk in range(nk):
+                            W[s, kk] = sg
+            # block upper-triangular form: the last block first, each with the unknowns of the
+            # later blocks known (coupling terms to the right-hand side); every block by
+            # Householder QR, which is stable without pivoting and so runs the same
+            # instructions at every position
+            for kk in range(nk):
+                worst[kk] = np.inf
+            for blk in range(n_blocks - 1, -1, -1):
+                r0 = blk_ptr[blk]
+                nb = blk_ptr[blk + 1] - r0
+                off = blk_off[blk]
+                for c in range(cpl_ptr[blk], cpl_ptr[blk + 1]):  # known unknowns to the right
+                    ri = _U(r0 + cpl_row[c]) * CH
+                    col = _U(cpos[cpl_col[c]]) * CH
+                    s = _U(n_blk_slots + c) * CH
+                    for kk in range(_U(nk)):
+                        Bf[ri + kk] -= Wf[s + kk] * XVf[col + kk]
+                if nb <= n_written and block_qr(nb, Wf, off, Bf, XVf, r0, nk, worst):
+                    continue
+                for kk in range(nk):  # scale: the block's largest entry
+                    t3[kk] = 0.0
+                for e in range(nb * nb):
+                    for kk in range(nk):
+                        t3[kk] = max(t3[kk], abs(W[off + e, kk]))
+                for j in range(nb):
+                    sj = off + j * nb + j
+                    for kk in range(nk):
+                        t1[kk] = 0.0
+                    for i in range(j, nb):
+                        s = off + i * nb + j
+                        for kk in range(nk):
+                            t1[kk] += W[s, kk] * W[s, kk]
+                    for kk in range(nk):
+                        ajj = W[sj, kk]
+                        alpha = -math.copysign(math.sqrt(t1[kk]), ajj)
+                        v0 = ajj - alpha
+                        vn2 = t1[kk] - ajj * ajj + v0 * v0
+                        t2[kk] = 2.0 / vn2 if vn2 > 0.0 else 0.0
+                        W[sj, kk] = v0  # the reflector's vector replaces column j ...
+                        t1[kk] = alpha  # ... and R_jj waits in t1
+                        worst[kk] = min(worst[kk], abs(alpha) / t3[kk] if t3[kk] > 0.0 else 0.0)
+                    for c in range(j + 1, nb + 1):  # the later columns, then the right-hand side
+                        for kk in range(nk):
+                            t4[kk] = 0.0
+                        for i in range(j, nb):
+                            sv = off + i * nb + j
+                            if c < nb:
+                                sc = off + i * nb + c
+                                for kk in range(nk):
+                                    t4[kk] += W[sv, kk] * W[sc, kk]
+                            else:
+                                ri = r0 + i
+                                for kk in range(nk):
+                                    t4[kk] += W[sv, kk] * B[ri, kk]
+                        for kk in range(nk):
+                            t4[kk] *= t2[kk]
+                        for i in range(j, nb):
+                            sv = off + i * nb + j
+                            if c < nb:
+                                sc = off + i * nb + c
+                                for kk in range(nk):
+                                    W[sc, kk] -= t4[kk] * W[sv, kk]
+                            else:
+                                ri = r0 + i
+                                for kk in range(nk):
+                                    B[ri, kk] -= t4[kk] * W[sv, kk]
+                    for kk in range(nk):
+                        W[sj, kk] = t1[kk]  # R_jj on the diagonal
+                for j in range(nb - 1, -1, -1):  # back substitution with R
+                    rj = r0 + j
+                    for kk in range(nk):
+                        t4[kk] = B[rj, kk]
+                    for c in range(j + 1, nb):
+                        s = off + j * nb + c
+                        cc = r0 + c
+                        for kk in range(nk):
+                            t4[kk] -= W[s, kk] * XV[cc, kk]
+                    cj = r0 + j
+                    sj = off + j * nb + j
+                    for kk in range(nk):
+                        XV[cj, kk] = t4[kk] / W[sj, kk]
+            for kk in range(nk):
+                MINPIV[d, k0 + kk] = worst[kk]
+                if not worst[kk] > PIVOT_MIN:  # NaN (a position that did not assemble) included
+                    n_low += 1
+            bx = _U((d * n_phi + k0) * n_eq)
+            for e in range(n_eq):
+                xo = bx + _U(cperm[e])
+                xi = _U(e) * CH
+                for kk in range(_U(nk)):
+                    Xf[xo + kk * _U(n_eq)] = XVf[xi + kk]
     return n_low
 
 

@@ -36,6 +36,10 @@ import math
 import numpy as np
 from numba import njit
 
+from . import _compiling
+
+_compiling.install()  # a kernel compiled on its first use says so on stderr
+
 RUN, STOP, SLIP, FREE = 0, 1, 2, 3
 #: segment ends: the time asked for, phi_end, the shaft at rest while driven (stalled), the
 #: speed below w_stop while stopping, the clutch locks, it slips, the buffers are full, the

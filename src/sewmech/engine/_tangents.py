@@ -17,7 +17,7 @@ lanes (the tangents are stored (levels, block, width, LANES)).
   solver (points, vectors of parameter or variable length, circular-arc cam contacts); J_q is
   factored once per position and solved for every support column.
 
-:func:`tangents_rates` differentiates the velocities, angular velocities and joint rates too
+:func:`tangents` at level 2 differentiates the velocities, angular velocities and joint rates too
 (each unit's velocity relation with the position tangents known) and the accelerations; the
 loop Jacobian's factors serve all three levels.
 
@@ -32,6 +32,7 @@ import math
 import numpy as np
 from numba import njit
 
+from . import _compiling
 from ._kernels import (
     OP_CRANK,
     OP_FIXED,
@@ -46,6 +47,8 @@ from ._kernels import (
     TERM_VEC,
     arc_of,
 )
+
+_compiling.install()  # a kernel compiled on its first use says so on stderr
 
 _OPTS = dict(cache=True, error_model="numpy", fastmath={"contract"})
 
@@ -193,34 +196,16 @@ def _lu_solve(M, perm, n, Bm, X, m, stride, C):
 
 
 @njit(nogil=True, **_OPTS)
-def tangents(b0, b1, units, params, n_phi, qoff, qm, row_out, rin, ppos, tin, maps, max_m,
+def tangents(b0, b1, level, units, params, n_phi, qoff, qm, row_out, rin, ppos, tin, maps, max_m,
              max_n, max_t, groups, unknowns, terms, cams, arcs, n_pt, n_l, pcol, lcol, vcol, PS,
              THS, QS, T):
-    """The position tangents of blocks b0 .. b1 - 1 (arguments as :func:`_walk`'s, level 0):
-    compiled apart from :func:`tangents_rates`, the level a constant, so that none of the
-    rates' code is in its loops."""
-    return _walk(b0, b1, 0, units, params, n_phi, qoff, qm, row_out, rin, ppos, tin, maps,
-                 max_m, max_n, max_t, groups, unknowns, terms, cams, arcs, n_pt, n_l, pcol,
-                 lcol, vcol, PS, THS, QS, T)
-
-
-@njit(nogil=True, **_OPTS)
-def tangents_rates(b0, b1, units, params, n_phi, qoff, qm, row_out, rin, ppos, tin, maps,
-                   max_m, max_n, max_t, groups, unknowns, terms, cams, arcs, n_pt, n_l, pcol,
-                   lcol, vcol, PS, THS, QS, T):
-    """The tangents of the positions, velocities and accelerations (level 2) of blocks
-    b0 .. b1 - 1 (arguments as :func:`_walk`'s)."""
-    return _walk(b0, b1, 2, units, params, n_phi, qoff, qm, row_out, rin, ppos, tin, maps,
-                 max_m, max_n, max_t, groups, unknowns, terms, cams, arcs, n_pt, n_l, pcol,
-                 lcol, vcol, PS, THS, QS, T)
-
-
-@njit(inline="always", **_OPTS)  # (numba inlines functions of at most 30 arguments)
-def _walk(b0, b1, level, units, params, n_phi, qoff, qm, row_out, rin, ppos, tin, maps, max_m,
-          max_n, max_t, groups, unknowns, terms, cams, arcs, n_pt, n_l, pcol, lcol, vcol, PS,
-          THS, QS, T):
     """The tangents of the blocks of positions b0 .. b1 - 1 (position k of the n in PS is lane
-    k % LANES of block k // LANES; the last block's spare lanes repeat position n - 1).
+    k % LANES of block k // LANES; the last block's spare lanes repeat position n - 1) up to
+    ``level`` (0: positions; 2: velocities and accelerations too).
+
+    One kernel for every level, the level an argument: a kernel per level (the level a
+    compile-time constant) compiled every unit's code twice, 35 s of CPU, for no measurable
+    speed (bench_sensitivity).
 
     units : the program rows solved (solve order); params (n_design, n_params), position k
     belonging to design k // n_phi; qoff, qm, row_out, rin, ppos, tin, maps, max_m : the layout

@@ -1034,7 +1034,9 @@ class DynamicsPlan:
         fr = self._friction
         X, XB, XB0, Xold = out["X"], out["XB"], out["XB0"], out["Xold"]
         CP, CN = out["CP"], out["CN"]
-        K.pair_geometry(*head, kp_params, a["P"], a["TH"], a["S"], CP, CN)
+        # the solved positions read-only, as pair_geometry() passes them: one compiled kernel
+        K.pair_geometry(*head, kp_params, *(kernel_input(a[k]) for k in ("P", "TH", "S")),
+                        CP, CN)
         idx = list(fr.pair_index)
         cp, cn = np.ascontiguousarray(CP[:, :, idx]), np.ascontiguousarray(CN[:, :, idx])
         XB0[...] = XB
@@ -1093,7 +1095,9 @@ class DynamicsPlan:
         scratch = dict(
             GP=np.zeros((n_d, n_phi, n_links, 2)), GA=np.zeros((n_d, n_phi, n_links, 2)),
             unit=units, nothing=nothing,
-            XB=kernel_input(np.zeros((n_d, n_phi, n_eq))),  # no applied forces
+            # no applied forces; writable like the machine's own XB, so that the force kernel is
+            # compiled for one array type (a read-only one here cost a second 15 s compile)
+            XB=np.zeros((n_d, n_phi, n_eq)),
             MINPIV=np.empty((n_d, n_phi)),
             X=np.empty((len(self._cw_links), 4, n_d, n_phi, n_eq)),
             cp=np.empty((n_d, n_phi, n_cw, 2)), cv=np.empty((n_d, n_phi, n_cw, 2)),

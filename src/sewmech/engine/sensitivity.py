@@ -301,13 +301,12 @@ def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None 
         QS = r.q.reshape(1, n, n_v)
     blocks = -(-n // _tangents.LANES)
     T = np.empty((level + 1, blocks, plan.layout.width, _tangents.LANES))
-    args = (plan.tables[0], par, n_phi, *plan.tables[1:], kernel_input(PS),
+    args = (level, plan.tables[0], par, n_phi, *plan.tables[1:], kernel_input(PS),
             kernel_input(THS), kernel_input(QS), T)
-    kernel = _tangents.tangents_rates if rates else _tangents.tangents
     if n >= _PARALLEL_MIN_POSITIONS:
-        bad = run_chunks(kernel, blocks, args)
+        bad = run_chunks(_tangents.tangents, blocks, args)
     else:
-        bad = kernel(0, blocks, *args)
+        bad = _tangents.tangents(0, blocks, *args)
     if bad:
         raise AnalysisError(f"machine '{machine.name}'", "a cam contact lies on no arc of its"
                             " profile", "Check the cam's arcs (sewmech check)")

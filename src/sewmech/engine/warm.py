@@ -1,13 +1,16 @@
 """Compile the kernels once, ahead of the first command: ``python -m sewmech.engine.warm``.
 
-numba compiles the interpreter, the force solver and the design sensitivities' tangent kernel
-on their first call and keeps the machine code on disk (beside the sources); compiling takes
-about 2.5 min of CPU from an empty cache (155 s measured; 165 s of wall time on an idle 2-core
-machine, more on a busy one; the two tangent kernels about 60 % of it), which a user would otherwise meet on their
-first command (the tangent kernels on their first sensitivities). It says what it compiles,
-step by step, so that a silent ``make`` is never mistaken for a hung one. ``make install`` (and so ``make demo`` and ``make test``) runs this right
-after installing, so every command finds the kernels compiled. Running
-it again costs about a second (it only loads them).
+numba compiles a kernel on its first call and keeps the machine code on disk (beside the
+sources, or in ``NUMBA_CACHE_DIR``). ``make install`` (and so ``make demo`` and ``make test``)
+runs this right after installing: it compiles the kinematics interpreter and the force solver,
+which nearly every command calls first, in about 45 s of CPU from an empty cache on the busy
+2-core machine (35-40 s user; benchmarks/results/compile.json). The two big kernels that only some commands call, the design
+sensitivities' tangent kernel (sensitivities, tolerances, gradients; about 40 s) and the run in
+time's integrator (about 10 s), are compiled by the first command that needs them, which says
+so on stderr (:mod:`sewmech.engine._compiling`); ``--all`` compiles them here too (``make
+test`` does, so that no test meets a compile). It says what it compiles, step by step, so that
+a silent ``make`` is never mistaken for a hung one. Running it again costs about a second (it
+only loads the kernels).
 
 It also writes the package's bytecode (``__pycache__``): where ``PYTHONDONTWRITEBYTECODE`` is
 set, as on our 2-core CI machine, Python would otherwise compile every sewmech module from
@@ -19,25 +22,26 @@ from __future__ import annotations
 import sys
 import time
 
-#: what is compiled, in order: (what the user is told, what calls it)
+#: what is compiled, in order: (what the user is told, what calls it, compiled at the install)
 STEPS = (
-    ("the kinematics interpreter", "kinematics"),
-    ("the force solver and its block solvers", "dynamics"),
-    ("the force directions of the pairs", "pairs"),
-    ("friction in the pairs", "friction"),
-    ("the design sensitivities' tangent kernel (positions)", "sensitivities"),
-    ("the design sensitivities' tangent kernel (rates)", "rates"),
-    ("the run in time's integrator", "run"),
+    ("the kinematics interpreter", "kinematics", True),
+    ("the force solver and its block solvers", "dynamics", True),
+    ("the force directions of the pairs", "pairs", True),
+    ("friction in the pairs", "friction", True),
+    ("the design sensitivities' tangent kernel", "sensitivities", False),
+    ("the run in time's integrator", "run", False),
 )
 
 
-def warm(progress=None) -> float:
-    """Call every compiled kernel once with the argument types sewmech uses; returns seconds.
+def warm(progress=None, *, everything: bool = False) -> float:
+    """Call the install's compiled kernels (``everything``: every kernel) once with the argument
+    types sewmech uses; returns seconds.
 
     ``progress(k, n, what, seconds)`` is called before each of the ``n`` steps (``STEPS``)
     with ``seconds=None`` and after it with the seconds it took."""
     import numpy as np
 
+    from . import _compiling
     from .dynamics import inverse_dynamics, pair_geometry
     from .kinematics import kinematics
     from .machine import load_machine
@@ -58,22 +62,27 @@ def warm(progress=None) -> float:
             pair_geometry(m, kin)
         elif step == "friction":  # jb1-3 has [friction]: its kernels and Anderson's steps
             inverse_dynamics(m, phi)
-        elif step == "sensitivities":
-            sensitivities(m, phi)  # every level of positions, every unit type
-        elif step == "rates":
+        elif step == "sensitivities":  # one kernel for every level, every unit type
+            sensitivities(m, phi)
             sensitivities(m, phi, rates=True)
         else:  # a short run at a low speed: the tables, the integrator, the samples
             from .running import run
 
             run(m, rpm=100.0, run_time=0.2, step_deg=10.0, energy_method=False)
 
-    for k, (what, step) in enumerate(STEPS, start=1):
-        if progress is not None:
-            progress(k, len(STEPS), what, None)
-        t = time.perf_counter()
-        run(step)
-        if progress is not None:
-            progress(k, len(STEPS), what, time.perf_counter() - t)
+    steps = [(what, step) for what, step, install in STEPS if install or everything]
+    quiet = _compiling.quiet
+    _compiling.quiet = True  # the steps are listed here
+    try:
+        for k, (what, step) in enumerate(steps, start=1):
+            if progress is not None:
+                progress(k, len(steps), what, None)
+            t = time.perf_counter()
+            run(step)
+            if progress is not None:
+                progress(k, len(steps), what, time.perf_counter() - t)
+    finally:
+        _compiling.quiet = quiet
     return time.perf_counter() - t0
 
 
@@ -85,12 +94,26 @@ def bytecode() -> None:
     compileall.compile_dir(str(Path(__file__).resolve().parents[1]), quiet=1)
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    args = sys.argv[1:] if argv is None else argv
+    if args not in ([], ["--all"]):
+        print("usage: python -m sewmech.engine.warm [--all]\n  --all  also the kernels that"
+              " are otherwise compiled on their first use (the design sensitivities', the run"
+              " in time's)", file=sys.stderr)
+        return 2
+    everything = args == ["--all"]
+
     def say(text: str) -> None:
         print(text, file=sys.stderr, flush=True)
 
-    say("sewmech: compiling the numerical kernels once, so that no command waits for the"
-        " compiler later (about 2.5 min; each step is listed as it is compiled)")
+    if everything:
+        say("sewmech: compiling every numerical kernel once, so that no command waits for the"
+            " compiler later (about 1.5 min of CPU; each step is listed as it is compiled)")
+    else:
+        say("sewmech: compiling the numerical kernels the commands call first, so that they"
+            " need not wait for the compiler (about 45 s of CPU; each step is listed as it is"
+            " compiled; the design sensitivities' and the run in time's kernels are compiled"
+            " on their first use)")
     bytecode()
 
     def progress(k: int, n: int, what: str, seconds: float | None) -> None:
@@ -99,7 +122,7 @@ def main() -> int:
         else:
             say(f" {seconds:.1f} s")
 
-    seconds = warm(progress)
+    seconds = warm(progress, everything=everything)
     say(f"sewmech: kernels compiled and cached ({seconds:.1f} s)")
     return 0
 
