@@ -276,8 +276,6 @@ def _print_error(text: str) -> None:
 @contextlib.contextmanager
 def _guard():
     """One place where every command's failures become one clear line and an exit code."""
-    global _CTRL_C
-    _CTRL_C = False
     old: dict = {}
     if threading.current_thread() is threading.main_thread():
         def on_term(signum, frame):
@@ -285,8 +283,6 @@ def _guard():
 
         for sig in (signal.SIGTERM, signal.SIGHUP):
             old[sig] = signal.signal(sig, on_term)
-        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-            old[signal.SIGINT] = signal.signal(signal.SIGINT, _on_ctrl_c)
     try:
         try:
             yield
@@ -382,24 +378,9 @@ def _out_of_memory_text() -> str:
         f" was left behind. {hint}"
 
 
-#: whether a Ctrl-C reached this process while a command ran (set by :func:`_on_ctrl_c`)
-_CTRL_C = False
-
-
-def _on_ctrl_c(signum, frame) -> None:
-    """Python's own Ctrl-C (KeyboardInterrupt), remembered: a library that catches the
-    KeyboardInterrupt and fails another way (Dask's cluster, interrupted while its workers
-    start: "Nanny failed to start") has still stopped because of it."""
-    global _CTRL_C
-    _CTRL_C = True
-    raise KeyboardInterrupt
-
-
 def _interruption(exc: BaseException) -> BaseException | None:
     """The Ctrl-C or termination signal in the chain of exceptions that ``exc`` was raised
-    while handling (or a Ctrl-C that reached the process before it), if any."""
-    if _CTRL_C:
-        return KeyboardInterrupt()
+    while handling, if any."""
     seen = set()
     e = exc.__context__
     while e is not None and id(e) not in seen:
