@@ -219,6 +219,9 @@ def test_a_run_killed_while_it_moves_its_files_in_is_rolled_back(tmp_path, k, wh
     assert sorted(before) == [".sewmech-manifest.json", "a.csv", "b.csv", "c.csv", "d.csv"]
     assert _mover(root, "new", k, when) == -signal.SIGKILL
     assert _state(root) != before or when == "before"  # (killed in the middle of it)
+    # a command's check before its work takes the killed run's new files for sewmech's own
+    # (they are rolled back under the lock), not for the user's
+    outdir.preflight(root, command="t")
     assert _mover(root, "fail") == 3  # a run that ends in an error: it recovers, commits nothing
     assert _state(root) == before
     assert not [e for e in os.listdir(root) if e.startswith(".sewmech-staging-")]

@@ -268,7 +268,12 @@ def preflight(path: str | Path, *, command: str, option: str = "--out") -> None:
         if not root.is_dir():
             raise OutputError(f"{option} {root}", "is a file, not a directory",
                               "Give a directory for the output (it is created if missing)")
-        _refuse_foreign(root, _read_manifest(root, option), command, option)
+        manifest = _read_manifest(root, option)
+        killed = _moved_in_by_a_killed_run(root)
+        if killed:  # its new files are the killed run's (output_dir rolls them back)
+            manifest = {**killed, **{n: r for n, r in manifest.items() if n not in killed
+                                     or _is_ours(root / n, r)}}
+        _refuse_foreign(root, manifest, command, option)
         lock = root / LOCK
         if lock.exists():
             fd = _open_lock(root, lock, os.O_RDONLY, option)
@@ -511,6 +516,24 @@ def output_dir(path: str | Path, *, command: str, option: str = "--out",
     finally:
         if lock_fd is not None:
             _release_lock(lock_fd)
+
+
+def _moved_in_by_a_killed_run(root: Path) -> dict:
+    """Records, as the manifest's, of the files a run killed while it moved them in had
+    journalled (:func:`_commit`): the next :func:`output_dir` rolls them back
+    (:func:`_roll_back`), so they are not the user's."""
+    out: dict = {}
+    for e in os.listdir(root):
+        if not e.startswith(STAGING_PREFIX):
+            continue
+        try:
+            journal = json.loads((root / e / JOURNAL).read_text(encoding="utf-8"))["files"]
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+        if isinstance(journal, dict):
+            out.update({n: {"size": st[0], "mtime_ns": st[1]} for n, st in journal.items()
+                        if _plain_name(n) and isinstance(st, list) and len(st) == 2})
+    return out
 
 
 def _roll_back(root: Path, staging: Path, manifest: dict) -> None:
