@@ -76,18 +76,35 @@ def test_the_chunks_of_the_largest_sweep_are_never_listed():
     assert list(chunk_bounds(10, 4)) == [(0, 4), (4, 8), (8, 10)]
 
 
+#: a command as a terminal starts it, SIGINT at its default: a test run started in the
+#: background (`&`, a CI runner without job control) hands its processes SIGINT ignored, and a
+#: program that starts with SIGINT ignored rightly keeps ignoring it
+TERMINAL = [sys.executable, "-c", ("import os, signal, sys; signal.signal(signal.SIGINT,"
+                                   " signal.SIG_DFL); os.execv(sys.argv[1], sys.argv[1:])")]
+
+
 @pytest.mark.slow
 def test_a_sweep_of_1e10_designs_starts_at_once_in_bounded_memory(tmp_path):
     f = tmp_path / "big.toml"
     f.write_text(_sampled(SMALL.read_text(), "random", 10**10))
     d = tmp_path / "out"
-    p = subprocess.Popen(_cli() + ["sweep", str(f), "--workers", "0", "--out", str(d)],
+    p = subprocess.Popen(TERMINAL + _cli() + ["sweep", str(f), "--workers", "0", "--out",
+                                              str(d)],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
     deadline = time.time() + 120
     while time.time() < deadline and not list((d / "chunks").glob("chunk-*.parquet")):
         time.sleep(0.1)
     p.send_signal(signal.SIGINT)
-    _, status, usage = os.wait4(p.pid, 0)
+    deadline = time.time() + 60
+    while True:  # (never a suite that waits forever on a command that did not stop)
+        pid, status, usage = os.wait4(p.pid, os.WNOHANG)
+        if pid:
+            break
+        if time.time() > deadline:
+            p.kill()
+            p.wait()
+            pytest.fail("the sweep did not stop within 60 s of its Ctrl-C")
+        time.sleep(0.1)
     err = p.stderr.read().decode()
     assert os.waitstatus_to_exitcode(status) == 130, err
     assert list((d / "chunks").glob("chunk-*.parquet")), "no chunk in 120 s"
@@ -257,11 +274,9 @@ def test_ctrl_c_stops_a_sweep_on_a_local_cluster_at_once_and_quietly(tmp_path):
     """Ctrl-C as a terminal sends it (to the whole foreground group: the command and its
     cluster's processes) at seeded moments from the imports to the chunks: the command stops
     within seconds with exit code 130 and one line, and no process of the group is left."""
-    terminal = [sys.executable, "-c", ("import os, signal, sys; signal.signal(signal.SIGINT,"
-                                       " signal.SIG_DFL); os.execv(sys.argv[1], sys.argv[1:])")]
     for k, t in enumerate(np.sort(np.random.default_rng(29).uniform(0.2, 5.0, 6))):
         d = tmp_path / f"o{k}"
-        p = subprocess.Popen(terminal + _cli() + ["sweep", str(BIG), "--out", str(d)],
+        p = subprocess.Popen(TERMINAL + _cli() + ["sweep", str(BIG), "--out", str(d)],
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                              start_new_session=True)
         time.sleep(t)
