@@ -773,15 +773,9 @@ def _solve_delta_q(B: BalanceBasis) -> tuple[np.ndarray, str, str]:
                           f" counterweight; {len(B.counterweights)} are chosen",
                           "Name one with --counterweight NAME (its angle stays as the file"
                           " gives it), or choose peak, rms or weighted for several")
-    c = B.counterweights[0]
-    x0, y0 = B.start[0]
-    if math.hypot(x0, y0) > 0:
-        beta = math.atan2(y0, x0)
-    else:
-        spec = B.machine.spec.counterweights[c.name]
-        beta = math.radians(spec.angle_deg) if spec.by_moment else math.atan2(spec.at_mm[1],
-                                                                              spec.at_mm[0])
-    e = np.array([math.cos(beta), math.sin(beta)])
+    from ._vibration_criteria import _direction
+
+    beta, e = _direction(B)  # its present angle (the file's when it weighs nothing now)
 
     def f(S):
         F = B.quantities((S * e)[None, :])["F"]
