@@ -50,6 +50,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..engine.errors import AnalysisError
+from ..engine.evaluation import newton_in_bracket
 from ..engine.machine import Machine
 
 #: a channel's aggregates over the turn: name -> what it is (docs/design.md)
@@ -308,22 +309,7 @@ def _root(fn, a: float, b: float, fa: float, fb: float, xtol: float = 1e-14) -> 
         from scipy.optimize import brentq
 
         return float(brentq(lambda t: fn(t)[0], a, b, xtol=xtol, rtol=1e-15))
-    x = a - fa * (b - a) / (fb - fa)
-    for _ in range(80):
-        f, df = fn(x)
-        if f == 0.0:
-            return x
-        if (f < 0.0) == (fa < 0.0):
-            a, fa = x, f
-        else:
-            b = x
-        nxt = x - f / df if df and math.isfinite(df) else math.inf
-        if not a <= nxt <= b:
-            nxt = 0.5 * (a + b)
-        if abs(nxt - x) <= xtol or b - a <= xtol:
-            return nxt
-        x = nxt
-    return x
+    return newton_in_bracket(fn, a, b, fa, fb, xtol)
 
 
 def _stationary(ev, phi_grid: np.ndarray, v: np.ndarray, s: np.ndarray | None,

@@ -34,6 +34,33 @@ N_GRID = 720
 KEEP = 16
 
 
+def newton_in_bracket(fn, a: float, b: float, fa: float, fb: float, xtol: float,
+                      max_iter: int = 80) -> float:
+    """The root of ``fn`` (x -> (f, f')) in [a, b] where f changes sign (``fa``, ``fb`` its
+    values at the ends): Newton's method from the chord's root, kept inside the bracket (a
+    bisection step wherever Newton would leave it), to ``xtol`` in x."""
+    if fa == 0.0:
+        return a
+    if fb == 0.0:
+        return b
+    x = a - fa * (b - a) / (fb - fa)  # the chord's root
+    for _ in range(max_iter):
+        f, df = fn(x)
+        if f == 0.0:
+            return x
+        if (f < 0.0) == (fa < 0.0):
+            a, fa = x, f
+        else:
+            b = x
+        nxt = x - f / df if df and math.isfinite(df) else math.inf
+        if not a <= nxt <= b:  # (a root on the bracket's end is taken as it is)
+            nxt = 0.5 * (a + b)
+        if abs(nxt - x) <= xtol or b - a <= xtol:
+            return nxt
+        x = nxt
+    return x
+
+
 @dataclass(frozen=True)
 class Root:
     """A located event: shaft angle (rad) and the sign of the channel's slope there."""
@@ -194,31 +221,6 @@ class Evaluation:
         return plan(P)
 
     # ---- events ------------------------------------------------------------------------------
-    def _refine(self, fn, a: float, b: float, fa: float, fb: float, xtol: float) -> float:
-        """The root of ``fn`` (x -> (f, f')) in [a, b] where f changes sign: Newton's method,
-        kept inside the bracket (a bisection step wherever Newton would leave it)."""
-        if fa == 0.0:
-            return a
-        if fb == 0.0:
-            return b
-        x = a - fa * (b - a) / (fb - fa)  # the chord's root
-        for _ in range(60):
-            f, df = fn(x)
-            if f == 0.0:
-                return x
-            if (f < 0.0) == (fa < 0.0):
-                a, fa = x, f
-            else:
-                b = x
-            step = f / df if df != 0.0 and math.isfinite(df) else math.inf
-            nxt = x - step
-            if not a <= nxt <= b:  # (a root on the bracket's end is taken as it is)
-                nxt = 0.5 * (a + b)
-            if abs(nxt - x) <= xtol or b - a <= xtol:
-                return nxt
-            x = nxt
-        return x
-
     @cached_property
     def _roots(self) -> dict:
         return {}
@@ -263,7 +265,7 @@ class Evaluation:
                     r = self.at([t])
                     return float(r.channel(ch)[0][0]) - level, float(r.channel(dch)[0][0])
 
-                x = self._refine(fn, a, b, float(f[i]), float(f[j]), xtol)
+                x = newton_in_bracket(fn, a, b, float(f[i]), float(f[j]), xtol, 60)
             out.append(Root(float(x), 1 if f[j] > f[i] else -1))
         return out
 
