@@ -6,6 +6,7 @@ retries and failed chunks, bad sweep files and output directories that are not a
 from __future__ import annotations
 
 import contextlib
+import json
 import math
 import os
 import shutil
@@ -255,6 +256,10 @@ def test_the_cli_runs_on_a_scheduler_and_workers_given_by_address(dask_cluster, 
     assert res.exit_code == 0, res.output
     assert '"chunks_computed": 4' in res.stdout
     assert '"chunks_written_by_workers": 4' in res.stdout  # the workers see this directory
+    ev = json.loads(res.stdout)["evaluation"]  # the workers' counts reached the client
+    assert ev["assembly_coarse"] + ev["assembly_whole_grid"] == 18
+    assert ev["feed_located"] + ev["feed_whole_turn"] == 3 * 18  # three feed metrics
+    assert ev["feed_checked"] == 2 * 3  # designs 0 and 16
     assert table(out).equals(reference[1])
 
 
@@ -312,8 +317,11 @@ def test_a_worker_that_does_not_see_the_directory_hands_its_chunk_to_the_client(
     assert c is not None and list(c.columns["design"]) == [5, 6, 7, 8, 9]
     assert sweep_run.done_chunks(out) == {0}
     sweep_run._probe_path(out, "b" * 32).write_text("b" * 32, encoding="ascii")
-    assert sweep_run.evaluate_and_write(texts, str(out), "a" * 32, 1, 5, 10) is not None
-    assert sweep_run.evaluate_and_write(texts, str(out), "b" * 32, 1, 5, 10) is None
+    assert not isinstance(sweep_run.evaluate_and_write(texts, str(out), "a" * 32, 1, 5, 10),
+                          dict)
+    counts = sweep_run.evaluate_and_write(texts, str(out), "b" * 32, 1, 5, 10)
+    assert counts == c.counts  # written: only how its designs were evaluated comes back
+    assert counts["assembly_coarse"] + counts["assembly_whole_grid"] == 5
     assert sweep_run.done_chunks(out) == {0, 1}
     sweep_run._probe_path(out, "b" * 32).unlink()
     run_sweep(small, out, workers=0)

@@ -89,6 +89,10 @@ class RunReport:
     stopped: bool = False
     #: chunks of this run written by the Dask workers themselves (the rest by this process)
     written_by_workers: int = 0
+    #: how this run's designs were evaluated, added over its chunks (:attr:`sewmech.design.
+    #: sweep.Chunk.counts`: the assembly decided on the coarse grid or the whole one, the feed
+    #: metrics located from predicted events or from whole turns, and the checks)
+    counts: dict = field(default_factory=dict)
 
 
 def done_chunks(root: Path) -> set[int]:
@@ -393,11 +397,15 @@ def run_sweep(sweep: Sweep, out: str | Path, *, scheduler: str | None = None,
         report = RunReport(len(bounds), len(have))
         t0 = time.perf_counter()
 
-        def finished(k: int, c: Chunk | None) -> bool:
-            if c is None:  # a worker wrote it
+        def finished(k: int, c: Chunk | dict) -> bool:
+            if isinstance(c, dict):  # a worker wrote it: its counts came back
                 report.written_by_workers += 1
+                counts = c
             else:
                 write_chunk(root, sweep, k, c)
+                counts = c.counts
+            for key, v in counts.items():
+                report.counts[key] = report.counts.get(key, 0) + int(v)
             report.computed.append(k)
             report.designs_computed += bounds[k][1] - bounds[k][0]
             if on_chunk is not None:
@@ -557,12 +565,12 @@ def _probe_path(root: Path, token: str) -> Path:
 
 
 def evaluate_and_write(texts: tuple[str, str, str, str], root: str, token: str, k: int,
-                       start: int, stop: int) -> Chunk | None:
+                       start: int, stop: int) -> Chunk | dict:
     """A Dask task: chunk ``k`` (designs ``start .. stop - 1``) evaluated and, when this worker
     sees the run's directory (a shared file system: the run's probe file there holds
     ``token``), written into it by the worker itself, exactly as :func:`write_chunk` writes
-    (curves first, the Parquet file last by rename), returning None; a worker that does not
-    see it returns the chunk for the client to write."""
+    (curves first, the Parquet file last by rename), returning the chunk's counts (a dict);
+    a worker that does not see it returns the chunk for the client to write."""
     from ..design.sweep import evaluate_texts, sweep_of_texts
 
     c = evaluate_texts(texts, start, stop)
@@ -574,7 +582,7 @@ def evaluate_and_write(texts: tuple[str, str, str, str], root: str, token: str, 
     if not seen:
         return c
     write_chunk(path, sweep_of_texts(texts), k, c)
-    return None
+    return c.counts
 
 
 def _run_dask(sweep, bounds, todo, retries, finished, report, client, root: Path) -> None:

@@ -10,6 +10,7 @@ units (mm, deg for the ``*_deg`` metrics, rad for link angles).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -51,11 +52,12 @@ def _setting_extremes(machine: Machine) -> list[dict | None]:
 ASSEMBLY_CHUNK = 256
 
 
-def assembles_batch(machine: Machine, P: np.ndarray) -> np.ndarray:
+def assembles_on_grid(machine: Machine, P: np.ndarray) -> np.ndarray:
     """Which designs of the batch P (m, n_params) assemble over the whole turn as the searches
     and sweeps see it: on a 1 deg grid at both ends of every setting input, every closed-form
     unit's assembly margin at least :data:`ASSEMBLY_CLEARANCE_MM` at every grid angle. One
-    kinematics call per :data:`ASSEMBLY_CHUNK` designs. (m,) bool."""
+    kinematics call of all 360 angles per :data:`ASSEMBLY_CHUNK` designs: the definition that
+    :func:`assembles_batch` decides from a tenth of the positions. (m,) bool."""
     from ..engine.kinematics import kinematics
     from ..engine.margins import conditions
 
@@ -82,6 +84,126 @@ def assembles_batch(machine: Machine, P: np.ndarray) -> np.ndarray:
                 ASSEMBLY_CLEARANCE_MM
         ok[a:a + m] = good
     return ok
+
+
+#: the located assembly check's coarse grid (deg; a divisor of 360, so that its angles are
+#: angles of the 1 deg grid)
+COARSE_STEP_DEG = 10
+#: the least room (mm) between a margin's interpolant and the clearance for a design to be
+#: taken as assembling without its 1 deg grid
+HERMITE_FLOOR_MM = 1e-4
+#: the largest residual (mm) of a point's motion across a coarse step (its displacement against
+#: the integral of its velocity by the trapezoid rule with end corrections, h^5 p^(5) / 720 for
+#: a smooth motion; at most 0.016 mm on the shipped JB1-3 sweep, whose cams' arcs join with a
+#: jump in acceleration) before the step is taken as a possible change of assembly branch
+BRANCH_JUMP_MM = 0.03
+
+
+@dataclass
+class AssemblyCounts:
+    """What :func:`assembles_batch` did: designs decided on the coarse grid, and designs
+    checked again on the whole 1 deg grid (a margin close to the clearance between coarse
+    angles, or a point that moved across a coarse step more than its velocity says)."""
+
+    coarse: int = 0
+    whole_grid: int = 0
+
+    def add(self, other: AssemblyCounts) -> None:
+        self.coarse += other.coarse
+        self.whole_grid += other.whole_grid
+
+
+def assembles_batch(machine: Machine, P: np.ndarray, *,
+                    counts: AssemblyCounts | None = None) -> np.ndarray:
+    """Which designs of the batch P (m, n_params) assemble over the whole turn: the answer of
+    :func:`assembles_on_grid` (the 1 deg grid at both ends of every setting input, every
+    closed-form unit's margin at least :data:`ASSEMBLY_CLEARANCE_MM`) from its subset on a
+    :data:`COARSE_STEP_DEG` grid:
+
+    - a design with a margin below the clearance at a coarse angle fails on the grid too:
+      decided;
+    - a design whose every margin stays above the clearance between coarse angles on the cubic
+      Hermite interpolant of its values and exact slopes (at omega = 1 rad/s rates are
+      derivatives in phi), by at least the interpolation error's bound (the largest 4th
+      difference / 96: four times the error h^4 |m''''| / 384 the differences estimate) plus
+      :data:`HERMITE_FLOOR_MM`, and whose points that depend on a loop unit all move across
+      every coarse step as their velocities say (:data:`BRANCH_JUMP_MM`: no loop unit changed
+      branch between coarse angles), assembles at every grid angle: decided;
+    - the others, and those a loop unit fails at a coarse angle (where the loop solver fails
+      may depend on the steps it takes), are checked on the whole grid.
+
+    ``counts`` (an :class:`AssemblyCounts`) receives how many took each way. (m,) bool."""
+    from ..engine.kinematics import kinematics
+    from ..engine.margins import conditions
+
+    P = np.atleast_2d(np.asarray(P, dtype=float))
+    n = 360 // COARSE_STEP_DEG
+    h = math.radians(COARSE_STEP_DEG)
+    phi = np.arange(n + 1) * h  # (the turn's end too, for the last step's interpolant)
+    inputs = setting_extremes(machine)
+    looped = _looped_points(machine)
+    ok = np.empty(len(P), dtype=bool)
+    unsure = np.zeros(len(P), dtype=bool)
+    step = ASSEMBLY_CHUNK * COARSE_STEP_DEG  # (the same memory as a chunk of the whole grid)
+    for a in range(0, len(P), step):
+        Q = P[a:a + step]
+        m = len(Q)
+        r = kinematics(machine, phi, params=Q if inputs is None else Q[None, :, :],
+                       inputs=inputs, omega=1.0, on_failure="mask",
+                       max_step_deg=COARSE_STEP_DEG)
+        feasible = r.feasible.reshape(-1, m, n + 1)[..., :n].all(axis=(0, 2))
+        fails = np.zeros(m, dtype=bool)  # a margin below the clearance at a coarse angle
+        room = np.full(m, np.inf)  # the least margin on the interpolants less their error
+        for c in conditions(machine, Q.T[:, :, None]):  # (n_params, m, 1): per design
+            y, dy = (np.asarray(v).reshape(-1, m, n + 1) for v in c.fn(r))
+            fails |= (y[..., :n] < ASSEMBLY_CLEARANCE_MM).any(axis=(0, 2))
+            room = np.minimum(room, _hermite_room(y, dy * h))
+        smooth = np.ones(m, dtype=bool)
+        if looped:
+            p, v, acc = (x[..., looped, :].reshape((-1, m, n + 1, len(looped), 2))
+                         for x in (r.p, r.v, r.a))
+            e = np.abs(np.diff(p, axis=2) - h * (v[:, :, :-1] + 0.5 * np.diff(v, axis=2))
+                       + h * h / 12.0 * np.diff(acc, axis=2))
+            smooth = (e <= BRANCH_JUMP_MM).all(axis=(0, 2, 3, 4))  # (False where NaN)
+        ok[a:a + m] = feasible & ~fails
+        # a loop unit's failure may depend on the steps the solver took: the grid decides
+        unsure[a:a + m] = ~fails & (~feasible | ~smooth | ~(room >= ASSEMBLY_CLEARANCE_MM))
+    if unsure.any():
+        ok[unsure] = assembles_on_grid(machine, P[unsure])
+    if counts is not None:
+        counts.add(AssemblyCounts(int(len(P) - unsure.sum()), int(unsure.sum())))
+    return ok
+
+
+def _looped_points(machine: Machine) -> list[int]:
+    """The points that depend on a loop unit (the only units whose solution, continued from
+    angle to angle, can change branch): indices into the machine's points."""
+    from ..engine import _kernels as K
+
+    if not machine.has_loops:
+        return []
+    loop_rows = {k for k, row in enumerate(machine.program) if int(row[0]) == K.OP_LOOP}
+    return [i for i, name in enumerate(machine.point_names)
+            if loop_rows & set(int(k) for k in machine.selection([name], [], [])[-1])]
+
+
+def _hermite_room(y: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Each design's least margin between coarse angles less its interpolation error: y (s,
+    m, n + 1) a margin at n + 1 equally spaced angles of a turn, its start and its end (s
+    settings, m designs), d its slopes times the step. The cubic Hermite interpolant of each
+    step is read at the 1 deg grid's angles between, and the error bound (the largest |4th
+    difference| / 96) taken off. (m,)"""
+    k = COARSE_STEP_DEG
+    t = (np.arange(1, k) / k)[:, None, None, None]
+    y0, d0, y1, d1 = y[..., :-1], d[..., :-1], y[..., 1:], d[..., 1:]
+    t2, t3 = t * t, t * t * t
+    H = ((2 * t3 - 3 * t2 + 1) * y0 + (t3 - 2 * t2 + t) * d0 + (3 * t2 - 2 * t3) * y1
+         + (t3 - t2) * d1)
+    low = np.where(np.isnan(H), -np.inf, H).min(axis=(0, 1, 3))
+    with np.errstate(invalid="ignore"):
+        d4 = np.diff(y, n=4, axis=2)
+        err = np.where(np.isfinite(d4), np.abs(d4), np.inf).max(axis=(0, 2)) / 96.0
+    return low - err - HERMITE_FLOOR_MM
 
 
 #: the needle-thread balance's figures (:func:`sewmech.sewing.thread.thread_balance`) as

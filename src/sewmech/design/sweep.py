@@ -5,10 +5,13 @@ A sweep is split into chunks of consecutive designs, design ``i`` always the sam
 chunk size or the worker: :func:`sample` draws designs ``start .. stop`` alone (a Sobol sample
 fast-forwarded to ``start``, random designs from seeded blocks of :data:`BLOCK`, a Latin
 hypercube drawn whole and sliced, a grid by unravelling the index). :func:`evaluate_chunk`
-evaluates one chunk: the whole-turn assembly and every metric with the batch calls the
-optimisers use (:func:`sewmech.design.evaluate.metric_batch`), the peak driving torque and
-shaking force with one :class:`~sewmech.dynamics.DynamicsPlan` call, the curves with one
-kinematics call. Running chunks on Dask and writing them is the app's
+evaluates one chunk: the whole-turn assembly decided on a coarse grid
+(:func:`sewmech.design.evaluate.assembles_batch`), the feed metrics located by Newton's method
+from the events of the sweep's centre design (:func:`sewmech.sewing.samples.
+sample_feed_values`), the other metrics with the batch calls the optimisers use
+(:func:`sewmech.design.evaluate.metric_batch`), the force metrics with one
+:class:`~sewmech.dynamics.DynamicsPlan` call, the curves with one kinematics call; the answers
+are those of the whole 1 deg grid (docs/sweeps.md, "How a design is evaluated"). Running chunks on Dask and writing them is the app's
 (:mod:`sewmech.app.sweep_run`); nothing here reads or writes files.
 
 Columns: ``design`` (the index), every parameter in its file unit (mm; deg for an angle, its
@@ -26,7 +29,7 @@ import functools
 import math
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -92,12 +95,25 @@ def params_of(sweep: Sweep, X: np.ndarray) -> np.ndarray:
 
 @dataclass
 class Chunk:
-    """One evaluated chunk: ``columns`` (name -> (m,) array, in :func:`column_units` order) and
-    ``curves`` (channel -> (m, n_phi) array at the curves' angles)."""
+    """One evaluated chunk: ``columns`` (name -> (m,) array, in :func:`column_units` order),
+    ``curves`` (channel -> (m, n_phi) array at the curves' angles) and ``counts``: how the
+    designs were evaluated (:data:`COUNTS`: designs whose assembly the coarse grid decided or
+    the whole 1 deg grid did; feed-metric values located from predicted events or from a
+    whole turn, and how many of those were checks)."""
 
     start: int
     columns: dict[str, np.ndarray]
     curves: dict[str, np.ndarray]
+    counts: dict[str, int] = field(default_factory=dict)
+
+
+#: what :attr:`Chunk.counts` holds (added over the chunks by the runner)
+COUNTS = ("assembly_coarse", "assembly_whole_grid", "feed_located", "feed_whole_turn",
+          "feed_checked")
+#: every this many-th design of the sweep (by its index) has its located feed metrics
+#: compared with their values from its whole turn (:func:`sewmech.sewing.samples.
+#: sample_feed_values`; a difference over 1e-9 mm redoes the chunk's designs from their turns)
+CHECK_EVERY = 16
 
 
 def column_units(sweep: Sweep) -> dict[str, str]:
@@ -143,14 +159,20 @@ def evaluate_chunk(sweep: Sweep, start: int, stop: int) -> Chunk:
     """Designs ``start .. stop - 1`` evaluated in batch calls (see the module doc)."""
     from ._dynamic_metrics import is_dynamic
     from ._models import ref_key
-    from .evaluate import assembles_batch, metric_batch
+    from .evaluate import AssemblyCounts, assembles_batch, metric_batch
 
     spec = sweep.spec
     X = sample(sweep, start, stop)
     P = params_of(sweep, X)
-    ok = assembles_batch(sweep.machine, P)
+    asm = AssemblyCounts()
+    ok = assembles_batch(sweep.machine, P, counts=asm)
+    counts = dict.fromkeys(COUNTS, 0)
+    counts.update(assembly_coarse=asm.coarse, assembly_whole_grid=asm.whole_grid)
     kin_outputs = [o for o in spec.outputs if not is_dynamic(o.metric)]
-    values, _ = metric_batch(sweep.machine, kin_outputs, P, ok)
+    located = [o for o in kin_outputs if _located(sweep, o)]
+    values, _ = metric_batch(sweep.machine, [o for o in kin_outputs if o not in located], P, ok)
+    for o in located:
+        values[ref_key(o)] = _feed_values(sweep, o, P, ok, start, counts)
     dyn = _dynamics(sweep, P, ok) if spec.dynamics is not None else {}
     cols: dict[str, np.ndarray] = {"design": np.arange(start, stop, dtype=np.int64)}
     for j, name in enumerate(sweep.columns):
@@ -169,7 +191,82 @@ def evaluate_chunk(sweep: Sweep, start: int, stop: int) -> Chunk:
                 feasible &= v <= o.max
     cols["feasible"] = feasible
     curves = _curves(sweep, P) if spec.curves is not None else {}
-    return Chunk(start, cols, curves)
+    return Chunk(start, cols, curves, counts)
+
+
+def _located(sweep: Sweep, o) -> bool:
+    """Whether output ``o`` is a feed metric whose events are located by Newton's method
+    (:mod:`sewmech.sewing.samples`): the stitch length, the lift and the dog's height when the
+    needle reaches the plate, at a regulator setting, of a machine with a stitch regulator."""
+    from ..sewing.samples import WINDOWED
+
+    s = sweep.machine.spec.sewing
+    return (o.metric in WINDOWED and getattr(o, "at", None) is None and s is not None
+            and s.regulator is not None)
+
+
+def _feed_values(sweep: Sweep, o, P: np.ndarray, ok: np.ndarray, start: int,
+                 counts: dict) -> np.ndarray:
+    """A feed metric (mm) of the designs that assemble, each event located by Newton's method
+    from where the sweep's centre design has it moved by the event's derivative, with the
+    guards of :func:`sewmech.sewing.samples.sample_feed_values` (a design not located there is
+    located from its whole turn; every :data:`CHECK_EVERY`-th design is compared with its
+    value from its whole turn); NaN for the others."""
+    from ..sewing.samples import sample_feed_values
+
+    reg = _regulator_deg(sweep, o)
+    out = np.full(len(P), np.nan)
+    rows = np.nonzero(ok)[0]
+    if rows.size == 0:
+        return out
+    nominal = _nominal(sweep, o.metric, reg)
+    design = start + rows
+    check = np.nonzero(design % CHECK_EVERY == 0)[0]
+    if nominal is None:  # (the centre's events unknown: every design from its turn)
+        from ..sewing.samples import whole_turn_values
+
+        out[rows] = whole_turn_values(sweep.machine, o.metric, reg, P[rows])
+        counts["feed_whole_turn"] += int(rows.size)
+        return out
+    grad, base = nominal
+    vals, how = sample_feed_values(sweep.machine, o.metric, reg, P[rows], grad, check=check,
+                                   base=base)
+    out[rows] = vals
+    counts["feed_located"] += how["located"]
+    counts["feed_whole_turn"] += how["whole_turn"]
+    counts["feed_checked"] += how["checked"]
+    return out
+
+
+def _regulator_deg(sweep: Sweep, o) -> float:
+    if o.regulator_deg is not None:
+        return float(o.regulator_deg)
+    m = sweep.machine
+    return float(m.spec.inputs[m.spec.sewing.regulator].default_deg)
+
+
+def _nominal(sweep: Sweep, metric: str, regulator_deg: float):
+    """The feed metric's :class:`~sewmech.sewing.gradients.Gradient` (its events and their
+    derivatives) at the centre of the sweep's box (or, where that cannot be evaluated, the
+    machine file's design), with that design's parameters, kept with the sweep; None where
+    neither can be."""
+    from ..engine.errors import SewmechError
+    from ..sewing.gradients import METRICS
+
+    cache = sweep.__dict__.setdefault("_nominal_feed", {})
+    key = (metric, regulator_deg)
+    if key not in cache:
+        spec = sweep.spec
+        centre = params_of(sweep, np.array([[0.5 * (p.lower + p.upper)
+                                             for p in spec.parameters]]))[0]
+        cache[key] = None
+        for base in (centre, np.asarray(sweep.machine.defaults, dtype=float)):
+            try:
+                cache[key] = (METRICS[metric](sweep.machine, regulator_deg, params=base), base)
+                break
+            except SewmechError:
+                continue
+    return cache[key]
 
 
 def _dynamics(sweep: Sweep, P: np.ndarray, ok: np.ndarray) -> dict[str, np.ndarray]:

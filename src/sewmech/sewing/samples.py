@@ -159,29 +159,32 @@ def _locate_metric(machine: Machine, metric: str, loc: _Locator, starts: dict):
     return np.where(found, y[:, 1] - s.plate_y, np.nan), found
 
 
-def _prepare(machine: Machine, regulator_deg: float, P: np.ndarray):
-    """The designs at the setting (a private copy) and the nominal design's evaluation."""
+def _prepare(machine: Machine, regulator_deg: float, P: np.ndarray, base=None):
+    """The designs at the setting (a private copy) and the nominal design's evaluation (the
+    file's design, or ``base``)."""
     s = _roles(machine)
     reg = machine.parameter_index(f"input.{s.regulator}")
     P = np.array(P, dtype=float)
     P[:, reg] = math.radians(regulator_deg)
-    base = np.array(machine.defaults, dtype=float)
+    base = np.array(machine.defaults if base is None else base, dtype=float)
     base[reg] = math.radians(regulator_deg)
     ev = evaluation(machine, base)
     return P, base, ev
 
 
 def window_values(machine: Machine, metric: str, regulator_deg: float, P: np.ndarray,
-                  nominal: Gradient) -> tuple[np.ndarray, np.ndarray]:
+                  nominal: Gradient, base=None) -> tuple[np.ndarray, np.ndarray]:
     """The feed metric ``metric`` (one of :data:`WINDOWED`) of the designs ``P`` (m,
     n_params; internal units) at a regulator setting (deg), each event located by Newton's
     method from the nominal event moved by its derivative (``nominal``: the metric's
-    :class:`Gradient` at the file's design). Returns the values (mm; NaN where a design was
-    not located) and which designs were located."""
+    :class:`Gradient` at the file's design, or at ``base``, (n_params,)). Returns the values
+    (mm; NaN where a design was not located) and which designs were located."""
     if metric not in WINDOWED:
         raise KeyError(f"{metric!r} is not located this way; those are {', '.join(WINDOWED)}")
-    P, base, ev = _prepare(machine, regulator_deg, P)
-    shift = {k: P @ d - base @ d for k, d in nominal.events_d.items()}
+    P, base, ev = _prepare(machine, regulator_deg, P, base)
+    # (row by row, not P @ d: a matrix product's rounding depends on the batch's size, and a
+    # design's answer must not depend on the others of its batch)
+    shift = {k: ((P - base) * d).sum(axis=1) for k, d in nominal.events_d.items()}
     starts = {k: math.radians(nominal.events_deg[k]) + shift[k] for k in shift}
     return _locate_metric(machine, metric, _Locator(ev, P), starts)
 
@@ -217,16 +220,20 @@ def whole_turn_values(machine: Machine, metric: str, regulator_deg: float,
 
 
 def sample_feed_values(machine: Machine, metric: str, regulator_deg: float, P: np.ndarray,
-                       nominal: Gradient, *, seed: int = 0) -> tuple[np.ndarray, dict]:
+                       nominal: Gradient, *, seed: int = 0, check: np.ndarray | None = None,
+                       base=None) -> tuple[np.ndarray, dict]:
     """:func:`window_values` with its two guards (the module's docstring): the values of the
     designs ``P`` (m, n_params) and what was done, ``{"located": designs located from their
     predicted events, "whole_turn": designs located from their whole turn, "checked":
     designs compared, "check_max_mm": their largest difference}``. NaN only for a design
-    that cannot be assembled or has no such event."""
-    vals, found = window_values(machine, metric, regulator_deg, P, nominal)
+    that cannot be assembled or has no such event. ``check``: the rows compared (default
+    :data:`CHECK_DESIGNS` drawn with ``seed``); ``base``: the design ``nominal`` is of
+    (default the file's)."""
+    vals, found = window_values(machine, metric, regulator_deg, P, nominal, base)
     m = P.shape[0]
-    rng = np.random.default_rng(seed)
-    check = np.sort(rng.choice(m, size=min(CHECK_DESIGNS, m), replace=False))
+    if check is None:
+        rng = np.random.default_rng(seed)
+        check = np.sort(rng.choice(m, size=min(CHECK_DESIGNS, m), replace=False))
     check = check[found[check]]
     ref = whole_turn_values(machine, metric, regulator_deg, P[check])
     diff = np.abs(ref - vals[check])

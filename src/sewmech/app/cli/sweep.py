@@ -49,7 +49,8 @@ def sweep_cmd(
     )
     from rich.text import Text
 
-    from ...design.sweep import chunk_bounds
+    from ...design.evaluate import COARSE_STEP_DEG
+    from ...design.sweep import COUNTS, chunk_bounds
     from ...design.sweep_file import load_sweep
     from ..sweep_run import done_chunks, read_record, run_sweep
 
@@ -106,7 +107,8 @@ def sweep_cmd(
             "chunks_written_by_workers": r.written_by_workers,
             "designs_computed": r.designs_computed,
             "seconds": r.seconds, "designs_per_second": rate if math.isfinite(rate) else None,
-            "feasible": feasible, "designs_written": total}
+            "feasible": feasible, "designs_written": total,
+            "evaluation": {k: r.counts.get(k, 0) for k in COUNTS}}
     if as_json:
         print_json(data)
         return
@@ -116,6 +118,14 @@ def sweep_cmd(
         how += f", {r.written_by_workers} of them written by the workers"
     console.print(f"{escape(sweep.spec.sweep.name)}: {sweep.n_designs:,} designs in"
                   f" {r.n_chunks} chunks; {r.done_before} found done, {how}", highlight=False)
+    if r.computed:
+        c = {k: r.counts.get(k, 0) for k in COUNTS}
+        console.print(f"assembly decided on the {COARSE_STEP_DEG} deg grid for"
+                      f" {c['assembly_coarse']:,} designs, on the whole 1 deg grid for"
+                      f" {c['assembly_whole_grid']:,}; feed metrics located from predicted"
+                      f" events {c['feed_located']:,} times, from whole turns"
+                      f" {c['feed_whole_turn']:,} ({c['feed_checked']:,} checks)",
+                      highlight=False)
     console.print(f"feasible: {feasible:,} of {total:,} designs"
                   f" ({100.0 * feasible / max(total, 1):.1f} %); `sewmech sweep-summary"
                   f" {escape(str(root))}` shows them", highlight=False)
