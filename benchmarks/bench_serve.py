@@ -3,7 +3,7 @@
 Target (issue 19): a full turn of JB1-3 with its dynamics for a new slider value in at most 50 ms
 (p95, warm) on the server. Measured, warm, over 50 values each of the stitch regulator and of
 the needle-bar link's length:
-  - the server's work per turn (Session.turn and its JSON encoding, in this process);
+  - the server's work per turn (Session.turn_json: the turn and its JSON, in this process);
   - the whole request as the page makes it (HTTP POST to a real uvicorn server on 127.0.0.1);
   - the separate checks request (timing events and checks, refined on the exact kinematics);
   - in Debian's Chromium (Playwright), slider-to-redraw latency: from the slider's input event
@@ -91,13 +91,13 @@ def server_side() -> dict:
     file, text = shipped_texts()["jb1-3"]
     s = Session.from_text(text, file)
     for _ in range(3):
-        json.dumps(s.turn({"input.regulator": 1.0}))
+        s.turn_json({"input.regulator": 1.0})
     out = {}
     for name, values in zip(("regulator", "needle_bar.length"), slider_values()):
         times = []
         for v in values:
             t0 = time.perf_counter()
-            json.dumps(s.turn(v))
+            s.turn_json(v)  # as the server writes it
             times.append(time.perf_counter() - t0)
         out[f"turn, {name} (in process)"] = pct(times)
     times = []
