@@ -30,7 +30,9 @@ def _values():
     v = np.concatenate([rng.uniform(-100, 100, 3000), rng.normal(0, 1e-5, 500),
                         rng.uniform(-5e8, 5e8, 500), 10.0 ** rng.uniform(-7, 9, 500),
                         [0.0, -0.0, -1e-9, 1e-7, 5e-7, -5e-7, 1.5e-6, 2.5e-6, 12.5, 100.0,
-                         999999.9999995, 1e8, -0.1, 0.1, 1 / 3, 999999999.9999, 9999.99999999]])
+                         999999.9999995, 1e8, -0.1, 0.1, 1 / 3, 999999999.9999, 9999.99999999,
+                         # rounded up to a whole digit more (10 digits, the most below 1e9)
+                         999999999.9999996, -999999999.9999997, 99999.9999996]])
     return np.concatenate([v, np.round(v, 3), np.round(v, 1), np.round(v, 0), -v])
 
 

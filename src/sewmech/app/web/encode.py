@@ -82,8 +82,9 @@ _CLOSE_KEEP = _words([b"\x00\x01\x00\x00", b"\x01\x01\x00\x00"])
 #: the masks of a word's bytes kept: its last k (a number's leading digits), its first k
 _LAST = _words([bytes(4 - k) + b"\x01" * k for k in range(5)])
 _FIRST = _words([b"\x01" * k + bytes(4 - k) for k in range(5)])
-#: the powers of ten that add a whole digit: 10, 100, ..., 10**8
-_TENS = 10 ** np.arange(1, 9, dtype=np.int64)
+#: the powers of ten that add a whole digit: 10, 100, ..., 10**9 (a value just below
+#: :data:`_FAST_LIMIT` may round up to it)
+_TENS = 10 ** np.arange(1, 10, dtype=np.int64)
 _KEPT: np.ndarray | None = None
 assert DECIMALS == 6  # the decimals' words below: " .dd" and "dddd"
 
