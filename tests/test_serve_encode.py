@@ -46,6 +46,10 @@ def test_arrays_read_back_as_the_plain_writers_floats():
     fast = json.loads(dumps(answer))
     assert _same(fast, json.loads(json.dumps(plain(answer))))
     assert fast["gaps"] == [1.0, None, None, 2.0]
+    # a gap in an array beside empty ones, first and last
+    for gaps in ({"e": Arr([]), "n": Arr([np.nan]), "z": Arr(np.zeros((0, 2)))},
+                 {"n": Arr([np.nan, 1.0]), "e": Arr([]), "x": Arr([2.0, -0.5])}):
+        assert _same(json.loads(dumps(gaps)), json.loads(json.dumps(plain(gaps))))
     assert _same(fast["a"], np.round(v, 6).tolist())
 
 

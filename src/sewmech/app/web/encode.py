@@ -180,14 +180,11 @@ def _arrays(arrays: list[Arr]) -> list[bytes]:
     """The JSON text of each array: the finite ones of at most two axes below
     :data:`_FAST_LIMIT` at once (:func:`_digits`), the others (none in a sane answer) by json."""
     flat = np.concatenate([x.a.ravel() for x in arrays])
-    sizes = [x.a.size for x in arrays]
-    starts = np.cumsum([0] + sizes)
-    if not (np.isfinite(flat).all() and np.abs(flat).max(initial=0.0) < _FAST_LIMIT):
-        bad = ~(np.abs(flat) < _FAST_LIMIT)  # NaN too
-        n_bad = np.add.reduceat(bad, starts[:-1]) if flat.size else np.zeros(len(arrays))
-        fast = [x.a.size > 0 and x.a.ndim <= 2 and not n_bad[j] for j, x in enumerate(arrays)]
-    else:
+    if np.abs(flat).max(initial=0.0) < _FAST_LIMIT:  # (False with a NaN)
         fast = [x.a.size > 0 and x.a.ndim <= 2 for x in arrays]
+    else:  # the arrays that hold one, each by json
+        fast = [x.a.size > 0 and x.a.ndim <= 2 and bool(np.all(np.abs(x.a) < _FAST_LIMIT))
+                for x in arrays]
     use = [x for x, f in zip(arrays, fast, strict=True) if f]
     text = b""
     if use:
