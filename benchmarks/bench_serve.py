@@ -3,7 +3,7 @@
 Target (issue 19): a full turn of JB1-3 with its dynamics for a new slider value in at most 50 ms
 (p95, warm) on the server. Measured, warm, over 50 values each of the stitch regulator and of
 the needle-bar link's length:
-  - the server's work per turn (Session.turn and its JSON encoding, in this process);
+  - the server's work per turn (Session.turn_json: the turn and its JSON, in this process);
   - the whole request as the page makes it (HTTP POST to a real uvicorn server on 127.0.0.1);
   - the separate checks request (timing events and checks, refined on the exact kinematics);
   - in Debian's Chromium (Playwright), slider-to-redraw latency: from the slider's input event
@@ -42,7 +42,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
-from _timing import figure, write_results  # noqa: E402
+from _timing import figure, run_stamp, write_results  # noqa: E402
 
 from browser_helpers import CHROMIUM_ARGS
 from sewmech.app.web.session import Session, shipped_texts
@@ -59,11 +59,18 @@ def current_figures(out: dict) -> list[dict]:
     worst = max(own.values(), key=lambda r: r["p95_ms"])
     return [figure("JB1-3 page, a turn with dynamics in the server, p95 (the worse of two"
                    " sliders)", worst["p95_ms"], "ms", target=out["target_p95_ms"])] + ([
-        figure(f"JB1-3 page, {out['many_pages']['pages']} pages dragging at once for"
-               f" {out['many_pages']['seconds']:.0f} s, p95 (no cross-talk)",
-               out["many_pages"]["p95_ms"], "ms", target=TARGET_PAGES_P95_MS,
-               condition=("no cross-talk", out["many_pages"]["crosstalk"] == 0))]
-        if out.get("many_pages") else [])
+        pages_figure(out["many_pages"])] if out.get("many_pages") else [])
+
+
+#: how the row of the many pages begins in the table of current figures
+PAGES_JOB = "JB1-3 page, "
+
+
+def pages_figure(r: dict) -> dict:
+    """The row of the many pages at once in the table of current figures."""
+    return figure(f"{PAGES_JOB}{r['pages']} pages dragging at once for {r['seconds']:.0f} s,"
+                  " p95 (no cross-talk)", r["p95_ms"], "ms", target=TARGET_PAGES_P95_MS,
+                  condition=("no cross-talk", r["crosstalk"] == 0 and not r["sample_mismatch"]))
 N = 50
 
 
@@ -84,13 +91,13 @@ def server_side() -> dict:
     file, text = shipped_texts()["jb1-3"]
     s = Session.from_text(text, file)
     for _ in range(3):
-        json.dumps(s.turn({"input.regulator": 1.0}))
+        s.turn_json({"input.regulator": 1.0})
     out = {}
     for name, values in zip(("regulator", "needle_bar.length"), slider_values()):
         times = []
         for v in values:
             t0 = time.perf_counter()
-            json.dumps(s.turn(v))
+            s.turn_json(v)  # as the server writes it
             times.append(time.perf_counter() - t0)
         out[f"turn, {name} (in process)"] = pct(times)
     times = []
@@ -430,6 +437,9 @@ def main():
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--only-pages", action="store_true")
+    ap.add_argument("--label", help="what the many pages' run measured (kept as its 'code')")
+    ap.add_argument("--out", type=Path, default=RESULTS, help="the results file (default:"
+                    " benchmarks/results/serve.json)")
     args = ap.parse_args()
     shot = args.screenshot
     rows = {} if args.only_pages else server_side()
@@ -449,16 +459,30 @@ def main():
         if args.pages > 0:
             pages = many_pages(url, proc.pid, args.pages, args.seconds)
             pages["workers"] = args.workers
+            if args.label:
+                pages["code"] = args.label
     finally:
         proc.terminate()
         proc.wait(20)
-    RESULTS.parent.mkdir(exist_ok=True)
+    results = args.out
+    results.parent.mkdir(exist_ok=True)
     if args.only_pages:
-        old = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
+        old = json.loads(results.read_text()) if results.exists() else {}
         if pages is not None:
             pages["verdict"] = print_pages(pages)
             old["many_pages"] = pages
-        RESULTS.write_text(json.dumps(old, indent=1) + "\n")
+            # its row of the table of current figures, with this run's date and commit (the
+            # file's own are those of the other rows' run)
+            stamp = run_stamp()
+            row = {**pages_figure(pages), "date": stamp["date"], "commit": stamp["commit"]}
+            figures = old.setdefault("figures", [])
+            at = [k for k, f in enumerate(figures) if f.get("job", "").startswith(PAGES_JOB)
+                  and "pages dragging" in f.get("job", "")]
+            if at:
+                figures[at[0]] = row
+            else:
+                figures.append(row)
+        results.write_text(json.dumps(old, indent=1) + "\n")
         return
     print(f"{'what':48s} {'p50 ms':>8s} {'p95 ms':>8s} {'max ms':>8s}")
     for k, r in rows.items():
@@ -471,7 +495,7 @@ def main():
     if pages is not None:
         pages["verdict"] = print_pages(pages)
         out["many_pages"] = pages
-    write_results(RESULTS, out, current_figures(out))
+    write_results(results, out, current_figures(out))
 
 
 if __name__ == "__main__":

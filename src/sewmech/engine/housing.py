@@ -194,12 +194,18 @@ def excitation(machine: Machine, housing: Housing, res) -> np.ndarray:
     on_shaft = set(shaft.links) if shaft is not None else set()
 
     def add(F2, p2, z):
-        """A planar force F2 (..., 2) at p2 (..., 2) in the plane z."""
-        F = np.concatenate([F2, np.zeros(F2.shape[:-1] + (1,))], axis=-1)
-        p = np.concatenate([np.broadcast_to(p2, F2.shape),
-                            np.full(F2.shape[:-1] + (1,), float(z))], axis=-1)
-        W[..., :3] += F
-        W[..., 3:] += np.cross(p, F)
+        """A planar force F2 (..., 2) at p2 (..., 2) in the plane z: F = (fx, fy, 0) and its
+        moment p x F, p = (px, py, z), written out as np.cross computes it (the same
+        products and differences: the same bits, without its reshaping of 3-vectors)."""
+        fx, fy = F2[..., 0], F2[..., 1]
+        p2 = np.broadcast_to(p2, F2.shape)
+        px, py, z = p2[..., 0], p2[..., 1], float(z)
+        W[..., 0] += fx
+        W[..., 1] += fy
+        W[..., 2] += 0.0
+        W[..., 3] += py * 0.0 - z * fy
+        W[..., 4] += z * fx - px * 0.0
+        W[..., 5] += px * fy - py * fx
 
     reactions = res.frame_reactions
     points = res.frame_reaction_points

@@ -33,6 +33,7 @@ from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
 from ...engine.errors import AssemblyError, SewmechError
+from .encode import NotJSON
 from .session import PageError, Session, error_dict
 
 log = logging.getLogger("sewmech.serve")
@@ -106,10 +107,16 @@ def perform(session: Session, what: str, args: tuple):
     if what not in ("turn", "checks"):
         return getattr(session, what)(*args)
     t0 = time.perf_counter()
-    answer = getattr(session, what)(*args)
     try:
-        body = json.dumps(answer, separators=(",", ":"), allow_nan=False).encode()
-    except ValueError as exc:  # a NaN or infinity the session let through: a bug
+        if what == "turn":  # computed and written under the session's lock (.encode)
+            body = session.turn_json(*args)
+        else:
+            answer = session.checks(*args)
+            try:
+                body = json.dumps(answer, separators=(",", ":"), allow_nan=False).encode()
+            except ValueError as exc:
+                raise NotJSON(str(exc)) from None
+    except NotJSON as exc:  # a NaN or infinity the session let through: a bug
         raise RuntimeError(f"a non-finite number in the {what}: {exc}") from None
     return body, (time.perf_counter() - t0) * 1e3
 

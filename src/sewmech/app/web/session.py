@@ -6,8 +6,9 @@ in the units the parameter table lists: mm, deg, g, g cm), so a request never de
 earlier one and two pages never share anything. The numbers come from the library's own calls
 (:class:`~sewmech.engine.dynamics.DynamicsPlan` for the turn and its forces,
 :func:`~sewmech.sewing.feed.feed_cycles`, :func:`~sewmech.sewing.thread.thread_balance`,
-:func:`~sewmech.sewing.checks.check_timing`); this module only chooses them and turns their
-arrays into JSON-ready lists (a value that could not be computed is ``None``, never NaN).
+:func:`~sewmech.sewing.checks.check_timing`); this module only chooses them and hands their
+arrays to :mod:`.encode`, which writes them as JSON lists rounded to 1e-6 (a value that could
+not be computed is ``None``, never NaN).
 
 Units in the answers: mm, s, N, N mm; angles in degrees only where a key ends in ``_deg``.
 """
@@ -22,6 +23,7 @@ import numpy as np
 
 from ...engine.errors import MachineFileError, ParameterError, SewmechError
 from ...engine.machine import FILE_UNITS, MIN_LENGTH, PARAM_LIMIT, Machine, machine_from_toml
+from .encode import DECIMALS, Arr, dumps, plain
 
 #: the shaft-angle step of the drawn turn, deg (180 positions: smooth at screen size, and the
 #: whole turn with its forces in a few milliseconds)
@@ -29,8 +31,6 @@ DRAW_STEP_DEG = 2.0
 #: the step of the feed-dog cycle the stitch length is read from, deg (feed_cycles' and
 #: `sewmech feed`'s own)
 FEED_STEP_DEG = 1.0
-#: decimals kept in the answers (mm, N: 1e-6 is far below anything drawn or printed)
-DECIMALS = 6
 
 #: the largest file the export edits in place, keeping its comments and layout (tomlkit):
 #: that editor's time grows with the square of a file's dotted keys and the parts of its names
@@ -50,16 +50,6 @@ _CAM_KEYS = {"width": "mm", "stroke": "mm", "dwell": "rad", "orientation": "rad"
 
 class PageError(SewmechError):
     """A request the page cannot answer (an unknown machine, a malformed request)."""
-
-
-def _finite(a) -> list:
-    """An array as nested lists, rounded; NaN and inf become None (JSON null)."""
-    a = np.asarray(a, dtype=float)
-    ok = np.isfinite(a)
-    r = np.round(a, DECIMALS)
-    if ok.all():
-        return r.tolist()
-    return np.where(ok, r, None).tolist()
 
 
 def _shown(value, limit: int = 60) -> str:
@@ -324,34 +314,42 @@ class Session:
         assembly that fails says which unit, at which angles, why)."""
         P = self.design(values)
         with self.lock:
-            return self._turn(P)
+            return plain(self._turn(P))
+
+    def turn_json(self, values) -> bytes:
+        """:meth:`turn` as compact JSON bytes, its arrays written at once (:mod:`.encode`):
+        what the page receives. Written under the session's lock: the answer's arrays are
+        views of the plans' own, which the next turn overwrites."""
+        P = self.design(values)
+        with self.lock:
+            return dumps(self._turn(P))
 
     def _turn(self, P: np.ndarray) -> dict:
         m = self.machine
-        out: dict = {"phi_deg": _finite(np.degrees(self.phi)), "rpm": m.rpm}
+        out: dict = {"phi_deg": Arr(np.degrees(self.phi)), "rpm": m.rpm}
         if self._dyn is not None:
             d = self._dyn(P)
             kin = d.kin
             # the turn's means (the page's angles are a whole turn in equal steps)
             mean = (lambda x: float(np.mean(x)) if np.all(np.isfinite(x)) else None)
             fl = mean(d.friction_power) if d.friction is not None else None
-            out["dynamics"] = {"torque_Nmm": _finite(d.input_torque),
-                               "shaking_force_N": _finite(d.shaking_force),
-                               "shaking_moment_Nmm": _finite(d.shaking_moment),
+            out["dynamics"] = {"torque_Nmm": Arr(d.input_torque),
+                               "shaking_force_N": Arr(d.shaking_force),
+                               "shaking_moment_Nmm": Arr(d.shaking_moment),
                                "mean_torque_Nmm": mean(d.input_torque),
                                "friction_loss_W": None if fl is None else fl * 1e-3,
                                "vibration": self._vibration(d)}
         else:
             kin = self._kin(P)
             out["dynamics"] = None
-        out["points"] = {n: {"x": _finite(kin.p[:, i, 0]), "y": _finite(kin.p[:, i, 1])}
+        out["points"] = {n: {"x": Arr(kin.p[:, i, 0]), "y": Arr(kin.p[:, i, 1])}
                          for i, n in enumerate(kin.point_names)}
         sl = []
         for p in m.pairs:
             if p.kind in ("prismatic", "slot") and p.point:
                 th = kin.theta[:, m.link_index(p.line_link)] if p.line_link else 0.0
                 ang = th + (P[p.line_param] if p.line_param >= 0 else 0.0) + p.extra_angle
-                sl.append({"pair": p.name, "angle_deg": _finite(np.degrees(ang)
+                sl.append({"pair": p.name, "angle_deg": Arr(np.degrees(ang)
                                                                 * np.ones(len(self.phi)))})
         out["sliders"] = sl
         out["motion"] = self._motion(kin)
@@ -387,14 +385,14 @@ class Session:
             if name:
                 pm = kin.point(name)
                 series[key] = {"label": label, "kind": "point", "name": name,
-                               "y_mm": _finite(pm.p[:, 1]), "vy_mm_s": _finite(pm.v[:, 1]),
-                               "ay_mm_s2": _finite(pm.a[:, 1])}
+                               "y_mm": Arr(pm.p[:, 1]), "vy_mm_s": Arr(pm.v[:, 1]),
+                               "ay_mm_s2": Arr(pm.a[:, 1])}
         if s.shuttle_link:
             lm = kin.link(s.shuttle_link)
             series["shuttle"] = {"label": "shuttle", "kind": "link", "name": s.shuttle_link,
-                                 "theta_deg": _finite(np.degrees(np.unwrap(lm.theta))),
-                                 "omega_rad_s": _finite(lm.omega),
-                                 "epsilon_rad_s2": _finite(lm.epsilon)}
+                                 "theta_deg": Arr(np.degrees(np.unwrap(lm.theta))),
+                                 "omega_rad_s": Arr(lm.omega),
+                                 "epsilon_rad_s2": Arr(lm.epsilon)}
         return series
 
     def _feed(self, P: np.ndarray):
@@ -408,8 +406,8 @@ class Session:
             c = feed_cycles(self.machine, reg_deg, params=P, step_deg=FEED_STEP_DEG)
         except SewmechError as exc:
             return {"error": error_dict(exc)}, None
-        out = {"regulator_deg": _num(reg_deg), "phi_deg": _finite(c.phi_deg),
-               "x_mm": _finite(c.x), "y_mm": _finite(c.y),
+        out = {"regulator_deg": _num(reg_deg), "phi_deg": Arr(c.phi_deg),
+               "x_mm": Arr(c.x), "y_mm": Arr(c.y),
                **{k: _num(getattr(c, k)) for k in ("stitch_mm", "lift_mm", "drop_mm", "top_deg",
                                                     "rise_deg", "fall_deg", "stroke_mm",
                                                     "mid_feed_deg")}}
@@ -431,9 +429,9 @@ class Session:
             checks = check_thread(m, b)
         except (SewmechError, ValueError) as exc:
             return {"error": error_dict(exc)}
-        return {"stitch_mm": _num(st), "phi_deg": _finite(b.phi_deg),
-                "supply_mm": _finite(b.supply), "demand_mm": _finite(b.demand),
-                "overfeed_mm": _finite(b.overfeed),
+        return {"stitch_mm": _num(st), "phi_deg": Arr(b.phi_deg),
+                "supply_mm": Arr(b.supply), "demand_mm": Arr(b.demand),
+                "overfeed_mm": Arr(b.overfeed),
                 "events_deg": {k: _num(getattr(b, k)) for k in (
                     "take_up_top_deg", "seizure_deg", "cast_off_deg", "loop_max_deg",
                     "needle_entry_deg")},
