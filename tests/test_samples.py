@@ -143,8 +143,8 @@ def test_a_checked_design_that_jams_sends_every_design_round_the_whole_turn(monk
     real = samples.whole_turn_values
     calls = []
 
-    def jams(machine, metric, reg, Q):
-        out = real(machine, metric, reg, Q)
+    def jams(machine, metric, reg, Q, *step):
+        out = real(machine, metric, reg, Q, *step)
         if not calls:
             out[3] = np.nan
         calls.append(Q.shape[0])

@@ -162,3 +162,24 @@ def test_located_feed_metrics_are_exact_and_the_feasible_set_is_the_grid_s(shipp
     differ = feasible_grid != c.columns["feasible"]
     assert not (differ & ~near_limit).any()
     assert 0 < c.columns["feasible"].sum() < n  # (the limits select)
+
+
+def test_a_stitch_the_predictions_miss_is_found_on_the_one_degree_turn(shipped):
+    """Design 51266 of the shipped sweep feeds 0.12 mm at regulator 30 deg: its dog is above
+    the plate for under 5 deg, so Newton's steps from the predicted events do not settle and a
+    5 deg turn would not see the stitch either. The design is located from its 1 deg turn,
+    as the grid evaluation saw it, whatever its chunk."""
+    from sewmech.sewing.gradients import metric_values
+
+    o = next(o for o in shipped.spec.outputs
+             if o.metric == "stitch_length" and o.regulator_deg == 30.0)
+    d = 51266
+    for a, b in ((d, d + 1), (d - 3, d + 5)):
+        P = sw.params_of(shipped, sw.sample(shipped, a, b))
+        counts = dict.fromkeys(sw.COUNTS, 0)
+        got = sw._feed_values(shipped, o, P, np.ones(len(P), dtype=bool), a, counts)[d - a]
+        assert counts["feed_whole_turn"] >= 1
+        grid = metric_values(shipped.machine, "stitch_length", 30.0, P[d - a:d - a + 1])[0]
+        assert 0.1 < got < 0.15 and abs(got - grid) <= 1e-6
+        assert abs(got - whole_turn_values(shipped.machine, "stitch_length", 30.0,
+                                           P[d - a:d - a + 1], 1.0)[0]) <= 1e-12

@@ -190,15 +190,16 @@ def window_values(machine: Machine, metric: str, regulator_deg: float, P: np.nda
 
 
 def whole_turn_values(machine: Machine, metric: str, regulator_deg: float,
-                      P: np.ndarray) -> np.ndarray:
+                      P: np.ndarray, step_deg: float = TURN_STEP_DEG) -> np.ndarray:
     """The feed metric of the designs ``P`` with each design's events found on its whole turn
-    (a ``TURN_STEP_DEG`` grid, :func:`sewmech.sewing.feed.feed_cycles`) and located from there
+    (a ``step_deg`` grid, :func:`sewmech.sewing.feed.feed_cycles`) and located from there
     by the same Newton steps; NaN for a design that cannot be assembled somewhere in its turn
-    or has no such event."""
+    or has no such event (an event the grid does not see: a dog above the plate for less than
+    the grid's step has no stitch there)."""
     s = _roles(machine)
     m = P.shape[0]
     if metric == "dog_height_at_needle_plate":
-        n = round(360.0 / TURN_STEP_DEG)
+        n = round(360.0 / step_deg)
         h = 2.0 * math.pi / n
         r = kinematics(machine, np.arange(n) * h, params=P, omega=1.0,
                        points=[s.needle_point], links=[], variables=[], on_failure="mask")
@@ -208,7 +209,7 @@ def whole_turn_values(machine: Machine, metric: str, regulator_deg: float,
         first = np.where(dirn < 0, ph, np.inf).min(axis=1)  # its crossing going down
         starts = {"needle_at_plate": np.where(np.isfinite(first), first, np.nan)}
     else:
-        c = feed_cycles(machine, regulator_deg, params=P, step_deg=TURN_STEP_DEG,
+        c = feed_cycles(machine, regulator_deg, params=P, step_deg=step_deg,
                         on_failure="mask")
         starts = {"rise": np.radians(c.rise_deg), "fall": np.radians(c.fall_deg),
                   "top": np.radians(c.top_deg)}
@@ -221,14 +222,16 @@ def whole_turn_values(machine: Machine, metric: str, regulator_deg: float,
 
 def sample_feed_values(machine: Machine, metric: str, regulator_deg: float, P: np.ndarray,
                        nominal: Gradient, *, seed: int = 0, check: np.ndarray | None = None,
-                       base=None) -> tuple[np.ndarray, dict]:
+                       base=None, redo_step_deg: float = TURN_STEP_DEG
+                       ) -> tuple[np.ndarray, dict]:
     """:func:`window_values` with its two guards (the module's docstring): the values of the
     designs ``P`` (m, n_params) and what was done, ``{"located": designs located from their
     predicted events, "whole_turn": designs located from their whole turn, "checked":
     designs compared, "check_max_mm": their largest difference}``. NaN only for a design
     that cannot be assembled or has no such event. ``check``: the rows compared (default
     :data:`CHECK_DESIGNS` drawn with ``seed``); ``base``: the design ``nominal`` is of
-    (default the file's)."""
+    (default the file's); ``redo_step_deg``: the whole turn's grid for the designs located
+    again (the checks use :data:`TURN_STEP_DEG`)."""
     vals, found = window_values(machine, metric, regulator_deg, P, nominal, base)
     m = P.shape[0]
     if check is None:
@@ -241,7 +244,8 @@ def sample_feed_values(machine: Machine, metric: str, regulator_deg: float, P: n
     redo = ~found if agree else np.ones(m, dtype=bool)
     if redo.any():
         vals = vals.copy()
-        vals[redo] = whole_turn_values(machine, metric, regulator_deg, P[redo])
+        vals[redo] = whole_turn_values(machine, metric, regulator_deg, P[redo],
+                                       redo_step_deg)
     worst = float(np.nanmax(diff)) if diff.size else 0.0
     return vals, {"located": int(m - redo.sum()), "whole_turn": int(redo.sum()),
                   "checked": int(check.size), "check_max_mm": worst}
