@@ -157,8 +157,8 @@ def source(max_block: int = MAX_BLOCK) -> str:
     lines += ["    else:", "        return False", "    return True", "", "",
               '@njit(cache=True, error_model="numpy", fastmath={"contract"})',
               "def block_solve(n, F, foff, B, X, start, nk):",
-              '    """Solve an n x n block factored by block_qr for the right-hand sides in B (n <=',
-              '    MAX_BLOCK)."""']
+              '    """Solve an n x n block factored by block_qr for the right-hand sides in B',
+              '    (n <= MAX_BLOCK)."""']
     for n in range(1, max_block + 1):
         lines.append(f"    {'if' if n == 1 else 'elif'} n == {n}:")
         lines.append(f"        block_solve_{n}(F, foff, B, X, start, nk)")

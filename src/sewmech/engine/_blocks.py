@@ -1257,8 +1257,8 @@ def block_qr(n, W, off, F, foff, B, X, start, nk, worst):
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
 def block_solve(n, F, foff, B, X, start, nk):
-    """Solve an n x n block factored by block_qr for the right-hand sides in B (n <=
-    MAX_BLOCK)."""
+    """Solve an n x n block factored by block_qr for the right-hand sides in B
+    (n <= MAX_BLOCK)."""
     if n == 1:
         block_solve_1(F, foff, B, X, start, nk)
     elif n == 2:

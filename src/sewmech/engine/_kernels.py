@@ -1568,17 +1568,17 @@ def _friction(fr_int, fr_f, GEO, X, OM, GP, GV, XB0, XB, FF, FP, d):
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
 def _anderson(X, Xold, HF, HG, k, feasible, done, tol, A, gamma, d):
-    """One step of Anderson acceleration (type II, depth HF.shape[0] - 1) of the fixed point
-    x = g(x) at every position of design d on its own: Xold (n_phi, n) is x_k, X[d] holds
-    g(x_k) on entry and x_{k+1} on return. HF, HG (depth + 1, n_phi, n): the residuals f = g(x)
-    - x and the images g(x) of the last steps (a ring, step k in slot k % (depth + 1)).
-    x_{k+1} = g_k - sum_j gamma_j (g_{k-j} - g_{k-j-1}), gamma the least-squares combination of
-    the residuals' differences that best cancels f_k (normal equations of at most depth
-    unknowns per position, solved by Gaussian elimination, damped by 1e-12 of their trace). A
-    position whose |f_k| is at most ``tol`` of the design's largest |g| is done (``done``
-    (n_phi,) bool, kept across the steps): X keeps that g_k and later steps leave it. Returns
-    max |f_k| relative to the design's largest |g| over its assembled positions not yet done
-    (0 when all are) and the position where it is (-1: none)."""
+    """One step of Anderson acceleration (type II, depth HF.shape[0] - 1, at most 3) of the fixed
+    point x = g(x) at every position of design d on its own: Xold (n_phi, n) is x_k, X[d] holds
+    g(x_k) on entry and x_{k+1} on return. HF, HG (depth + 1, n_phi, n): the residuals f = g(x) - x
+    and the images g(x) of the last steps (a ring, step k in slot k % (depth + 1)). x_{k+1} = g_k -
+    sum_j gamma_j (g_{k-j} - g_{k-j-1}), gamma the least-squares combination of the residuals'
+    differences that best cancels f_k (normal equations of at most depth unknowns per position,
+    solved by Gaussian elimination, damped by 1e-12 of their trace). A position whose |f_k| is at
+    most ``tol`` of the design's largest |g| is done (``done`` (n_phi,) bool, kept across the
+    steps): X keeps that g_k and later steps leave it. Returns max |f_k| relative to the design's
+    largest |g| over its assembled positions not yet done (0 when all are) and the position where
+    it is (-1: none)."""
     depth = HF.shape[0] - 1
     ring = depth + 1
     slot = k % ring
@@ -1586,6 +1586,7 @@ def _anderson(X, Xold, HF, HG, k, feasible, done, tol, A, gamma, d):
     mk = min(k, depth)
     worst = 0.0
     kw = -1
+    s0, s1, s2, s3 = slot, (k - 1) % ring, (k - 2) % ring, (k - 3) % ring  # steps k, k - 1, ...
     scale = 1.0
     for kk in range(n_phi):
         if feasible[d, kk]:
@@ -1612,23 +1613,37 @@ def _anderson(X, Xold, HF, HG, k, feasible, done, tol, A, gamma, d):
             kw = kk
         if mk == 0:
             continue
-        # normal equations [A | b] of min |f_k - sum_j gamma_j (f_{k-j} - f_{k-j-1})|
-        for i in range(mk):
-            si = (k - i) % ring
-            si1 = (k - i - 1) % ring
-            bi = 0.0
-            for e in range(n):
-                bi += (HF[si, kk, e] - HF[si1, kk, e]) * HF[slot, kk, e]
-            A[i, mk] = bi
-            for j in range(i, mk):
-                sj = (k - j) % ring
-                sj1 = (k - j - 1) % ring
-                aij = 0.0
-                for e in range(n):
-                    aij += ((HF[si, kk, e] - HF[si1, kk, e])
-                            * (HF[sj, kk, e] - HF[sj1, kk, e]))
-                A[i, j] = aij
-                A[j, i] = aij
+        # normal equations [A | b] of min |f_k - sum_j gamma_j (f_{k-j} - f_{k-j-1})|: all
+        # their sums in one pass over the unknowns, in scalars (independent chains of
+        # multiply-adds, each sum still in the unknowns' order; depth <= 3, unused ones 0)
+        a00 = a01 = a02 = a11 = a12 = a22 = b0 = b1 = b2 = 0.0
+        for e in range(n):
+            fk = HF[s0, kk, e]
+            q0 = HF[s0, kk, e] - HF[s1, kk, e] if mk > 0 else 0.0
+            q1 = HF[s1, kk, e] - HF[s2, kk, e] if mk > 1 else 0.0
+            q2 = HF[s2, kk, e] - HF[s3, kk, e] if mk > 2 else 0.0
+            b0 += q0 * fk
+            b1 += q1 * fk
+            b2 += q2 * fk
+            a00 += q0 * q0
+            a01 += q0 * q1
+            a02 += q0 * q2
+            a11 += q1 * q1
+            a12 += q1 * q2
+            a22 += q2 * q2
+        A[0, 0] = a00
+        if mk > 1:
+            A[0, 1] = A[1, 0] = a01
+            A[1, 1] = a11
+        if mk > 2:
+            A[0, 2] = A[2, 0] = a02
+            A[1, 2] = A[2, 1] = a12
+            A[2, 2] = a22
+        A[0, mk] = b0
+        if mk > 1:
+            A[1, mk] = b1
+        if mk > 2:
+            A[2, mk] = b2
         tr = 0.0
         for i in range(mk):
             tr += A[i, i]

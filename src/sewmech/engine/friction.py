@@ -37,7 +37,8 @@ KIND_CODE = {"revolute": K.PAIR_REVOLUTE, "prismatic": K.PAIR_PRISMATIC, "cam": 
 #: its design's largest force, or fails after MAX_STEPS
 TOLERANCE = 1e-10
 MAX_STEPS = 60
-#: the steps Anderson's acceleration combines (:func:`sewmech.engine._kernels._anderson`)
+#: the steps Anderson's acceleration combines (:func:`sewmech.engine._kernels._anderson`;
+#: at most 3: the kernel's sums are written out for 3)
 ANDERSON_DEPTH = 3
 
 
