@@ -1152,8 +1152,8 @@ _FORCE_DOC = """Right-hand sides and pair forces of every design and position.
     the links' angular velocities, GV (D, n_phi, >= n_links, 2) the velocities of the points
     GP; feasible (D, n_phi) the assembled positions. After the frictionless solve, each design
     on its own runs a fixed-point iteration of its pair forces with the friction of the last
-    step as applied forces (:func:`_friction`: XB[d] becomes the loads of XB plus that
-    friction), accelerated by Anderson's method of depth ``depth`` (:func:`_anderson`), until
+    step as applied forces (:func:`_friction`, :func:`_friction_motion`: XB[d] becomes the
+    loads of XB plus that friction), accelerated by Anderson's method of depth ``depth`` (:func:`_anderson`), until
     no assembled position changes by more than ``tol`` of the design's largest force, at most
     max_steps steps. The matrix does not depend on the friction: every step solves with the
     QR factors of the first solve, kept per position. CW (D, n_phi, n_eq) or empty: a part
@@ -1238,6 +1238,7 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
     for i in range(nf):
         frpos[fr_pair[i]] = i
     GEO = np.zeros((nf, 4, n_phi))  # force point and direction of the frictional pairs
+    FC = np.zeros((nf, 7, n_phi))  # what their friction takes from the motion (_friction)
     ring = depth + 1
     XB0 = np.zeros((n_phi if friction else 0, n_eq))
     Xold = np.zeros((n_phi if friction else 0, n_eq))
@@ -1254,7 +1255,7 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
             SETTLE[d, 1] = -1.0
         while True:
             if step >= 0:  # the friction of the last step's forces as applied forces
-                _friction(fr_int, fr_f, GEO, X, OM, GP, GV, XB0, XB, FF, FP, d)
+                _friction(fr_int, FC, X, XB0, XB, FF, FP, d, False)
             for ci in range(n_chunks):
                 k0 = ci * FORCE_CHUNK
                 nk = min(FORCE_CHUNK, n_phi - k0)
@@ -1473,6 +1474,7 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
                     done[k] = False
                     for e in range(n_eq):
                         XB0[k, e] = XB[d, k, e]
+                _friction_motion(fr_int, fr_f, GEO, OM, GP, GV, FC, d)
             else:
                 change, kw = _anderson(X, Xold, HF, HG, step, feasible, done, tol, A, gamma, d)
                 if change <= tol:  # every position settled (each keeps its own answer)
@@ -1486,7 +1488,7 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
                     Xold[k, e] = X[d, k, e]
             step += 1
         if friction and n_bad == 0:  # the friction of the settled forces
-            _friction(fr_int, fr_f, GEO, X, OM, GP, GV, XB0, XB, FF, FP, d)
+            _friction(fr_int, FC, X, XB0, XB, FF, FP, d, True)
     return n_low
 
 
@@ -1498,47 +1500,32 @@ force_solve.__doc__ = _FORCE_DOC.format(
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
-def _friction(fr_int, fr_f, GEO, X, OM, GP, GV, XB0, XB, FF, FP, d):
-    """The friction of every frictional pair of design d from its pair forces X[d], as
-    generalized forces XB[d] = XB0 + friction (see :func:`force_solve`'s friction arguments).
-
-    GEO (n_fr, 4, n_phi): each pair's force point and force direction (revolute: unused).
-    Revolute pairs: a moment -(mu r |F| s(r w) + viscous w) on the second link, the opposite on
-    the first, w the relative angular velocity (second less first); prismatic, cam and slot
-    pairs: a force -(mu |N| s(v) + viscous v) along the contact's tangent t on the second link
-    at the force point, the opposite on the first, v = t . (relative velocity of the point on
-    the second link and on the first); s(x) = x / sqrt(x^2 + smooth^2). Fills FF[d] (n_phi,
-    n_fr) with that moment (N mm) or force (N) on the second link and FP[d] with the power it
-    takes out of the machine (N mm/s, >= 0)."""
-    n_phi = X.shape[1]
-    n_fr = fr_int.shape[0]
-    for k in range(n_phi):
-        for r in range(XB.shape[2]):
-            XB[d, k, r] = XB0[k, r]
-        for i in range(n_fr):
-            kind = fr_int[i, 0]
-            la = fr_int[i, 1]
-            lb = fr_int[i, 2]
-            c = fr_int[i, 3]
-            mu = fr_f[i, 0]
-            rad = fr_f[i, 1]
-            visc = fr_f[i, 2]
-            sm = fr_f[i, 3]
+def _friction_motion(fr_int, fr_f, GEO, OM, GP, GV, FC, d):
+    """What the friction of every frictional pair of design d takes from the motion (it does not
+    change over the friction iteration), FC (n_fr, 7, n_phi): revolute pairs mu r s(r w),
+    viscous w, w; prismatic, cam and slot pairs mu s(v), viscous v, v, the contact's tangent t
+    (x, y) and the moments of t at the force point about the centres of mass of the second and
+    the first link. w: the relative angular velocity (second link less first), v = t . (relative
+    velocity of the force point on the second link and on the first), s(x) = x / sqrt(x^2 +
+    smooth^2). GEO (n_fr, 4, n_phi): each pair's force point and force direction (revolute:
+    unused); fr_int, fr_f, OM, GP, GV: see :func:`force_solve`."""
+    n_phi = FC.shape[2]
+    for i in range(fr_int.shape[0]):
+        kind = fr_int[i, 0]
+        la = fr_int[i, 1]
+        lb = fr_int[i, 2]
+        mu = fr_f[i, 0]
+        rad = fr_f[i, 1]
+        visc = fr_f[i, 2]
+        sm = fr_f[i, 3]
+        for k in range(n_phi):
             if kind == PAIR_REVOLUTE:
-                fx = X[d, k, c]
-                fy = X[d, k, c + 1]
                 w = OM[d, k, lb] - OM[d, k, la]
                 v = rad * w
-                m = -(mu * rad * math.sqrt(fx * fx + fy * fy) * v / math.sqrt(v * v + sm * sm)
-                      + visc * w)
-                FF[d, k, i] = m
-                FP[d, k, i] = -m * w
-                if lb > 0:
-                    XB[d, k, 3 * (lb - 1) + 2] += m
-                if la > 0:
-                    XB[d, k, 3 * (la - 1) + 2] -= m
+                FC[i, 0, k] = mu * rad * (v / math.sqrt(v * v + sm * sm))
+                FC[i, 1, k] = visc * w
+                FC[i, 2, k] = w
                 continue
-            n = X[d, k, c]
             px = GEO[i, 0, k]
             py = GEO[i, 1, k]
             tx = GEO[i, 3, k]  # the tangent: the normal turned -90 deg
@@ -1549,21 +1536,65 @@ def _friction(fr_int, fr_f, GEO, X, OM, GP, GV, XB0, XB, FF, FP, d):
             vax = GV[d, k, la, 0] - OM[d, k, la] * (py - GP[d, k, la, 1])
             vay = GV[d, k, la, 1] + OM[d, k, la] * (px - GP[d, k, la, 0])
             v = tx * (vbx - vax) + ty * (vby - vay)
-            f = -(mu * abs(n) * v / math.sqrt(v * v + sm * sm) + visc * v)
-            FF[d, k, i] = f
-            FP[d, k, i] = -f * v
-            fx = f * tx
-            fy = f * ty
+            FC[i, 0, k] = mu * (v / math.sqrt(v * v + sm * sm))
+            FC[i, 1, k] = visc * v
+            FC[i, 2, k] = v
+            FC[i, 3, k] = tx
+            FC[i, 4, k] = ty
+            FC[i, 5, k] = (px - GP[d, k, lb, 0]) * ty - (py - GP[d, k, lb, 1]) * tx
+            FC[i, 6, k] = (px - GP[d, k, la, 0]) * ty - (py - GP[d, k, la, 1]) * tx
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+def _friction(fr_int, FC, X, XB0, XB, FF, FP, d, final):
+    """The friction of every frictional pair of design d from its pair forces X[d], as
+    generalized forces XB[d] = XB0 + friction (see :func:`force_solve`'s friction arguments),
+    with what it takes from the motion in FC (:func:`_friction_motion`).
+
+    Revolute pairs: a moment -(mu r |F| s(r w) + viscous w) on the second link, the opposite on
+    the first; prismatic, cam and slot pairs: a force -(mu |N| s(v) + viscous v) along the
+    contact's tangent on the second link at the force point, the opposite on the first.
+    ``final``: also fill FF[d] (n_phi, n_fr) with that moment (N mm) or force (N) on the second
+    link and FP[d] with the power it takes out of the machine (N mm/s, >= 0)."""
+    n_phi = X.shape[1]
+    for k in range(n_phi):
+        for r in range(XB.shape[2]):
+            XB[d, k, r] = XB0[k, r]
+    for i in range(fr_int.shape[0]):
+        kind = fr_int[i, 0]
+        la = fr_int[i, 1]
+        lb = fr_int[i, 2]
+        c = fr_int[i, 3]
+        rb = 3 * (lb - 1)
+        ra = 3 * (la - 1)
+        if kind == PAIR_REVOLUTE:
+            for k in range(n_phi):
+                fx = X[d, k, c]
+                fy = X[d, k, c + 1]
+                m = -(FC[i, 0, k] * math.sqrt(fx * fx + fy * fy) + FC[i, 1, k])
+                if lb > 0:
+                    XB[d, k, rb + 2] += m
+                if la > 0:
+                    XB[d, k, ra + 2] -= m
+                if final:
+                    FF[d, k, i] = m
+                    FP[d, k, i] = -m * FC[i, 2, k]
+            continue
+        for k in range(n_phi):
+            f = -(FC[i, 0, k] * abs(X[d, k, c]) + FC[i, 1, k])
+            fx = f * FC[i, 3, k]
+            fy = f * FC[i, 4, k]
             if lb > 0:
-                rb = 3 * (lb - 1)
                 XB[d, k, rb] += fx
                 XB[d, k, rb + 1] += fy
-                XB[d, k, rb + 2] += (px - GP[d, k, lb, 0]) * fy - (py - GP[d, k, lb, 1]) * fx
+                XB[d, k, rb + 2] += f * FC[i, 5, k]
             if la > 0:
-                ra = 3 * (la - 1)
                 XB[d, k, ra] -= fx
                 XB[d, k, ra + 1] -= fy
-                XB[d, k, ra + 2] -= (px - GP[d, k, la, 0]) * fy - (py - GP[d, k, la, 1]) * fx
+                XB[d, k, ra + 2] -= f * FC[i, 6, k]
+            if final:
+                FF[d, k, i] = f
+                FP[d, k, i] = -f * FC[i, 2, k]
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
