@@ -726,7 +726,7 @@ def test_force_structure_blocks_and_plan_reuse():
 def test_written_block_solvers(monkeypatch):
     """The force kernel's written block solvers (sewmech._blocks) are what the generator writes;
     each solves random blocks as numpy's LU does, reports a singular block, solves other
-    right-hand sides with the factors it keeps (block_solve, the friction steps),
+    right-hand sides with the factors it keeps (the friction steps),
     and the whole JB1-3 solve agrees with the kernel's generic loop."""
     from sewmech.dynamics import DynamicsPlan
     from sewmech.engine import _blockgen, _blocks, _kernels
@@ -754,18 +754,18 @@ def test_written_block_solvers(monkeypatch):
         assert _blocks.block_qr(n, W, off, F, foff, B.copy(), X, start, nk, worst)
         got = X.reshape(-1, ch)[start:start + n, :nk].T
         assert (F.reshape(-1, ch)[[foff - 1, foff + n * (n + 2)]] == 7.0).all()
-        X2 = np.full_like(B, 7.0)  # the kept factors: the same operations, the same answers
-        _blocks.block_solve(n, F, foff, B, X2, start, nk)  # (up to fused multiply-adds)
-        ok = np.ones(nk, dtype=bool)
-        ok[1] = False
-        np.testing.assert_allclose(X2.reshape(-1, ch)[:start + n, :nk][:, ok],
-                                   X.reshape(-1, ch)[:start + n, :nk][:, ok], rtol=1e-13,
-                                   atol=1e-13 * np.abs(x).max())
-        B2 = np.zeros_like(B)
+        # the kept factors (R and the reflectors, then each one's v0 and tau) solve another
+        # right-hand side, as the force kernel's friction steps use them
+        fac = F.reshape(-1, ch)[foff:foff + n * (n + 2), :nk].T
         b2 = np.einsum("kij,kj->ki", A, x[::-1])
-        B2.reshape(-1, ch)[start:start + n, :nk] = b2.T
-        _blocks.block_solve(n, F, foff, B2, X2, start, nk)
-        got2 = X2.reshape(-1, ch)[start:start + n, :nk].T
+        got2 = np.empty_like(b2)
+        for k in range(nk):
+            a, v0, tau = fac[k, :n * n].reshape(n, n), fac[k, n * n:n * n + n], fac[k, -n:]
+            r = b2[k].copy()
+            for j in range(n):
+                v = np.r_[v0[j], a[j + 1:, j]]
+                r[j:] -= tau[j] * (v @ r[j:]) * v
+            got2[k] = np.linalg.solve(np.triu(a), r) if k != 1 else 0.0
         ok = np.ones(nk, dtype=bool)
         ok[1] = False
         ref = np.linalg.solve(A[ok], b[ok][..., None])[..., 0]

@@ -35,10 +35,8 @@ right-hand sides B's entries start, start + 1, ... (overwritten), and its unknow
 entries start, start + 1, .... ``worst[kk]`` is lowered to the smallest |R_jj| relative to the
 block's largest entry (0: singular). The factors go to F's entries foff, ... (N * (N + 2) of
 them: R on and above the diagonal and the reflectors' vectors below it, row-major, then each
-reflector's first entry v0 and its tau), from which ``block_solve_N(F, foff, B, X, start, nk)``
-solves the block for other right-hand sides with the same operations in the same order (the
-same answers up to where the compiler fuses a multiply and an add) at a fraction of the cost:
-the force kernel's steps of the friction iteration.
+reflector's first entry v0 and its tau), with which the force kernel solves the block again for
+other right-hand sides (the steps of the friction iteration) without factoring it again.
 """
 
 import math
@@ -89,52 +87,16 @@ def _solver(n: int) -> str:
         b(f"F[fo + _U({(n * n + j) * CHUNK}) + kk] = v0")
         b(f"F[fo + _U({(n * n + n + j) * CHUNK}) + kk] = tau")
         b(f"a{j}_{j} = al")
-    b("# the factors, for block_solve")
+    b("# the factors, kept for other right-hand sides")
     for i in range(n):
         for j in range(n):
             b(f"F[fo + _U({(i * n + j) * CHUNK}) + kk] = a{i}_{j}")
-    body.extend(_back_substitution(n))
-    b("worst[kk] = min(worst[kk], amin / sc if sc > 0.0 else 0.0)  # a zero block: singular")
-    lines.extend("        " + line for line in body)
-    return "\n".join(lines)
-
-
-def _back_substitution(n: int) -> list[str]:
-    body = ["# back substitution with R"]
+    b("# back substitution with R")
     for j in range(n - 1, -1, -1):
         terms = "".join(f" - a{j}_{c} * x{c}" for c in range(j + 1, n))
-        body.append(f"x{j} = {f'(b{j}{terms})' if terms else f'b{j}'} / a{j}_{j}")
-        body.append(f"X[bo + _U({j * CHUNK}) + kk] = x{j}")
-    return body
-
-
-def _solve(n: int) -> str:
-    """Source of the solve with the stored factors of an n x n block: the right-hand side's
-    operations of :func:`_solver`, in the same order."""
-    lines = ["", "", '@njit(cache=True, error_model="numpy", fastmath={"contract"})',
-             f"def block_solve_{n}(F, foff, B, X, start, nk):",
-             "    fo = _U(foff * CHUNK)",
-             "    bo = _U(start * CHUNK)",
-             "    for kk in range(_U(nk)):"]
-    body: list[str] = []
-    b = body.append
-    for i in range(n):
-        b(f"b{i} = B[bo + _U({i * CHUNK}) + kk]")
-    for j in range(n):
-        b(f"# column {j}'s reflector")
-        b(f"v0 = F[fo + _U({(n * n + j) * CHUNK}) + kk]")
-        b(f"tau = F[fo + _U({(n * n + n + j) * CHUNK}) + kk]")
-        for i in range(j + 1, n):
-            b(f"a{i}_{j} = F[fo + _U({(i * n + j) * CHUNK}) + kk]")
-        vec = ["v0"] + [f"a{i}_{j}" for i in range(j + 1, n)]
-        col = [f"b{i}" for i in range(j, n)]
-        b("s = tau * (" + " + ".join(f"{v} * {x}" for v, x in zip(vec, col, strict=True)) + ")")
-        for v, x in zip(vec, col, strict=True):
-            b(f"{x} -= s * {v}")
-    for i in range(n):
-        for j in range(i, n):
-            b(f"a{i}_{j} = F[fo + _U({(i * n + j) * CHUNK}) + kk]")
-    body.extend(_back_substitution(n))
+        b(f"x{j} = {f'(b{j}{terms})' if terms else f'b{j}'} / a{j}_{j}")
+        b(f"X[bo + _U({j * CHUNK}) + kk] = x{j}")
+    b("worst[kk] = min(worst[kk], amin / sc if sc > 0.0 else 0.0)  # a zero block: singular")
     lines.extend("        " + line for line in body)
     return "\n".join(lines)
 
@@ -143,7 +105,6 @@ def source(max_block: int = MAX_BLOCK) -> str:
     """The whole module :mod:`sewmech._blocks`."""
     parts = [_HEAD]
     parts.extend(_solver(n) for n in range(1, max_block + 1))
-    parts.extend(_solve(n) for n in range(1, max_block + 1))
     lines = ["", "", f"MAX_BLOCK = {max_block}", "", "",
              '@njit(cache=True, error_model="numpy", fastmath={"contract"})',
              "def block_qr(n, W, off, F, foff, B, X, start, nk, worst):",
@@ -154,15 +115,7 @@ def source(max_block: int = MAX_BLOCK) -> str:
     for n in range(1, max_block + 1):
         lines.append(f"    {'if' if n == 1 else 'elif'} n == {n}:")
         lines.append(f"        block_qr_{n}(W, off, F, foff, B, X, start, nk, worst)")
-    lines += ["    else:", "        return False", "    return True", "", "",
-              '@njit(cache=True, error_model="numpy", fastmath={"contract"})',
-              "def block_solve(n, F, foff, B, X, start, nk):",
-              '    """Solve an n x n block factored by block_qr for the right-hand sides in B',
-              '    (n <= MAX_BLOCK)."""']
-    for n in range(1, max_block + 1):
-        lines.append(f"    {'if' if n == 1 else 'elif'} n == {n}:")
-        lines.append(f"        block_solve_{n}(F, foff, B, X, start, nk)")
-    lines.append("")
+    lines += ["    else:", "        return False", "    return True", ""]
     parts.append("\n".join(lines))
     return "\n".join(parts)
 

@@ -8,10 +8,8 @@ right-hand sides B's entries start, start + 1, ... (overwritten), and its unknow
 entries start, start + 1, .... ``worst[kk]`` is lowered to the smallest |R_jj| relative to the
 block's largest entry (0: singular). The factors go to F's entries foff, ... (N * (N + 2) of
 them: R on and above the diagonal and the reflectors' vectors below it, row-major, then each
-reflector's first entry v0 and its tau), from which ``block_solve_N(F, foff, B, X, start, nk)``
-solves the block for other right-hand sides with the same operations in the same order (the
-same answers up to where the compiler fuses a multiply and an add) at a fraction of the cost:
-the force kernel's steps of the friction iteration.
+reflector's first entry v0 and its tau), with which the force kernel solves the block again for
+other right-hand sides (the steps of the friction iteration) without factoring it again.
 """
 
 import math
@@ -44,7 +42,7 @@ def block_qr_1(W, off, F, foff, B, X, start, nk, worst):
         F[fo + _U(64) + kk] = v0
         F[fo + _U(128) + kk] = tau
         a0_0 = al
-        # the factors, for block_solve
+        # the factors, kept for other right-hand sides
         F[fo + _U(0) + kk] = a0_0
         # back substitution with R
         x0 = b0 / a0_0
@@ -96,7 +94,7 @@ def block_qr_2(W, off, F, foff, B, X, start, nk, worst):
         F[fo + _U(320) + kk] = v0
         F[fo + _U(448) + kk] = tau
         a1_1 = al
-        # the factors, for block_solve
+        # the factors, kept for other right-hand sides
         F[fo + _U(0) + kk] = a0_0
         F[fo + _U(64) + kk] = a0_1
         F[fo + _U(128) + kk] = a1_0
@@ -186,7 +184,7 @@ def block_qr_3(W, off, F, foff, B, X, start, nk, worst):
         F[fo + _U(704) + kk] = v0
         F[fo + _U(896) + kk] = tau
         a2_2 = al
-        # the factors, for block_solve
+        # the factors, kept for other right-hand sides
         F[fo + _U(0) + kk] = a0_0
         F[fo + _U(64) + kk] = a0_1
         F[fo + _U(128) + kk] = a0_2
@@ -328,7 +326,7 @@ def block_qr_4(W, off, F, foff, B, X, start, nk, worst):
         F[fo + _U(1216) + kk] = v0
         F[fo + _U(1472) + kk] = tau
         a3_3 = al
-        # the factors, for block_solve
+        # the factors, kept for other right-hand sides
         F[fo + _U(0) + kk] = a0_0
         F[fo + _U(64) + kk] = a0_1
         F[fo + _U(128) + kk] = a0_2
@@ -538,7 +536,7 @@ def block_qr_5(W, off, F, foff, B, X, start, nk, worst):
         F[fo + _U(1856) + kk] = v0
         F[fo + _U(2176) + kk] = tau
         a4_4 = al
-        # the factors, for block_solve
+        # the factors, kept for other right-hand sides
         F[fo + _U(0) + kk] = a0_0
         F[fo + _U(64) + kk] = a0_1
         F[fo + _U(128) + kk] = a0_2
@@ -834,7 +832,7 @@ def block_qr_6(W, off, F, foff, B, X, start, nk, worst):
         F[fo + _U(2624) + kk] = v0
         F[fo + _U(3008) + kk] = tau
         a5_5 = al
-        # the factors, for block_solve
+        # the factors, kept for other right-hand sides
         F[fo + _U(0) + kk] = a0_0
         F[fo + _U(64) + kk] = a0_1
         F[fo + _U(128) + kk] = a0_2
@@ -887,348 +885,6 @@ def block_qr_6(W, off, F, foff, B, X, start, nk, worst):
         worst[kk] = min(worst[kk], amin / sc if sc > 0.0 else 0.0)  # a zero block: singular
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def block_solve_1(F, foff, B, X, start, nk):
-    fo = _U(foff * CHUNK)
-    bo = _U(start * CHUNK)
-    for kk in range(_U(nk)):
-        b0 = B[bo + _U(0) + kk]
-        # column 0's reflector
-        v0 = F[fo + _U(64) + kk]
-        tau = F[fo + _U(128) + kk]
-        s = tau * (v0 * b0)
-        b0 -= s * v0
-        a0_0 = F[fo + _U(0) + kk]
-        # back substitution with R
-        x0 = b0 / a0_0
-        X[bo + _U(0) + kk] = x0
-
-
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def block_solve_2(F, foff, B, X, start, nk):
-    fo = _U(foff * CHUNK)
-    bo = _U(start * CHUNK)
-    for kk in range(_U(nk)):
-        b0 = B[bo + _U(0) + kk]
-        b1 = B[bo + _U(64) + kk]
-        # column 0's reflector
-        v0 = F[fo + _U(256) + kk]
-        tau = F[fo + _U(384) + kk]
-        a1_0 = F[fo + _U(128) + kk]
-        s = tau * (v0 * b0 + a1_0 * b1)
-        b0 -= s * v0
-        b1 -= s * a1_0
-        # column 1's reflector
-        v0 = F[fo + _U(320) + kk]
-        tau = F[fo + _U(448) + kk]
-        s = tau * (v0 * b1)
-        b1 -= s * v0
-        a0_0 = F[fo + _U(0) + kk]
-        a0_1 = F[fo + _U(64) + kk]
-        a1_1 = F[fo + _U(192) + kk]
-        # back substitution with R
-        x1 = b1 / a1_1
-        X[bo + _U(64) + kk] = x1
-        x0 = (b0 - a0_1 * x1) / a0_0
-        X[bo + _U(0) + kk] = x0
-
-
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def block_solve_3(F, foff, B, X, start, nk):
-    fo = _U(foff * CHUNK)
-    bo = _U(start * CHUNK)
-    for kk in range(_U(nk)):
-        b0 = B[bo + _U(0) + kk]
-        b1 = B[bo + _U(64) + kk]
-        b2 = B[bo + _U(128) + kk]
-        # column 0's reflector
-        v0 = F[fo + _U(576) + kk]
-        tau = F[fo + _U(768) + kk]
-        a1_0 = F[fo + _U(192) + kk]
-        a2_0 = F[fo + _U(384) + kk]
-        s = tau * (v0 * b0 + a1_0 * b1 + a2_0 * b2)
-        b0 -= s * v0
-        b1 -= s * a1_0
-        b2 -= s * a2_0
-        # column 1's reflector
-        v0 = F[fo + _U(640) + kk]
-        tau = F[fo + _U(832) + kk]
-        a2_1 = F[fo + _U(448) + kk]
-        s = tau * (v0 * b1 + a2_1 * b2)
-        b1 -= s * v0
-        b2 -= s * a2_1
-        # column 2's reflector
-        v0 = F[fo + _U(704) + kk]
-        tau = F[fo + _U(896) + kk]
-        s = tau * (v0 * b2)
-        b2 -= s * v0
-        a0_0 = F[fo + _U(0) + kk]
-        a0_1 = F[fo + _U(64) + kk]
-        a0_2 = F[fo + _U(128) + kk]
-        a1_1 = F[fo + _U(256) + kk]
-        a1_2 = F[fo + _U(320) + kk]
-        a2_2 = F[fo + _U(512) + kk]
-        # back substitution with R
-        x2 = b2 / a2_2
-        X[bo + _U(128) + kk] = x2
-        x1 = (b1 - a1_2 * x2) / a1_1
-        X[bo + _U(64) + kk] = x1
-        x0 = (b0 - a0_1 * x1 - a0_2 * x2) / a0_0
-        X[bo + _U(0) + kk] = x0
-
-
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def block_solve_4(F, foff, B, X, start, nk):
-    fo = _U(foff * CHUNK)
-    bo = _U(start * CHUNK)
-    for kk in range(_U(nk)):
-        b0 = B[bo + _U(0) + kk]
-        b1 = B[bo + _U(64) + kk]
-        b2 = B[bo + _U(128) + kk]
-        b3 = B[bo + _U(192) + kk]
-        # column 0's reflector
-        v0 = F[fo + _U(1024) + kk]
-        tau = F[fo + _U(1280) + kk]
-        a1_0 = F[fo + _U(256) + kk]
-        a2_0 = F[fo + _U(512) + kk]
-        a3_0 = F[fo + _U(768) + kk]
-        s = tau * (v0 * b0 + a1_0 * b1 + a2_0 * b2 + a3_0 * b3)
-        b0 -= s * v0
-        b1 -= s * a1_0
-        b2 -= s * a2_0
-        b3 -= s * a3_0
-        # column 1's reflector
-        v0 = F[fo + _U(1088) + kk]
-        tau = F[fo + _U(1344) + kk]
-        a2_1 = F[fo + _U(576) + kk]
-        a3_1 = F[fo + _U(832) + kk]
-        s = tau * (v0 * b1 + a2_1 * b2 + a3_1 * b3)
-        b1 -= s * v0
-        b2 -= s * a2_1
-        b3 -= s * a3_1
-        # column 2's reflector
-        v0 = F[fo + _U(1152) + kk]
-        tau = F[fo + _U(1408) + kk]
-        a3_2 = F[fo + _U(896) + kk]
-        s = tau * (v0 * b2 + a3_2 * b3)
-        b2 -= s * v0
-        b3 -= s * a3_2
-        # column 3's reflector
-        v0 = F[fo + _U(1216) + kk]
-        tau = F[fo + _U(1472) + kk]
-        s = tau * (v0 * b3)
-        b3 -= s * v0
-        a0_0 = F[fo + _U(0) + kk]
-        a0_1 = F[fo + _U(64) + kk]
-        a0_2 = F[fo + _U(128) + kk]
-        a0_3 = F[fo + _U(192) + kk]
-        a1_1 = F[fo + _U(320) + kk]
-        a1_2 = F[fo + _U(384) + kk]
-        a1_3 = F[fo + _U(448) + kk]
-        a2_2 = F[fo + _U(640) + kk]
-        a2_3 = F[fo + _U(704) + kk]
-        a3_3 = F[fo + _U(960) + kk]
-        # back substitution with R
-        x3 = b3 / a3_3
-        X[bo + _U(192) + kk] = x3
-        x2 = (b2 - a2_3 * x3) / a2_2
-        X[bo + _U(128) + kk] = x2
-        x1 = (b1 - a1_2 * x2 - a1_3 * x3) / a1_1
-        X[bo + _U(64) + kk] = x1
-        x0 = (b0 - a0_1 * x1 - a0_2 * x2 - a0_3 * x3) / a0_0
-        X[bo + _U(0) + kk] = x0
-
-
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def block_solve_5(F, foff, B, X, start, nk):
-    fo = _U(foff * CHUNK)
-    bo = _U(start * CHUNK)
-    for kk in range(_U(nk)):
-        b0 = B[bo + _U(0) + kk]
-        b1 = B[bo + _U(64) + kk]
-        b2 = B[bo + _U(128) + kk]
-        b3 = B[bo + _U(192) + kk]
-        b4 = B[bo + _U(256) + kk]
-        # column 0's reflector
-        v0 = F[fo + _U(1600) + kk]
-        tau = F[fo + _U(1920) + kk]
-        a1_0 = F[fo + _U(320) + kk]
-        a2_0 = F[fo + _U(640) + kk]
-        a3_0 = F[fo + _U(960) + kk]
-        a4_0 = F[fo + _U(1280) + kk]
-        s = tau * (v0 * b0 + a1_0 * b1 + a2_0 * b2 + a3_0 * b3 + a4_0 * b4)
-        b0 -= s * v0
-        b1 -= s * a1_0
-        b2 -= s * a2_0
-        b3 -= s * a3_0
-        b4 -= s * a4_0
-        # column 1's reflector
-        v0 = F[fo + _U(1664) + kk]
-        tau = F[fo + _U(1984) + kk]
-        a2_1 = F[fo + _U(704) + kk]
-        a3_1 = F[fo + _U(1024) + kk]
-        a4_1 = F[fo + _U(1344) + kk]
-        s = tau * (v0 * b1 + a2_1 * b2 + a3_1 * b3 + a4_1 * b4)
-        b1 -= s * v0
-        b2 -= s * a2_1
-        b3 -= s * a3_1
-        b4 -= s * a4_1
-        # column 2's reflector
-        v0 = F[fo + _U(1728) + kk]
-        tau = F[fo + _U(2048) + kk]
-        a3_2 = F[fo + _U(1088) + kk]
-        a4_2 = F[fo + _U(1408) + kk]
-        s = tau * (v0 * b2 + a3_2 * b3 + a4_2 * b4)
-        b2 -= s * v0
-        b3 -= s * a3_2
-        b4 -= s * a4_2
-        # column 3's reflector
-        v0 = F[fo + _U(1792) + kk]
-        tau = F[fo + _U(2112) + kk]
-        a4_3 = F[fo + _U(1472) + kk]
-        s = tau * (v0 * b3 + a4_3 * b4)
-        b3 -= s * v0
-        b4 -= s * a4_3
-        # column 4's reflector
-        v0 = F[fo + _U(1856) + kk]
-        tau = F[fo + _U(2176) + kk]
-        s = tau * (v0 * b4)
-        b4 -= s * v0
-        a0_0 = F[fo + _U(0) + kk]
-        a0_1 = F[fo + _U(64) + kk]
-        a0_2 = F[fo + _U(128) + kk]
-        a0_3 = F[fo + _U(192) + kk]
-        a0_4 = F[fo + _U(256) + kk]
-        a1_1 = F[fo + _U(384) + kk]
-        a1_2 = F[fo + _U(448) + kk]
-        a1_3 = F[fo + _U(512) + kk]
-        a1_4 = F[fo + _U(576) + kk]
-        a2_2 = F[fo + _U(768) + kk]
-        a2_3 = F[fo + _U(832) + kk]
-        a2_4 = F[fo + _U(896) + kk]
-        a3_3 = F[fo + _U(1152) + kk]
-        a3_4 = F[fo + _U(1216) + kk]
-        a4_4 = F[fo + _U(1536) + kk]
-        # back substitution with R
-        x4 = b4 / a4_4
-        X[bo + _U(256) + kk] = x4
-        x3 = (b3 - a3_4 * x4) / a3_3
-        X[bo + _U(192) + kk] = x3
-        x2 = (b2 - a2_3 * x3 - a2_4 * x4) / a2_2
-        X[bo + _U(128) + kk] = x2
-        x1 = (b1 - a1_2 * x2 - a1_3 * x3 - a1_4 * x4) / a1_1
-        X[bo + _U(64) + kk] = x1
-        x0 = (b0 - a0_1 * x1 - a0_2 * x2 - a0_3 * x3 - a0_4 * x4) / a0_0
-        X[bo + _U(0) + kk] = x0
-
-
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def block_solve_6(F, foff, B, X, start, nk):
-    fo = _U(foff * CHUNK)
-    bo = _U(start * CHUNK)
-    for kk in range(_U(nk)):
-        b0 = B[bo + _U(0) + kk]
-        b1 = B[bo + _U(64) + kk]
-        b2 = B[bo + _U(128) + kk]
-        b3 = B[bo + _U(192) + kk]
-        b4 = B[bo + _U(256) + kk]
-        b5 = B[bo + _U(320) + kk]
-        # column 0's reflector
-        v0 = F[fo + _U(2304) + kk]
-        tau = F[fo + _U(2688) + kk]
-        a1_0 = F[fo + _U(384) + kk]
-        a2_0 = F[fo + _U(768) + kk]
-        a3_0 = F[fo + _U(1152) + kk]
-        a4_0 = F[fo + _U(1536) + kk]
-        a5_0 = F[fo + _U(1920) + kk]
-        s = tau * (v0 * b0 + a1_0 * b1 + a2_0 * b2 + a3_0 * b3 + a4_0 * b4 + a5_0 * b5)
-        b0 -= s * v0
-        b1 -= s * a1_0
-        b2 -= s * a2_0
-        b3 -= s * a3_0
-        b4 -= s * a4_0
-        b5 -= s * a5_0
-        # column 1's reflector
-        v0 = F[fo + _U(2368) + kk]
-        tau = F[fo + _U(2752) + kk]
-        a2_1 = F[fo + _U(832) + kk]
-        a3_1 = F[fo + _U(1216) + kk]
-        a4_1 = F[fo + _U(1600) + kk]
-        a5_1 = F[fo + _U(1984) + kk]
-        s = tau * (v0 * b1 + a2_1 * b2 + a3_1 * b3 + a4_1 * b4 + a5_1 * b5)
-        b1 -= s * v0
-        b2 -= s * a2_1
-        b3 -= s * a3_1
-        b4 -= s * a4_1
-        b5 -= s * a5_1
-        # column 2's reflector
-        v0 = F[fo + _U(2432) + kk]
-        tau = F[fo + _U(2816) + kk]
-        a3_2 = F[fo + _U(1280) + kk]
-        a4_2 = F[fo + _U(1664) + kk]
-        a5_2 = F[fo + _U(2048) + kk]
-        s = tau * (v0 * b2 + a3_2 * b3 + a4_2 * b4 + a5_2 * b5)
-        b2 -= s * v0
-        b3 -= s * a3_2
-        b4 -= s * a4_2
-        b5 -= s * a5_2
-        # column 3's reflector
-        v0 = F[fo + _U(2496) + kk]
-        tau = F[fo + _U(2880) + kk]
-        a4_3 = F[fo + _U(1728) + kk]
-        a5_3 = F[fo + _U(2112) + kk]
-        s = tau * (v0 * b3 + a4_3 * b4 + a5_3 * b5)
-        b3 -= s * v0
-        b4 -= s * a4_3
-        b5 -= s * a5_3
-        # column 4's reflector
-        v0 = F[fo + _U(2560) + kk]
-        tau = F[fo + _U(2944) + kk]
-        a5_4 = F[fo + _U(2176) + kk]
-        s = tau * (v0 * b4 + a5_4 * b5)
-        b4 -= s * v0
-        b5 -= s * a5_4
-        # column 5's reflector
-        v0 = F[fo + _U(2624) + kk]
-        tau = F[fo + _U(3008) + kk]
-        s = tau * (v0 * b5)
-        b5 -= s * v0
-        a0_0 = F[fo + _U(0) + kk]
-        a0_1 = F[fo + _U(64) + kk]
-        a0_2 = F[fo + _U(128) + kk]
-        a0_3 = F[fo + _U(192) + kk]
-        a0_4 = F[fo + _U(256) + kk]
-        a0_5 = F[fo + _U(320) + kk]
-        a1_1 = F[fo + _U(448) + kk]
-        a1_2 = F[fo + _U(512) + kk]
-        a1_3 = F[fo + _U(576) + kk]
-        a1_4 = F[fo + _U(640) + kk]
-        a1_5 = F[fo + _U(704) + kk]
-        a2_2 = F[fo + _U(896) + kk]
-        a2_3 = F[fo + _U(960) + kk]
-        a2_4 = F[fo + _U(1024) + kk]
-        a2_5 = F[fo + _U(1088) + kk]
-        a3_3 = F[fo + _U(1344) + kk]
-        a3_4 = F[fo + _U(1408) + kk]
-        a3_5 = F[fo + _U(1472) + kk]
-        a4_4 = F[fo + _U(1792) + kk]
-        a4_5 = F[fo + _U(1856) + kk]
-        a5_5 = F[fo + _U(2240) + kk]
-        # back substitution with R
-        x5 = b5 / a5_5
-        X[bo + _U(320) + kk] = x5
-        x4 = (b4 - a4_5 * x5) / a4_4
-        X[bo + _U(256) + kk] = x4
-        x3 = (b3 - a3_4 * x4 - a3_5 * x5) / a3_3
-        X[bo + _U(192) + kk] = x3
-        x2 = (b2 - a2_3 * x3 - a2_4 * x4 - a2_5 * x5) / a2_2
-        X[bo + _U(128) + kk] = x2
-        x1 = (b1 - a1_2 * x2 - a1_3 * x3 - a1_4 * x4 - a1_5 * x5) / a1_1
-        X[bo + _U(64) + kk] = x1
-        x0 = (b0 - a0_1 * x1 - a0_2 * x2 - a0_3 * x3 - a0_4 * x4 - a0_5 * x5) / a0_0
-        X[bo + _U(0) + kk] = x0
-
-
 MAX_BLOCK = 6
 
 
@@ -1253,21 +909,3 @@ def block_qr(n, W, off, F, foff, B, X, start, nk, worst):
     else:
         return False
     return True
-
-
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
-def block_solve(n, F, foff, B, X, start, nk):
-    """Solve an n x n block factored by block_qr for the right-hand sides in B
-    (n <= MAX_BLOCK)."""
-    if n == 1:
-        block_solve_1(F, foff, B, X, start, nk)
-    elif n == 2:
-        block_solve_2(F, foff, B, X, start, nk)
-    elif n == 3:
-        block_solve_3(F, foff, B, X, start, nk)
-    elif n == 4:
-        block_solve_4(F, foff, B, X, start, nk)
-    elif n == 5:
-        block_solve_5(F, foff, B, X, start, nk)
-    elif n == 6:
-        block_solve_6(F, foff, B, X, start, nk)

@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 
 from . import _compiling
-from ._blocks import CHUNK, MAX_BLOCK, block_qr, block_solve
+from ._blocks import CHUNK, MAX_BLOCK, block_qr
 
 _compiling.install()  # a kernel compiled on its first use says so on stderr
 
@@ -1153,10 +1153,11 @@ _FORCE_DOC = """Right-hand sides and pair forces of every design and position.
     GP; feasible (D, n_phi) the assembled positions. After the frictionless solve, each design
     on its own runs a fixed-point iteration of its pair forces with the friction of the last
     step as applied forces (:func:`_friction`, :func:`_friction_motion`: XB[d] becomes the
-    loads of XB plus that friction), accelerated by Anderson's method of depth ``depth`` (:func:`_anderson`), until
-    no assembled position changes by more than ``tol`` of the design's largest force, at most
-    max_steps steps. The matrix does not depend on the friction: every step solves with the
-    QR factors of the first solve, kept per position. CW (D, n_phi, n_eq) or empty: a part
+    loads of XB plus that friction), accelerated by Anderson's method of depth ``depth``
+    (:func:`_anderson`), until no assembled position changes by more than ``tol`` of the
+    design's largest force, at most max_steps steps. The matrix does not depend on the
+    friction: every step solves with the QR factors of the first solve, kept per position
+    (Fa; the written solvers' factors, see :mod:`sewmech.engine._blocks`). CW (D, n_phi, n_eq) or empty: a part
     added to X after every solve (the counterweights', linear and frictionless). Fills FF, FP
     (D, n_phi, n_fr) (see :func:`_friction`) and SETTLE (D, 2): the change left relative to the
     design's largest force and the position where it is largest, the position -1 when the
@@ -1228,7 +1229,7 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
     sg_ = _U(2 * n_g)  # GP's and GA's
     sl = _U(EP.shape[2])  # EP's
     CH = _U(FORCE_CHUNK)
-    # friction (see _friction_doc): each position's factors are kept, so that a step of the
+    # friction (see the doc): each position's factors are kept, so that a step of the
     # fixed-point iteration costs a solve with them, the friction forces and Anderson's update
     n_fr = fr_int.shape[0]
     friction = n_fr > 0 and max_steps > 0
@@ -1353,37 +1354,28 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
                         s = _U(wb + n_blk_slots + c) * CH
                         for kk in range(_U(nk)):
                             Bf[ri + kk] -= Wf[s + kk] * XVf[col + kk]
-                    if nb <= n_written:
-                        if step >= 0:
-                            block_solve(nb, Ff, fo, Bf, XVf, r0, nk)
-                            continue
-                        if block_qr(nb, Wf, off, Ff, fo, Bf, XVf, r0, nk, worst):
-                            continue
-                    if step >= 0:  # the kept reflectors (v0 and tau in Fa) on the right-hand side
+                    if step < 0 and nb <= n_written and block_qr(nb, Wf, off, Ff, fo, Bf, XVf,
+                                                                 r0, nk, worst):
+                        continue
+                    if step >= 0:  # the kept reflectors on the right-hand side
                         for j in range(nb):
+                            sv = fo + nb * nb + j  # v0
                             for kk in range(nk):
-                                t4[kk] = 0.0
-                            for i in range(j, nb):
-                                if i == j:
-                                    sv = fo + nb * nb + j
-                                    for kk in range(nk):
-                                        t4[kk] += Fa[sv, kk] * B[r0 + i, kk]
-                                else:
-                                    sv = off + i * nb + j
-                                    for kk in range(nk):
-                                        t4[kk] += W[sv, kk] * B[r0 + i, kk]
+                                t4[kk] = Fa[sv, kk] * B[r0 + j, kk]
+                            for i in range(j + 1, nb):
+                                sv = fo + i * nb + j
+                                for kk in range(nk):
+                                    t4[kk] += Fa[sv, kk] * B[r0 + i, kk]
                             st = fo + nb * nb + nb + j
                             for kk in range(nk):
                                 t4[kk] *= Fa[st, kk]
-                            for i in range(j, nb):
-                                if i == j:
-                                    sv = fo + nb * nb + j
-                                    for kk in range(nk):
-                                        B[r0 + i, kk] -= t4[kk] * Fa[sv, kk]
-                                else:
-                                    sv = off + i * nb + j
-                                    for kk in range(nk):
-                                        B[r0 + i, kk] -= t4[kk] * W[sv, kk]
+                            sv = fo + nb * nb + j
+                            for kk in range(nk):
+                                B[r0 + j, kk] -= t4[kk] * Fa[sv, kk]
+                            for i in range(j + 1, nb):
+                                sv = fo + i * nb + j
+                                for kk in range(nk):
+                                    B[r0 + i, kk] -= t4[kk] * Fa[sv, kk]
                     else:
                         for kk in range(nk):  # scale: the block's largest entry
                             t3[kk] = 0.0
@@ -1437,19 +1429,24 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
                                             B[ri, kk] -= t4[kk] * W[sv, kk]
                             for kk in range(nk):
                                 W[sj, kk] = t1[kk]  # R_jj on the diagonal
-                    for j in range(nb - 1, -1, -1):  # back substitution with R
+                        for e in range(nb * nb):  # the factors, kept as the written solvers do
+                            for kk in range(nk):
+                                Fa[fo + e, kk] = W[off + e, kk]
+                    R = Fa if step >= 0 else W  # back substitution with R
+                    oR = fo if step >= 0 else off
+                    for j in range(nb - 1, -1, -1):
                         rj = r0 + j
                         for kk in range(nk):
                             t4[kk] = B[rj, kk]
                         for c in range(j + 1, nb):
-                            s = off + j * nb + c
+                            s = oR + j * nb + c
                             cc = r0 + c
                             for kk in range(nk):
-                                t4[kk] -= W[s, kk] * XV[cc, kk]
+                                t4[kk] -= R[s, kk] * XV[cc, kk]
                         cj = r0 + j
-                        sj = off + j * nb + j
+                        sj = oR + j * nb + j
                         for kk in range(nk):
-                            XV[cj, kk] = t4[kk] / W[sj, kk]
+                            XV[cj, kk] = t4[kk] / R[sj, kk]
                 if step < 0:
                     for kk in range(nk):
                         MINPIV[d, k0 + kk] = worst[kk]
