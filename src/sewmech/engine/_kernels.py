@@ -1254,9 +1254,14 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
         if friction:
             SETTLE[d, 0] = 0.0
             SETTLE[d, 1] = -1.0
+        settled = False
         while True:
             if step >= 0:  # the friction of the last step's forces as applied forces
-                _friction(fr_int, FC, X, XB0, XB, FF, FP, d, False)
+                # (settled: of the settled forces, the answer's; one call site, as each site
+                # of an inlined function is compiled on its own)
+                _friction(fr_int, FC, X, XB0, XB, FF, FP, d, settled)
+                if settled:
+                    break
             for ci in range(n_chunks):
                 k0 = ci * FORCE_CHUNK
                 nk = min(FORCE_CHUNK, n_phi - k0)
@@ -1475,7 +1480,8 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
             else:
                 change, kw = _anderson(X, Xold, HF, HG, step, feasible, done, tol, A, gamma, d)
                 if change <= tol:  # every position settled (each keeps its own answer)
-                    break
+                    settled = True
+                    continue
                 if step + 1 >= max_steps:
                     SETTLE[d, 0] = change
                     SETTLE[d, 1] = kw
@@ -1484,8 +1490,6 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
                 for e in range(n_eq):
                     Xold[k, e] = X[d, k, e]
             step += 1
-        if friction and n_bad == 0:  # the friction of the settled forces
-            _friction(fr_int, FC, X, XB0, XB, FF, FP, d, True)
     return n_low
 
 
