@@ -725,8 +725,9 @@ def test_force_structure_blocks_and_plan_reuse():
 
 def test_written_block_solvers(monkeypatch):
     """The force kernel's written block solvers (sewmech._blocks) are what the generator writes;
-    each solves random blocks as numpy's LU does, reports a singular block, and the whole
-    JB1-3 solve agrees with the kernel's generic loop."""
+    each solves random blocks as numpy's LU does, reports a singular block, solves other
+    right-hand sides with the factors it keeps (the friction steps),
+    and the whole JB1-3 solve agrees with the kernel's generic loop."""
     from sewmech.dynamics import DynamicsPlan
     from sewmech.engine import _blockgen, _blocks, _kernels
     from sewmech.engine._kernels import PIVOT_MIN
@@ -748,12 +749,28 @@ def test_written_block_solvers(monkeypatch):
         B.reshape(-1, ch)[start:start + n, :nk] = b.T
         X = np.full_like(B, 7.0)
         worst = np.full(ch, np.inf)
-        assert _blocks.block_qr(n, W, off, B, X, start, nk, worst)
+        foff = 2
+        F = np.full((foff + n * (n + 2) + 1) * ch, 7.0)
+        assert _blocks.block_qr(n, W, off, F, foff, B.copy(), X, start, nk, worst)
         got = X.reshape(-1, ch)[start:start + n, :nk].T
+        assert (F.reshape(-1, ch)[[foff - 1, foff + n * (n + 2)]] == 7.0).all()
+        # the kept factors (R and the reflectors, then each one's v0 and tau) solve another
+        # right-hand side, as the force kernel's friction steps use them
+        fac = F.reshape(-1, ch)[foff:foff + n * (n + 2), :nk].T
+        b2 = np.einsum("kij,kj->ki", A, x[::-1])
+        got2 = np.empty_like(b2)
+        for k in range(nk):
+            a, v0, tau = fac[k, :n * n].reshape(n, n), fac[k, n * n:n * n + n], fac[k, -n:]
+            r = b2[k].copy()
+            for j in range(n):
+                v = np.r_[v0[j], a[j + 1:, j]]
+                r[j:] -= tau[j] * (v @ r[j:]) * v
+            got2[k] = np.linalg.solve(np.triu(a), r) if k != 1 else 0.0
         ok = np.ones(nk, dtype=bool)
         ok[1] = False
         ref = np.linalg.solve(A[ok], b[ok][..., None])[..., 0]
         np.testing.assert_allclose(got[ok], ref, rtol=1e-9, atol=1e-9 * np.abs(x).max())
+        np.testing.assert_allclose(got2[ok], x[::-1][ok], rtol=1e-9, atol=1e-9 * np.abs(x).max())
         assert (X.reshape(-1, ch)[[start - 1, start + n]] == 7.0).all()  # nothing else written
         # the singular block's relative pivot is round-off (for n = 6: 3.8e-15 measured with
         # fused multiply-adds, 1.8e-15 without): at most the kernel's threshold for singular
@@ -761,7 +778,7 @@ def test_written_block_solvers(monkeypatch):
         # the pivot check sees how well posed a block is: sigma_min <= |R_jj| <= column norm
         w, cond = worst[:nk][ok], np.linalg.cond(A[ok])
         assert (w >= (1 - 1e-9) / cond).all() and (w <= math.sqrt(n) * (1 + 1e-12)).all()
-    assert not _blocks.block_qr(_blocks.MAX_BLOCK + 1, W, 0, B, X, 0, nk, worst)
+    assert not _blocks.block_qr(_blocks.MAX_BLOCK + 1, W, 0, F, 0, B, X, 0, nk, worst)
     jb = load_machine("jb1-3")
     phi = np.radians(np.arange(0.0, 360.0, 5.0))
     designs = jb.parameters({"needle_bar.length": [43.0, 45.0]}, inputs={"regulator": 0.4})

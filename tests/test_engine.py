@@ -484,18 +484,18 @@ def test_one_compiled_kernel_for_read_only_and_writable_inputs():
 
 
 def test_counterweights_and_friction_use_the_installs_force_kernel():
-    """A counterweight of some mass adds force solves with no applied forces, and friction
-    solves the pairs' directions again: both with the same array types as the machine's own
+    """A counterweight of some mass adds force solves with no applied forces and frictionless,
+    then a second solve with friction: all with the same array types as the machine's own
     solve, which the install compiles (a read-only array there cost a second 15 s compile in
-    the first report, issue 34)."""
+    the first report, issue 34); the pairs' directions likewise."""
     from sewmech.engine import _kernels as K
     from sewmech.engine.dynamics import inverse_dynamics, pair_geometry
 
     m = sewmech.load_machine("jb1-3")  # [friction], and an extra counterweight of 0 g cm
     phi = np.radians([0.0, 90.0])
     inverse_dynamics(m, phi)
-    n_force, n_pairs = len(K.force_solve.signatures), len(K.pair_geometry.signatures)
     pair_geometry(m, sewmech.kinematics(m, phi))
+    n_force, n_pairs = len(K.force_solve.signatures), len(K.pair_geometry.signatures)
     heavy = m.parameters({"extra.static_moment": 200.0})
     inverse_dynamics(m, phi, params=heavy)
     assert len(K.force_solve.signatures) == n_force

@@ -27,13 +27,16 @@ CHUNK = 64
 
 _HEAD = f'''"""Block solvers of the force kernel, written by :mod:`sewmech.engine._blockgen` (do not edit).
 
-``block_qr_N(W, off, B, X, start, nk, worst)`` solves, at positions 0 <= kk < nk, one N x N
-block of the force equations by Householder QR (stable without pivoting, so that every position
-runs the same instructions). The arrays are flat with pitch CHUNK (entry e of position kk at
-e * CHUNK + kk): the block's entries are W's entries off, off + 1, ... (row-major), its
+``block_qr_N(W, off, F, foff, B, X, start, nk, worst)`` solves, at positions 0 <= kk < nk, one
+N x N block of the force equations by Householder QR (stable without pivoting, so that every
+position runs the same instructions). The arrays are flat with pitch CHUNK (entry e of position
+kk at e * CHUNK + kk): the block's entries are W's entries off, off + 1, ... (row-major), its
 right-hand sides B's entries start, start + 1, ... (overwritten), and its unknowns go to X's
 entries start, start + 1, .... ``worst[kk]`` is lowered to the smallest |R_jj| relative to the
-block's largest entry (0: singular).
+block's largest entry (0: singular). The factors go to F's entries foff, ... (N * (N + 2) of
+them: R on and above the diagonal and the reflectors' vectors below it, row-major, then each
+reflector's first entry v0 and its tau), with which the force kernel solves the block again for
+other right-hand sides (the steps of the friction iteration) without factoring it again.
 """
 
 import math
@@ -48,8 +51,9 @@ _U = np.uint64'''
 def _solver(n: int) -> str:
     """Source of the solver for an n x n block."""
     lines = ["", "", '@njit(cache=True, error_model="numpy", fastmath={"contract"})',
-             f"def block_qr_{n}(W, off, B, X, start, nk, worst):",
+             f"def block_qr_{n}(W, off, F, foff, B, X, start, nk, worst):",
              "    wo = _U(off * CHUNK)",
+             "    fo = _U(foff * CHUNK)",
              "    bo = _U(start * CHUNK)",
              "    for kk in range(_U(nk)):"]
     body: list[str] = []
@@ -80,7 +84,13 @@ def _solver(n: int) -> str:
             b("s = tau * (" + " + ".join(f"{v} * {x}" for v, x in zip(vec, col)) + ")")
             for v, x in zip(vec, col):
                 b(f"{x} -= s * {v}")
+        b(f"F[fo + _U({(n * n + j) * CHUNK}) + kk] = v0")
+        b(f"F[fo + _U({(n * n + n + j) * CHUNK}) + kk] = tau")
         b(f"a{j}_{j} = al")
+    b("# the factors, kept for other right-hand sides")
+    for i in range(n):
+        for j in range(n):
+            b(f"F[fo + _U({(i * n + j) * CHUNK}) + kk] = a{i}_{j}")
     b("# back substitution with R")
     for j in range(n - 1, -1, -1):
         terms = "".join(f" - a{j}_{c} * x{c}" for c in range(j + 1, n))
@@ -97,13 +107,14 @@ def source(max_block: int = MAX_BLOCK) -> str:
     parts.extend(_solver(n) for n in range(1, max_block + 1))
     lines = ["", "", f"MAX_BLOCK = {max_block}", "", "",
              '@njit(cache=True, error_model="numpy", fastmath={"contract"})',
-             "def block_qr(n, W, off, B, X, start, nk, worst):",
-             '    """Solve an n x n block with its written solver (see the module doc).',
+             "def block_qr(n, W, off, F, foff, B, X, start, nk, worst):",
+             '    """Solve an n x n block with its written solver and keep its factors (see the',
+             "    module doc).",
              "",
              '    False when n > MAX_BLOCK: the caller solves the block itself."""']
     for n in range(1, max_block + 1):
         lines.append(f"    {'if' if n == 1 else 'elif'} n == {n}:")
-        lines.append(f"        block_qr_{n}(W, off, B, X, start, nk, worst)")
+        lines.append(f"        block_qr_{n}(W, off, F, foff, B, X, start, nk, worst)")
     lines += ["    else:", "        return False", "    return True", ""]
     parts.append("\n".join(lines))
     return "\n".join(parts)

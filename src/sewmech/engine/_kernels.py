@@ -1143,44 +1143,77 @@ _FORCE_DOC = """Right-hand sides and pair forces of every design and position.
     entry (0: singular). Blocks of up to max_written unknowns (at most
     :data:`sewmech._blocks.MAX_BLOCK`) go to the written solvers of :mod:`sewmech._blocks`,
     larger ones to a generic loop; 0 sends every block to the generic loop (a test compares
-    the two). Returns the number of positions whose MINPIV is not above PIVOT_MIN. {which}
+    the two). Returns the number of positions whose MINPIV is not above PIVOT_MIN.
+
+    Friction in the pairs (:mod:`sewmech.engine.friction`; none when fr_int has no rows or
+    max_steps is 0): fr_int rows (kind, first link, second link, column of its first unknown in
+    X), fr_f rows (mu, pin radius mm, viscous N mm s or N s/mm, smoothing speed mm/s) and
+    fr_pair (each one's index among the pairs) of the frictional pairs; OM (D, n_phi, n_links)
+    the links' angular velocities, GV (D, n_phi, >= n_links, 2) the velocities of the points
+    GP; feasible (D, n_phi) the assembled positions. After the frictionless solve, each design
+    on its own runs a fixed-point iteration of its pair forces with the friction of the last
+    step as applied forces (:func:`_friction`, :func:`_friction_motion`: XB[d] becomes the
+    loads of XB plus that friction), accelerated by Anderson's method of depth ``depth``
+    (:func:`_anderson`), until no assembled position changes by more than ``tol`` of the
+    design's largest force, at most max_steps steps. The matrix does not depend on the
+    friction: every step solves with the QR factors of the first solve, kept per position
+    (Fa; the written solvers' factors, see :mod:`sewmech.engine._blocks`). CW (D, n_phi, n_eq) or empty: a part
+    added to X after every solve (the counterweights', linear and frictionless). Fills FF, FP
+    (D, n_phi, n_fr) (see :func:`_friction`) and SETTLE (D, 2): the change left relative to the
+    design's largest force and the position where it is largest, the position -1 when the
+    design settled. A design with an assembled position whose pivot is ~zero is not iterated.
+    {which}
     """
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
-def _force_scratch(n_slots, n_eq):
+def _force_scratch(n_slots, n_fac, n_chunks, n_eq):
     c = FORCE_CHUNK
-    return (np.zeros(n_slots * c), np.zeros(n_eq * c), np.zeros(n_eq * c), np.empty(c),
-            np.empty(c), np.empty(c), np.empty(c), np.empty(c), np.empty(n_eq, dtype=np.int64),
-            np.empty(n_eq, dtype=np.int64))
+    return (np.zeros(n_chunks * n_slots * c), np.zeros(n_chunks * n_fac * c), np.zeros(n_eq * c),
+            np.zeros(n_eq * c), np.empty(c), np.empty(c), np.empty(c), np.empty(c),
+            np.empty(c), np.empty(n_eq, dtype=np.int64), np.empty(n_eq, dtype=np.int64))
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH, GP, GA,
                 mass, inertia, gravity, XB, blk_ptr, blk_off, rperm, cperm, cpl_ptr, cpl_row,
-                cpl_col, pslot, n_slots, X, MINPIV, max_written):
-    W, B, XV, t1, t2, t3, t4, worst, rpos, cpos = _force_scratch(n_slots, X.shape[2])
-    n_low = 0
-    # One design at a time, positions in chunks of FORCE_CHUNK, all in this one function: numba
-    # compiles a called function twice (alone, and again inside its caller), which cost 6 s of
-    # the install's compile for a per-design function. W (n_slots * chunk, flat: slot s of
-    # position kk at s * chunk + kk) holds the blocks' entries (row-major within a block) and
-    # then the coupling entries; B the right-hand sides and XV the unknowns (n_eq * chunk, flat),
-    # both in block order (row rperm[p] and unknown cperm[p] at p); t1..t4, worst scratch
-    # (chunk); rpos, cpos (n_eq) the inverse permutations.
+                cpl_col, pslot, n_slots, X, MINPIV, fr_int, fr_f, fr_pair, OM, GV, feasible,
+                CW, FF, FP, SETTLE, max_steps, tol, depth, max_written):
     n_phi = X.shape[1]
     n_eq = X.shape[2]
     n_links = mass.shape[0]
     n_blocks = blk_ptr.shape[0] - 1
     n_blk_slots = blk_off[n_blocks]
     n_written = min(max_written, MAX_BLOCK)
+    n_chunks = (n_phi + FORCE_CHUNK - 1) // FORCE_CHUNK
+    # each block's factors (see _blocks): N (N + 2) entries from foffs[block] of a chunk's n_fac
+    foffs = np.empty(n_blocks + 1, dtype=np.int64)
+    foffs[0] = 0
+    for blk in range(n_blocks):
+        nb = blk_ptr[blk + 1] - blk_ptr[blk]
+        foffs[blk + 1] = foffs[blk] + nb * (nb + 2)
+    n_fac = foffs[n_blocks]
+    W, Fa, B, XV, t1, t2, t3, t4, worst, rpos, cpos = _force_scratch(n_slots, n_fac, n_chunks,
+                                                                     n_eq)
+    n_low = 0
+    # One design at a time, positions in chunks of FORCE_CHUNK, all in this one function: numba
+    # compiles a called function twice (alone, and again inside its caller), which cost 6 s of
+    # the install's compile for a per-design function. W (n_slots * chunk per chunk of
+    # positions, flat: slot s of position kk of chunk c at (c * n_slots + s) * chunk + kk)
+    # holds the blocks' entries (row-major within a block) and then the coupling entries, Fa
+    # (n_fac * chunk per chunk, the same way) the blocks' QR factors; B the right-hand sides
+    # and XV the unknowns (n_eq * chunk, flat), both in block order (row rperm[p] and unknown
+    # cperm[p] at p); t1..t4, worst scratch (chunk); rpos, cpos (n_eq) the inverse
+    # permutations.
     for p in range(n_eq):
         rpos[rperm[p]] = p
         cpos[cperm[p]] = p
     Wf = W
+    Ff = Fa
     Bf = B
     XVf = XV
     W = Wf.reshape((Wf.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
+    Fa = Ff.reshape((Ff.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
     B = Bf.reshape((Bf.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
     XV = XVf.reshape((XVf.shape[0] // FORCE_CHUNK, FORCE_CHUNK))
     # flat views with unsigned offsets for the loops over positions (no wrap-around checks)
@@ -1196,166 +1229,267 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
     sg_ = _U(2 * n_g)  # GP's and GA's
     sl = _U(EP.shape[2])  # EP's
     CH = _U(FORCE_CHUNK)
+    # friction (see the doc): each position's factors are kept, so that a step of the
+    # fixed-point iteration costs a solve with them, the friction forces and Anderson's update
+    n_fr = fr_int.shape[0]
+    friction = n_fr > 0 and max_steps > 0
+    with_cw = CW.shape[0] == X.shape[0] and CW.shape[1] == n_phi and CW.shape[2] == n_eq
+    nf = n_fr if friction else 0
+    frpos = np.full(pairs.shape[0], -1, dtype=np.int64)
+    for i in range(nf):
+        frpos[fr_pair[i]] = i
+    GEO = np.zeros((nf, 4, n_phi))  # force point and direction of the frictional pairs
+    FC = np.zeros((nf, 7, n_phi))  # what their friction takes from the motion (_friction)
+    ring = depth + 1
+    XB0 = np.zeros((n_phi if friction else 0, n_eq))
+    Xold = np.zeros((n_phi if friction else 0, n_eq))
+    HF = np.zeros((ring, n_phi if friction else 0, n_eq))
+    HG = np.zeros((ring, n_phi if friction else 0, n_eq))
+    done = np.zeros(n_phi, dtype=np.bool_)
+    A = np.zeros((depth, depth + 1))
+    gamma = np.zeros(depth)
     for d in range(d0, d1):
-        for k0 in range(0, n_phi, FORCE_CHUNK):
-            nk = min(FORCE_CHUNK, n_phi - k0)
-            # W starts zeroed and every chunk writes the same entries, which the written solvers
-            # only read: only the blocks of the generic loop, which works in place, are re-zeroed
-            for blk in range(n_blocks):
-                if blk_ptr[blk + 1] - blk_ptr[blk] > n_written:
-                    W[blk_off[blk]:blk_off[blk + 1], :] = 0.0
-            # right-hand side per moving link: m a_G - m g - sum F ; I alpha - sum (X - G) x F,
-            # the applied forces and their moments about the centre of mass given in XB
-            for li in range(1, n_links):
-                rx = rpos[3 * (li - 1)]
-                ry = rpos[3 * (li - 1) + 1]
-                rm = rpos[3 * (li - 1) + 2]
-                m = 1e-3 * mass[li]
-                mg = gravity * mass[li]
-                ii = 1e-3 * inertia[li]
-                ga = _U(((d * n_phi + k0) * n_g + li) * 2)
-                el = _U((d * n_phi + k0) * EP.shape[2] + li)
-                xb = _U((d * n_phi + k0) * n_eq + 3 * (li - 1))
-                bx, by, bm = _U(rx) * CH, _U(ry) * CH, _U(rm) * CH
-                for kk in range(_U(nk)):
-                    ix = xb + kk * _U(n_eq)
-                    Bf[bx + kk] = m * GAf[ga + kk * sg_] - XBf[ix]
-                    Bf[by + kk] = m * GAf[ga + kk * sg_ + _U(1)] + mg - XBf[ix + _U(1)]
-                    Bf[bm + kk] = ii * EPf[el + kk * sl] - XBf[ix + _U(2)]
-            # the matrix entries of every pair (pslot: where each of its entries goes in W)
-            for i in range(pairs.shape[0]):
-                kind = pairs[i, 0]
-                if kind == PAIR_DRIVER:
-                    s = pslot[i, 0]
-                    for kk in range(nk):
-                        W[s, kk] = 1.0
-                    continue
-                for side in range(2):
-                    link = pairs[i, 2] if side == 0 else pairs[i, 1]
-                    if link == 0:
-                        continue
-                    sg = 1.0 if side == 0 else -1.0
-                    if kind == PAIR_REVOLUTE:  # the forces along x and y at the pin
-                        bp = _U(((d * n_phi + k0) * n_pt + pairs[i, 3]) * 2)
-                        bg = _U(((d * n_phi + k0) * n_g + link) * 2)
-                        sx = _U(pslot[i, 3 * side]) * CH
-                        smx = _U(pslot[i, 3 * side + 2]) * CH
-                        sy = _U(pslot[i, 6 + 3 * side + 1]) * CH
-                        smy = _U(pslot[i, 6 + 3 * side + 2]) * CH
-                        for kk in range(_U(nk)):
-                            ip = bp + kk * sp
-                            ig = bg + kk * sg_
-                            Wf[sx + kk] = sg
-                            Wf[smx + kk] = -sg * (Pf[ip + _U(1)] - GPf[ig + _U(1)])
-                            Wf[sy + kk] = sg
-                            Wf[smy + kk] = sg * (Pf[ip] - GPf[ig])
-                    else:  # one force along the contact normal
-                        sx = pslot[i, 3 * side]
-                        sy = pslot[i, 3 * side + 1]
-                        sm = pslot[i, 3 * side + 2]
-                        for kk in range(nk):
-                            k = k0 + kk
-                            xx, xy, fx, fy = _pair_geometry(i, pairs, pair_angle, cam_rows, terms,
-                                                            params, d, k, P, TH, Q)
-                            dx = xx - GP[d, k, link, 0]
-                            dy = xy - GP[d, k, link, 1]
-                            W[sx, kk] = sg * fx
-                            W[sy, kk] = sg * fy
-                            W[sm, kk] = sg * (dx * fy - dy * fx)
-                    if kind == PAIR_PRISMATIC:  # the guide's couple
-                        s = pslot[i, 12 + side]
-                        for kk in range(nk):
-                            W[s, kk] = sg
-            # block upper-triangular form: the last block first, each with the unknowns of the
-            # later blocks known (coupling terms to the right-hand side); every block by
-            # Householder QR, which is stable without pivoting and so runs the same
-            # instructions at every position
-            for kk in range(nk):
-                worst[kk] = np.inf
-            for blk in range(n_blocks - 1, -1, -1):
-                r0 = blk_ptr[blk]
-                nb = blk_ptr[blk + 1] - r0
-                off = blk_off[blk]
-                for c in range(cpl_ptr[blk], cpl_ptr[blk + 1]):  # known unknowns to the right
-                    ri = _U(r0 + cpl_row[c]) * CH
-                    col = _U(cpos[cpl_col[c]]) * CH
-                    s = _U(n_blk_slots + c) * CH
+        step = -1  # -1: factor and solve; then the friction steps with the kept factors
+        n_bad = 0  # assembled positions with a zero pivot: no friction iteration
+        if friction:
+            SETTLE[d, 0] = 0.0
+            SETTLE[d, 1] = -1.0
+        settled = False
+        while True:
+            if step >= 0:  # the friction of the last step's forces as applied forces
+                # (settled: of the settled forces, the answer's; one call site, as each site
+                # of an inlined function is compiled on its own)
+                _friction(fr_int, FC, X, XB0, XB, FF, FP, d, settled)
+                if settled:
+                    break
+            for ci in range(n_chunks):
+                k0 = ci * FORCE_CHUNK
+                nk = min(FORCE_CHUNK, n_phi - k0)
+                wb = ci * n_slots  # this chunk's rows of W and Fa
+                fb = ci * n_fac
+                if step < 0:
+                    # W starts zeroed and every chunk writes the same entries, which the written
+                    # solvers only read: only the blocks of the generic loop, which works in
+                    # place, are re-zeroed
+                    for blk in range(n_blocks):
+                        if blk_ptr[blk + 1] - blk_ptr[blk] > n_written:
+                            W[wb + blk_off[blk]:wb + blk_off[blk + 1], :] = 0.0
+                # right-hand side per moving link: m a_G - m g - sum F ; I alpha - sum (X - G)
+                # x F, the applied forces and their moments about the centre of mass given in XB
+                for li in range(1, n_links):
+                    rx = rpos[3 * (li - 1)]
+                    ry = rpos[3 * (li - 1) + 1]
+                    rm = rpos[3 * (li - 1) + 2]
+                    m = 1e-3 * mass[li]
+                    mg = gravity * mass[li]
+                    ii = 1e-3 * inertia[li]
+                    ga = _U(((d * n_phi + k0) * n_g + li) * 2)
+                    el = _U((d * n_phi + k0) * EP.shape[2] + li)
+                    xb = _U((d * n_phi + k0) * n_eq + 3 * (li - 1))
+                    bx, by, bm = _U(rx) * CH, _U(ry) * CH, _U(rm) * CH
                     for kk in range(_U(nk)):
-                        Bf[ri + kk] -= Wf[s + kk] * XVf[col + kk]
-                if nb <= n_written and block_qr(nb, Wf, off, Bf, XVf, r0, nk, worst):
+                        ix = xb + kk * _U(n_eq)
+                        Bf[bx + kk] = m * GAf[ga + kk * sg_] - XBf[ix]
+                        Bf[by + kk] = m * GAf[ga + kk * sg_ + _U(1)] + mg - XBf[ix + _U(1)]
+                        Bf[bm + kk] = ii * EPf[el + kk * sl] - XBf[ix + _U(2)]
+                # the matrix entries of every pair (pslot: where each of its entries goes in W)
+                for i in range(pairs.shape[0] if step < 0 else 0):
+                    kind = pairs[i, 0]
+                    if kind == PAIR_DRIVER:
+                        s = wb + pslot[i, 0]
+                        for kk in range(nk):
+                            W[s, kk] = 1.0
+                        continue
+                    fi = frpos[i]
+                    for side in range(2):
+                        link = pairs[i, 2] if side == 0 else pairs[i, 1]
+                        if link == 0:
+                            continue
+                        sg = 1.0 if side == 0 else -1.0
+                        if kind == PAIR_REVOLUTE:  # the forces along x and y at the pin
+                            bp = _U(((d * n_phi + k0) * n_pt + pairs[i, 3]) * 2)
+                            bg = _U(((d * n_phi + k0) * n_g + link) * 2)
+                            sx = _U(wb + pslot[i, 3 * side]) * CH
+                            smx = _U(wb + pslot[i, 3 * side + 2]) * CH
+                            sy = _U(wb + pslot[i, 6 + 3 * side + 1]) * CH
+                            smy = _U(wb + pslot[i, 6 + 3 * side + 2]) * CH
+                            for kk in range(_U(nk)):
+                                ip = bp + kk * sp
+                                ig = bg + kk * sg_
+                                Wf[sx + kk] = sg
+                                Wf[smx + kk] = -sg * (Pf[ip + _U(1)] - GPf[ig + _U(1)])
+                                Wf[sy + kk] = sg
+                                Wf[smy + kk] = sg * (Pf[ip] - GPf[ig])
+                        else:  # one force along the contact normal
+                            sx = wb + pslot[i, 3 * side]
+                            sy = wb + pslot[i, 3 * side + 1]
+                            sm = wb + pslot[i, 3 * side + 2]
+                            for kk in range(nk):
+                                k = k0 + kk
+                                xx, xy, fx, fy = _pair_geometry(i, pairs, pair_angle, cam_rows,
+                                                                terms, params, d, k, P, TH, Q)
+                                dx = xx - GP[d, k, link, 0]
+                                dy = xy - GP[d, k, link, 1]
+                                W[sx, kk] = sg * fx
+                                W[sy, kk] = sg * fy
+                                W[sm, kk] = sg * (dx * fy - dy * fx)
+                                if fi >= 0:  # friction's force point and direction
+                                    GEO[fi, 0, k] = xx
+                                    GEO[fi, 1, k] = xy
+                                    GEO[fi, 2, k] = fx
+                                    GEO[fi, 3, k] = fy
+                        if kind == PAIR_PRISMATIC:  # the guide's couple
+                            s = wb + pslot[i, 12 + side]
+                            for kk in range(nk):
+                                W[s, kk] = sg
+                # block upper-triangular form: the last block first, each with the unknowns of
+                # the later blocks known (coupling terms to the right-hand side); every block by
+                # Householder QR, which is stable without pivoting and so runs the same
+                # instructions at every position
+                for kk in range(nk):
+                    worst[kk] = np.inf
+                for blk in range(n_blocks - 1, -1, -1):
+                    r0 = blk_ptr[blk]
+                    nb = blk_ptr[blk + 1] - r0
+                    off = wb + blk_off[blk]
+                    fo = fb + foffs[blk]
+                    for c in range(cpl_ptr[blk], cpl_ptr[blk + 1]):  # known unknowns to the right
+                        ri = _U(r0 + cpl_row[c]) * CH
+                        col = _U(cpos[cpl_col[c]]) * CH
+                        s = _U(wb + n_blk_slots + c) * CH
+                        for kk in range(_U(nk)):
+                            Bf[ri + kk] -= Wf[s + kk] * XVf[col + kk]
+                    if step < 0 and nb <= n_written and block_qr(nb, Wf, off, Ff, fo, Bf, XVf,
+                                                                 r0, nk, worst):
+                        continue
+                    if step >= 0:  # the kept reflectors on the right-hand side
+                        for j in range(nb):
+                            sv = fo + nb * nb + j  # v0
+                            for kk in range(nk):
+                                t4[kk] = Fa[sv, kk] * B[r0 + j, kk]
+                            for i in range(j + 1, nb):
+                                sv = fo + i * nb + j
+                                for kk in range(nk):
+                                    t4[kk] += Fa[sv, kk] * B[r0 + i, kk]
+                            st = fo + nb * nb + nb + j
+                            for kk in range(nk):
+                                t4[kk] *= Fa[st, kk]
+                            sv = fo + nb * nb + j
+                            for kk in range(nk):
+                                B[r0 + j, kk] -= t4[kk] * Fa[sv, kk]
+                            for i in range(j + 1, nb):
+                                sv = fo + i * nb + j
+                                for kk in range(nk):
+                                    B[r0 + i, kk] -= t4[kk] * Fa[sv, kk]
+                    else:
+                        for kk in range(nk):  # scale: the block's largest entry
+                            t3[kk] = 0.0
+                        for e in range(nb * nb):
+                            for kk in range(nk):
+                                t3[kk] = max(t3[kk], abs(W[off + e, kk]))
+                        for j in range(nb):
+                            sj = off + j * nb + j
+                            for kk in range(nk):
+                                t1[kk] = 0.0
+                            for i in range(j, nb):
+                                s = off + i * nb + j
+                                for kk in range(nk):
+                                    t1[kk] += W[s, kk] * W[s, kk]
+                            for kk in range(nk):
+                                ajj = W[sj, kk]
+                                alpha = -math.copysign(math.sqrt(t1[kk]), ajj)
+                                v0 = ajj - alpha
+                                vn2 = t1[kk] - ajj * ajj + v0 * v0
+                                t2[kk] = 2.0 / vn2 if vn2 > 0.0 else 0.0
+                                W[sj, kk] = v0  # the reflector's vector replaces column j ...
+                                t1[kk] = alpha  # ... and R_jj waits in t1
+                                worst[kk] = min(worst[kk],
+                                                abs(alpha) / t3[kk] if t3[kk] > 0.0 else 0.0)
+                                Fa[fo + nb * nb + j, kk] = v0  # kept for the friction steps
+                                Fa[fo + nb * nb + nb + j, kk] = t2[kk]
+                            for c in range(j + 1, nb + 1):  # the later columns, then the rhs
+                                for kk in range(nk):
+                                    t4[kk] = 0.0
+                                for i in range(j, nb):
+                                    sv = off + i * nb + j
+                                    if c < nb:
+                                        sc = off + i * nb + c
+                                        for kk in range(nk):
+                                            t4[kk] += W[sv, kk] * W[sc, kk]
+                                    else:
+                                        ri = r0 + i
+                                        for kk in range(nk):
+                                            t4[kk] += W[sv, kk] * B[ri, kk]
+                                for kk in range(nk):
+                                    t4[kk] *= t2[kk]
+                                for i in range(j, nb):
+                                    sv = off + i * nb + j
+                                    if c < nb:
+                                        sc = off + i * nb + c
+                                        for kk in range(nk):
+                                            W[sc, kk] -= t4[kk] * W[sv, kk]
+                                    else:
+                                        ri = r0 + i
+                                        for kk in range(nk):
+                                            B[ri, kk] -= t4[kk] * W[sv, kk]
+                            for kk in range(nk):
+                                W[sj, kk] = t1[kk]  # R_jj on the diagonal
+                        for e in range(nb * nb):  # the factors, kept as the written solvers do
+                            for kk in range(nk):
+                                Fa[fo + e, kk] = W[off + e, kk]
+                    R = Fa if step >= 0 else W  # back substitution with R
+                    oR = fo if step >= 0 else off
+                    for j in range(nb - 1, -1, -1):
+                        rj = r0 + j
+                        for kk in range(nk):
+                            t4[kk] = B[rj, kk]
+                        for c in range(j + 1, nb):
+                            s = oR + j * nb + c
+                            cc = r0 + c
+                            for kk in range(nk):
+                                t4[kk] -= R[s, kk] * XV[cc, kk]
+                        cj = r0 + j
+                        sj = oR + j * nb + j
+                        for kk in range(nk):
+                            XV[cj, kk] = t4[kk] / R[sj, kk]
+                if step < 0:
+                    for kk in range(nk):
+                        MINPIV[d, k0 + kk] = worst[kk]
+                        if not worst[kk] > PIVOT_MIN:  # NaN (did not assemble) included
+                            n_low += 1
+                            if feasible[d, k0 + kk]:
+                                n_bad += 1
+                bx = _U((d * n_phi + k0) * n_eq)
+                for e in range(n_eq):
+                    xo = bx + _U(cperm[e])
+                    xi = _U(e) * CH
+                    for kk in range(_U(nk)):
+                        Xf[xo + kk * _U(n_eq)] = XVf[xi + kk]
+            if not friction or n_bad > 0:  # (a singular design is reported, not iterated)
+                break
+            if with_cw:  # the counterweights' part, linear and frictionless
+                for k in range(n_phi):
+                    for e in range(n_eq):
+                        X[d, k, e] += CW[d, k, e]
+            if step < 0:
+                for k in range(n_phi):
+                    done[k] = False
+                    for e in range(n_eq):
+                        XB0[k, e] = XB[d, k, e]
+                _friction_motion(fr_int, fr_f, GEO, OM, GP, GV, FC, d)
+            else:
+                change, kw = _anderson(X, Xold, HF, HG, step, feasible, done, tol, A, gamma, d)
+                if change <= tol:  # every position settled (each keeps its own answer)
+                    settled = True
                     continue
-                for kk in range(nk):  # scale: the block's largest entry
-                    t3[kk] = 0.0
-                for e in range(nb * nb):
-                    for kk in range(nk):
-                        t3[kk] = max(t3[kk], abs(W[off + e, kk]))
-                for j in range(nb):
-                    sj = off + j * nb + j
-                    for kk in range(nk):
-                        t1[kk] = 0.0
-                    for i in range(j, nb):
-                        s = off + i * nb + j
-                        for kk in range(nk):
-                            t1[kk] += W[s, kk] * W[s, kk]
-                    for kk in range(nk):
-                        ajj = W[sj, kk]
-                        alpha = -math.copysign(math.sqrt(t1[kk]), ajj)
-                        v0 = ajj - alpha
-                        vn2 = t1[kk] - ajj * ajj + v0 * v0
-                        t2[kk] = 2.0 / vn2 if vn2 > 0.0 else 0.0
-                        W[sj, kk] = v0  # the reflector's vector replaces column j ...
-                        t1[kk] = alpha  # ... and R_jj waits in t1
-                        worst[kk] = min(worst[kk], abs(alpha) / t3[kk] if t3[kk] > 0.0 else 0.0)
-                    for c in range(j + 1, nb + 1):  # the later columns, then the right-hand side
-                        for kk in range(nk):
-                            t4[kk] = 0.0
-                        for i in range(j, nb):
-                            sv = off + i * nb + j
-                            if c < nb:
-                                sc = off + i * nb + c
-                                for kk in range(nk):
-                                    t4[kk] += W[sv, kk] * W[sc, kk]
-                            else:
-                                ri = r0 + i
-                                for kk in range(nk):
-                                    t4[kk] += W[sv, kk] * B[ri, kk]
-                        for kk in range(nk):
-                            t4[kk] *= t2[kk]
-                        for i in range(j, nb):
-                            sv = off + i * nb + j
-                            if c < nb:
-                                sc = off + i * nb + c
-                                for kk in range(nk):
-                                    W[sc, kk] -= t4[kk] * W[sv, kk]
-                            else:
-                                ri = r0 + i
-                                for kk in range(nk):
-                                    B[ri, kk] -= t4[kk] * W[sv, kk]
-                    for kk in range(nk):
-                        W[sj, kk] = t1[kk]  # R_jj on the diagonal
-                for j in range(nb - 1, -1, -1):  # back substitution with R
-                    rj = r0 + j
-                    for kk in range(nk):
-                        t4[kk] = B[rj, kk]
-                    for c in range(j + 1, nb):
-                        s = off + j * nb + c
-                        cc = r0 + c
-                        for kk in range(nk):
-                            t4[kk] -= W[s, kk] * XV[cc, kk]
-                    cj = r0 + j
-                    sj = off + j * nb + j
-                    for kk in range(nk):
-                        XV[cj, kk] = t4[kk] / W[sj, kk]
-            for kk in range(nk):
-                MINPIV[d, k0 + kk] = worst[kk]
-                if not worst[kk] > PIVOT_MIN:  # NaN (a position that did not assemble) included
-                    n_low += 1
-            bx = _U((d * n_phi + k0) * n_eq)
-            for e in range(n_eq):
-                xo = bx + _U(cperm[e])
-                xi = _U(e) * CH
-                for kk in range(_U(nk)):
-                    Xf[xo + kk * _U(n_eq)] = XVf[xi + kk]
+                if step + 1 >= max_steps:
+                    SETTLE[d, 0] = change
+                    SETTLE[d, 1] = kw
+                    break
+            for k in range(n_phi):
+                for e in range(n_eq):
+                    Xold[k, e] = X[d, k, e]
+            step += 1
     return n_low
 
 
@@ -1363,177 +1497,213 @@ force_solve.__doc__ = _FORCE_DOC.format(
     which="Designs d0 <= d < d1; it releases the GIL, so big batches run as chunks on threads.")
 
 
-
 # ---- friction -----------------------------------------------------------------------------------
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
-def friction_forces(fr_int, fr_f, X, CP, CN, OM, GP, GV, XB0, XB, FP, FF):
-    """The friction of every frictional pair from the pair forces X (D, n_phi, n_eq), as
-    generalized forces XB = XB0 + friction (see :func:`force_solve`'s XB).
-
-    fr_int rows (kind, first link, second link, column of its first unknown in X), fr_f rows
-    (mu, pin radius mm, viscous N mm s or N s/mm, smoothing speed mm/s). CP, CN (D, n_phi,
-    n_fr, 2): each pair's force point and force direction (revolute: the pin, unused). OM (D,
-    n_phi, n_links) the links' angular velocities, GP, GV (D, n_phi, >= n_links, 2) their
-    centres of mass and those points' velocities. Revolute pairs: a moment -(mu r |F| s(r w)
-    + viscous w) on the second link, the opposite on the first, w the relative angular
-    velocity (second less first); prismatic, cam and slot pairs: a force -(mu |N| s(v) +
-    viscous v) along the contact's tangent t on the second link at the force point, the
-    opposite on the first, v = t . (relative velocity of the point on the second link and on
-    the first); s(x) = x / sqrt(x^2 + smooth^2). Fills FF (D, n_phi, n_fr) with that moment
-    (N mm) or force (N) on the second link and FP with the power it takes out of the machine
-    (N mm/s, >= 0). Returns the largest |XB - XB0| entry written (0 without friction)."""
-    D, n_phi = X.shape[0], X.shape[1]
-    n_fr = fr_int.shape[0]
-    for d in range(D):
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+def _friction_motion(fr_int, fr_f, GEO, OM, GP, GV, FC, d):
+    """What the friction of every frictional pair of design d takes from the motion (it does not
+    change over the friction iteration), FC (n_fr, 7, n_phi): revolute pairs mu r s(r w),
+    viscous w, w; prismatic, cam and slot pairs mu s(v), viscous v, v, the contact's tangent t
+    (x, y) and the moments of t at the force point about the centres of mass of the second and
+    the first link. w: the relative angular velocity (second link less first), v = t . (relative
+    velocity of the force point on the second link and on the first), s(x) = x / sqrt(x^2 +
+    smooth^2). GEO (n_fr, 4, n_phi): each pair's force point and force direction (revolute:
+    unused); fr_int, fr_f, OM, GP, GV: see :func:`force_solve`."""
+    n_phi = FC.shape[2]
+    for i in range(fr_int.shape[0]):
+        kind = fr_int[i, 0]
+        la = fr_int[i, 1]
+        lb = fr_int[i, 2]
+        mu = fr_f[i, 0]
+        rad = fr_f[i, 1]
+        visc = fr_f[i, 2]
+        sm = fr_f[i, 3]
         for k in range(n_phi):
-            for r in range(XB.shape[2]):
-                XB[d, k, r] = XB0[d, k, r]
-            for i in range(n_fr):
-                kind = fr_int[i, 0]
-                la = fr_int[i, 1]
-                lb = fr_int[i, 2]
-                c = fr_int[i, 3]
-                mu = fr_f[i, 0]
-                rad = fr_f[i, 1]
-                visc = fr_f[i, 2]
-                sm = fr_f[i, 3]
-                if kind == PAIR_REVOLUTE:
-                    fx = X[d, k, c]
-                    fy = X[d, k, c + 1]
-                    w = OM[d, k, lb] - OM[d, k, la]
-                    v = rad * w
-                    m = -(mu * rad * math.sqrt(fx * fx + fy * fy) * v / math.sqrt(v * v + sm * sm)
-                          + visc * w)
-                    FF[d, k, i] = m
-                    FP[d, k, i] = -m * w
-                    if lb > 0:
-                        XB[d, k, 3 * (lb - 1) + 2] += m
-                    if la > 0:
-                        XB[d, k, 3 * (la - 1) + 2] -= m
-                    continue
-                n = X[d, k, c]
-                px = CP[d, k, i, 0]
-                py = CP[d, k, i, 1]
-                tx = CN[d, k, i, 1]  # the tangent: the normal turned -90 deg
-                ty = -CN[d, k, i, 0]
-                # velocity of the force point as a point of each link
-                vbx = GV[d, k, lb, 0] - OM[d, k, lb] * (py - GP[d, k, lb, 1])
-                vby = GV[d, k, lb, 1] + OM[d, k, lb] * (px - GP[d, k, lb, 0])
-                vax = GV[d, k, la, 0] - OM[d, k, la] * (py - GP[d, k, la, 1])
-                vay = GV[d, k, la, 1] + OM[d, k, la] * (px - GP[d, k, la, 0])
-                v = tx * (vbx - vax) + ty * (vby - vay)
-                f = -(mu * abs(n) * v / math.sqrt(v * v + sm * sm) + visc * v)
-                FF[d, k, i] = f
-                FP[d, k, i] = -f * v
-                fx = f * tx
-                fy = f * ty
+            if kind == PAIR_REVOLUTE:
+                w = OM[d, k, lb] - OM[d, k, la]
+                v = rad * w
+                FC[i, 0, k] = mu * rad * (v / math.sqrt(v * v + sm * sm))
+                FC[i, 1, k] = visc * w
+                FC[i, 2, k] = w
+                continue
+            px = GEO[i, 0, k]
+            py = GEO[i, 1, k]
+            tx = GEO[i, 3, k]  # the tangent: the normal turned -90 deg
+            ty = -GEO[i, 2, k]
+            # velocity of the force point as a point of each link
+            vbx = GV[d, k, lb, 0] - OM[d, k, lb] * (py - GP[d, k, lb, 1])
+            vby = GV[d, k, lb, 1] + OM[d, k, lb] * (px - GP[d, k, lb, 0])
+            vax = GV[d, k, la, 0] - OM[d, k, la] * (py - GP[d, k, la, 1])
+            vay = GV[d, k, la, 1] + OM[d, k, la] * (px - GP[d, k, la, 0])
+            v = tx * (vbx - vax) + ty * (vby - vay)
+            FC[i, 0, k] = mu * (v / math.sqrt(v * v + sm * sm))
+            FC[i, 1, k] = visc * v
+            FC[i, 2, k] = v
+            FC[i, 3, k] = tx
+            FC[i, 4, k] = ty
+            FC[i, 5, k] = (px - GP[d, k, lb, 0]) * ty - (py - GP[d, k, lb, 1]) * tx
+            FC[i, 6, k] = (px - GP[d, k, la, 0]) * ty - (py - GP[d, k, la, 1]) * tx
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+def _friction(fr_int, FC, X, XB0, XB, FF, FP, d, final):
+    """The friction of every frictional pair of design d from its pair forces X[d], as
+    generalized forces XB[d] = XB0 + friction (see :func:`force_solve`'s friction arguments),
+    with what it takes from the motion in FC (:func:`_friction_motion`).
+
+    Revolute pairs: a moment -(mu r |F| s(r w) + viscous w) on the second link, the opposite on
+    the first; prismatic, cam and slot pairs: a force -(mu |N| s(v) + viscous v) along the
+    contact's tangent on the second link at the force point, the opposite on the first.
+    ``final``: also fill FF[d] (n_phi, n_fr) with that moment (N mm) or force (N) on the second
+    link and FP[d] with the power it takes out of the machine (N mm/s, >= 0)."""
+    n_phi = X.shape[1]
+    for k in range(n_phi):
+        for r in range(XB.shape[2]):
+            XB[d, k, r] = XB0[k, r]
+    for i in range(fr_int.shape[0]):
+        kind = fr_int[i, 0]
+        la = fr_int[i, 1]
+        lb = fr_int[i, 2]
+        c = fr_int[i, 3]
+        rb = 3 * (lb - 1)
+        ra = 3 * (la - 1)
+        if kind == PAIR_REVOLUTE:
+            for k in range(n_phi):
+                fx = X[d, k, c]
+                fy = X[d, k, c + 1]
+                m = -(FC[i, 0, k] * math.sqrt(fx * fx + fy * fy) + FC[i, 1, k])
                 if lb > 0:
-                    rb = 3 * (lb - 1)
-                    XB[d, k, rb] += fx
-                    XB[d, k, rb + 1] += fy
-                    XB[d, k, rb + 2] += (px - GP[d, k, lb, 0]) * fy - (py - GP[d, k, lb, 1]) * fx
+                    XB[d, k, rb + 2] += m
                 if la > 0:
-                    ra = 3 * (la - 1)
-                    XB[d, k, ra] -= fx
-                    XB[d, k, ra + 1] -= fy
-                    XB[d, k, ra + 2] -= (px - GP[d, k, la, 0]) * fy - (py - GP[d, k, la, 1]) * fx
+                    XB[d, k, ra + 2] -= m
+                if final:
+                    FF[d, k, i] = m
+                    FP[d, k, i] = -m * FC[i, 2, k]
+            continue
+        for k in range(n_phi):
+            f = -(FC[i, 0, k] * abs(X[d, k, c]) + FC[i, 1, k])
+            fx = f * FC[i, 3, k]
+            fy = f * FC[i, 4, k]
+            if lb > 0:
+                XB[d, k, rb] += fx
+                XB[d, k, rb + 1] += fy
+                XB[d, k, rb + 2] += f * FC[i, 5, k]
+            if la > 0:
+                XB[d, k, ra] -= fx
+                XB[d, k, ra + 1] -= fy
+                XB[d, k, ra + 2] -= f * FC[i, 6, k]
+            if final:
+                FF[d, k, i] = f
+                FP[d, k, i] = -f * FC[i, 2, k]
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
-def anderson_step(X, Xold, HF, HG, k, feasible, done, tol):
-    """One step of Anderson acceleration (type II, depth HF.shape[0] - 1) of the fixed point
-    x = g(x), at every design and position on its own: Xold (D, n_phi, n) is x_k, X holds
-    g(x_k) on entry and x_{k+1} on return. HF, HG (depth + 1, D, n_phi, n): the residuals
-    f = g(x) - x and the images g(x) of the last steps (a ring, step k in slot k % (depth +
-    1)). x_{k+1} = g_k - sum_j gamma_j (g_{k-j} - g_{k-j-1}), gamma the least-squares
-    combination of the residuals' differences that best cancels f_k (normal equations of at
-    most depth unknowns per position, solved by Gaussian elimination, damped by 1e-12 of
-    their trace). A position whose |f_k| is at most ``tol`` of its design's largest |g| is
-    done (``done``, (D, n_phi) bool, kept across the steps): X keeps that g_k and later steps
-    leave it, so that a design's answer does not depend on the others of its batch. Returns
-    max |f_k| relative to each design's largest |g| over its assembled positions not yet done
-    (0 when all are)."""
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+def _anderson(X, Xold, HF, HG, k, feasible, done, tol, A, gamma, d):
+    """One step of Anderson acceleration (type II, depth HF.shape[0] - 1, at most 3) of the fixed
+    point x = g(x) at every position of design d on its own: Xold (n_phi, n) is x_k, X[d] holds
+    g(x_k) on entry and x_{k+1} on return. HF, HG (depth + 1, n_phi, n): the residuals f = g(x) - x
+    and the images g(x) of the last steps (a ring, step k in slot k % (depth + 1)). x_{k+1} = g_k -
+    sum_j gamma_j (g_{k-j} - g_{k-j-1}), gamma the least-squares combination of the residuals'
+    differences that best cancels f_k (normal equations of at most depth unknowns per position,
+    solved by Gaussian elimination, damped by 1e-12 of their trace). A position whose |f_k| is at
+    most ``tol`` of the design's largest |g| is done (``done`` (n_phi,) bool, kept across the
+    steps): X keeps that g_k and later steps leave it. Returns max |f_k| relative to the design's
+    largest |g| over its assembled positions not yet done (0 when all are) and the position where
+    it is (-1: none)."""
     depth = HF.shape[0] - 1
     ring = depth + 1
     slot = k % ring
-    D, n_phi, n = X.shape[0], X.shape[1], X.shape[2]
+    n_phi, n = X.shape[1], X.shape[2]
     mk = min(k, depth)
     worst = 0.0
-    A = np.zeros((depth, depth + 1))
-    gamma = np.zeros(depth)
-    for d in range(D):
-        scale = 1.0
-        for kk in range(n_phi):
-            if feasible[d, kk]:
-                for e in range(n):
-                    scale = max(scale, abs(X[d, kk, e]))
-        for kk in range(n_phi):
-            if done[d, kk]:  # settled before: its forces stay as they were
-                for e in range(n):
-                    X[d, kk, e] = Xold[d, kk, e]
-                continue
-            res = 0.0
+    kw = -1
+    s0, s1, s2, s3 = slot, (k - 1) % ring, (k - 2) % ring, (k - 3) % ring  # steps k, k - 1, ...
+    scale = 1.0
+    for kk in range(n_phi):
+        if feasible[d, kk]:
             for e in range(n):
-                f = X[d, kk, e] - Xold[d, kk, e]
-                HF[slot, d, kk, e] = f
-                HG[slot, d, kk, e] = X[d, kk, e]
-                res = max(res, abs(f))
-            if not feasible[d, kk]:
-                continue
-            if res / scale <= tol:  # settled now: X holds g_k, the forces of this solve
-                done[d, kk] = True
-                continue
-            if not res / scale <= worst:
-                worst = res / scale
-            if mk == 0:
-                continue
-            # normal equations [A | b] of min |f_k - sum_j gamma_j (f_{k-j} - f_{k-j-1})|
-            for i in range(mk):
-                si = (k - i) % ring
-                si1 = (k - i - 1) % ring
-                bi = 0.0
-                for e in range(n):
-                    bi += (HF[si, d, kk, e] - HF[si1, d, kk, e]) * HF[slot, d, kk, e]
-                A[i, mk] = bi
-                for j in range(i, mk):
-                    sj = (k - j) % ring
-                    sj1 = (k - j - 1) % ring
-                    aij = 0.0
-                    for e in range(n):
-                        aij += ((HF[si, d, kk, e] - HF[si1, d, kk, e])
-                                * (HF[sj, d, kk, e] - HF[sj1, d, kk, e]))
-                    A[i, j] = aij
-                    A[j, i] = aij
-            tr = 0.0
-            for i in range(mk):
-                tr += A[i, i]
-            if not tr > 0.0:
-                continue
-            for i in range(mk):
-                A[i, i] += 1e-12 * tr
-            ok = True
-            for c in range(mk):  # elimination (symmetric positive definite: no pivoting)
-                p = A[c, c]
-                if not p > 0.0:
-                    ok = False
-                    break
-                for r in range(c + 1, mk):
-                    q = A[r, c] / p
-                    for j in range(c, mk + 1):
-                        A[r, j] -= q * A[c, j]
-            if not ok:
-                continue
-            for c in range(mk - 1, -1, -1):
-                t = A[c, mk]
-                for j in range(c + 1, mk):
-                    t -= A[c, j] * gamma[j]
-                gamma[c] = t / A[c, c]
-            for i in range(mk):
-                si = (k - i) % ring
-                si1 = (k - i - 1) % ring
-                gi = gamma[i]
-                for e in range(n):
-                    X[d, kk, e] -= gi * (HG[si, d, kk, e] - HG[si1, d, kk, e])
-    return worst
+                scale = max(scale, abs(X[d, kk, e]))
+    for kk in range(n_phi):
+        if done[kk]:  # settled before: its forces stay as they were
+            for e in range(n):
+                X[d, kk, e] = Xold[kk, e]
+            continue
+        res = 0.0
+        for e in range(n):
+            f = X[d, kk, e] - Xold[kk, e]
+            HF[slot, kk, e] = f
+            HG[slot, kk, e] = X[d, kk, e]
+            res = max(res, abs(f))
+        if not feasible[d, kk]:
+            continue
+        if res / scale <= tol:  # settled now: X holds g_k, the forces of this solve
+            done[kk] = True
+            continue
+        if not res / scale <= worst:
+            worst = res / scale
+            kw = kk
+        if mk == 0:
+            continue
+        # normal equations [A | b] of min |f_k - sum_j gamma_j (f_{k-j} - f_{k-j-1})|: all
+        # their sums in one pass over the unknowns, in scalars (independent chains of
+        # multiply-adds, each sum still in the unknowns' order; depth <= 3, unused ones 0)
+        a00 = a01 = a02 = a11 = a12 = a22 = b0 = b1 = b2 = 0.0
+        for e in range(n):
+            fk = HF[s0, kk, e]
+            q0 = HF[s0, kk, e] - HF[s1, kk, e] if mk > 0 else 0.0
+            q1 = HF[s1, kk, e] - HF[s2, kk, e] if mk > 1 else 0.0
+            q2 = HF[s2, kk, e] - HF[s3, kk, e] if mk > 2 else 0.0
+            b0 += q0 * fk
+            b1 += q1 * fk
+            b2 += q2 * fk
+            a00 += q0 * q0
+            a01 += q0 * q1
+            a02 += q0 * q2
+            a11 += q1 * q1
+            a12 += q1 * q2
+            a22 += q2 * q2
+        A[0, 0] = a00
+        if mk > 1:
+            A[0, 1] = A[1, 0] = a01
+            A[1, 1] = a11
+        if mk > 2:
+            A[0, 2] = A[2, 0] = a02
+            A[1, 2] = A[2, 1] = a12
+            A[2, 2] = a22
+        A[0, mk] = b0
+        if mk > 1:
+            A[1, mk] = b1
+        if mk > 2:
+            A[2, mk] = b2
+        tr = 0.0
+        for i in range(mk):
+            tr += A[i, i]
+        if not tr > 0.0:
+            continue
+        for i in range(mk):
+            A[i, i] += 1e-12 * tr
+        ok = True
+        for c in range(mk):  # elimination (symmetric positive definite: no pivoting)
+            p = A[c, c]
+            if not p > 0.0:
+                ok = False
+                break
+            for r in range(c + 1, mk):
+                q = A[r, c] / p
+                for j in range(c, mk + 1):
+                    A[r, j] -= q * A[c, j]
+        if not ok:
+            continue
+        for c in range(mk - 1, -1, -1):
+            t = A[c, mk]
+            for j in range(c + 1, mk):
+                t -= A[c, j] * gamma[j]
+            gamma[c] = t / A[c, c]
+        for i in range(mk):
+            si = (k - i) % ring
+            si1 = (k - i - 1) % ring
+            gi = gamma[i]
+            for e in range(n):
+                X[d, kk, e] -= gi * (HG[si, kk, e] - HG[si1, kk, e])
+    return worst, kw

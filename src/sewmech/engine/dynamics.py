@@ -918,20 +918,27 @@ class DynamicsPlan:
         live = self._live
         if live is None or live[0] is not a:  # a new batch shape: new arrays and result
             live = self._live = self._prepare(kin, a)
-        _, solve, head, tail, res, cw, out = live
+        _, solve, head, tail, res, cw, out, fric, frictionless = live
         self._applied(a, P, out)
         kp_params = kernel_params(P)
-        if solve(*head, kp_params, *tail, self._max_written):  # some pivots ~ zero
+        # friction is solved by the same kernel call (it keeps each position's factors for its
+        # steps), after the counterweights' solves where counterweights have mass: then the
+        # kernel is called a second time with their part
+        cw_mass = cw is not None and bool(counterweight_values(
+            self.counterweights, P.reshape(len(out["X"]), -1))[0].any())
+        one_pass = fric is frictionless or not cw_mass
+        if solve(*head, kp_params, *tail, *(fric if one_pass else frictionless),
+                 self._max_written):  # some pivots ~ zero
             self._raise_singular(kin, a["feasible"], out["MINPIV"])
-        cw_part = None
         if cw is not None:
-            if self._friction is not None:
-                cw_part = -out["X"].copy()
+            cw_part = None if one_pass else -out["X"].copy()
             self._counterweights(P, solve, head, tail, cw)
             if cw_part is not None:
                 cw_part += out["X"]
-        if self._friction is not None:
-            self._solve_friction(kin, a, kp_params, solve, head, tail, out, cw_part)
+                solve(*head, kp_params, *tail, *fric[:6], cw_part, *fric[7:],
+                      self._max_written)
+        if fric is not frictionless:
+            self._check_settled(kin, out["SETTLE"])
         if kp.any_failed:  # some positions could not be assembled (on_failure="mask")
             feasible = a["feasible"]
             for key in ("LF", "LPOW", "X", "MINPIV", "SF", "SL", "SE", "SER", "SD", "FF",
@@ -962,12 +969,7 @@ class DynamicsPlan:
                        SD=np.zeros((n_d, n_phi)))
         friction = {} if fr is None else dict(
             FF=np.zeros((n_d, n_phi, len(fr))), FP=np.zeros((n_d, n_phi, len(fr))),
-            XB0=np.empty((n_d, n_phi, n_eq)), Xold=np.empty((n_d, n_phi, n_eq)),
-            DONE=np.zeros((n_d, n_phi), dtype=bool),
-            HF=np.zeros((ANDERSON_DEPTH + 1, n_d, n_phi, n_eq)),
-            HG=np.zeros((ANDERSON_DEPTH + 1, n_d, n_phi, n_eq)),
-            CP=np.zeros((n_d, n_phi, len(machine.pairs), 2)),
-            CN=np.zeros((n_d, n_phi, len(machine.pairs), 2)))
+            SETTLE=np.zeros((n_d, 2)))
         LON = np.empty((n_d, n_phi, len(self._loads)))
         if n_d >= 4 and n_d * n_phi >= 20000:  # big batches: chunks of designs on threads
             def solve(*args, n_d=n_d):
@@ -985,6 +987,20 @@ class DynamicsPlan:
                 st.n_slots, X, MINPIV)
         out = {"LF": LF, "LPOW": LPOW, "X": X, "XB": XB, "MINPIV": MINPIV, "LON": LON,
                **springs, **friction}
+        # the force kernel's friction arguments (fr_int, fr_f, fr_pair, OM, GV, feasible, CW,
+        # FF, FP, SETTLE, max_steps, tol, depth): the same array types with and without
+        # friction (one compiled kernel); no rows, no steps: the frictionless analysis
+        motion = (a["OM"], a["GV"], a["feasible"])
+        frictionless = (kernel_input(np.zeros((0, 4), dtype=np.int64)),
+                        kernel_input(np.zeros((0, 4))), kernel_input(np.zeros(0, dtype=np.int64)),
+                        *motion, np.zeros((0, 0, 0)), np.zeros((0, 0, 0)), np.zeros((0, 0, 0)),
+                        np.zeros((0, 2)), 0, TOLERANCE, ANDERSON_DEPTH)
+        fric = frictionless if fr is None else (
+            kernel_input(fr.ints), kernel_input(fr.values),
+            kernel_input(np.asarray(fr.pair_index, dtype=np.int64)), *motion,
+            np.zeros((0, 0, 0)), friction["FF"], friction["FP"], friction["SETTLE"], MAX_STEPS,
+            TOLERANCE, ANDERSON_DEPTH)
+        self._frictionless = frictionless
 
         def shape(x):
             return x.reshape(batch + x.shape[1:])
@@ -1007,7 +1023,7 @@ class DynamicsPlan:
                                  shape(springs["SD"])),
             friction=None if fr is None else FrictionForces(
                 fr.names, shape(friction["FF"]), shape(friction["FP"])))
-        return a, solve, head, tail, res, cw, out
+        return a, solve, head, tail, res, cw, out, fric, frictionless
 
     def _applied(self, a: dict[str, np.ndarray], P: np.ndarray,
                  out: dict[str, np.ndarray]) -> None:
@@ -1026,51 +1042,24 @@ class DynamicsPlan:
         if len(self._springs):
             self._springs.evaluate(a, XB, out)
 
-    def _solve_friction(self, kin, a, kp_params, solve, head, tail, out, cw_part) -> None:
-        """Friction in the pairs: fixed-point iteration from the frictionless solution in
-        out["X"] (:mod:`sewmech.engine.friction`), each step one solve with the last step's
-        friction as applied forces; the counterweights' part ``cw_part`` (linear, frictionless)
-        added after each solve."""
-        fr = self._friction
-        X, XB, XB0, Xold = out["X"], out["XB"], out["XB0"], out["Xold"]
-        CP, CN = out["CP"], out["CN"]
-        # the solved positions read-only, as pair_geometry() passes them: one compiled kernel
-        K.pair_geometry(*head, kp_params, *(kernel_input(a[k]) for k in ("P", "TH", "S")),
-                        CP, CN)
-        idx = list(fr.pair_index)
-        cp, cn = np.ascontiguousarray(CP[:, :, idx]), np.ascontiguousarray(CN[:, :, idx])
-        XB0[...] = XB
-        feasible = a["feasible"]
-        ints, vals = kernel_input(fr.ints), kernel_input(fr.values)
-        HF, HG, done = out["HF"], out["HG"], out["DONE"]
-        done[...] = False
-        for step in range(MAX_STEPS):
-            np.copyto(Xold, X)
-            K.friction_forces(ints, vals, X, cp, cn, a["OM"], a["GP"], a["GV"], XB0, XB,
-                              out["FP"], out["FF"])
-            solve(*head, kp_params, *tail, self._max_written)
-            if cw_part is not None:
-                X += cw_part
-            change = K.anderson_step(X, Xold, HF, HG, step, feasible, done, TOLERANCE)
-            if change <= TOLERANCE:  # every position settled (each keeps its own answer)
-                break
-        else:
-            from .errors import AnalysisError
-
-            batch = kin.batch_shape
-            d, k = np.unravel_index(int(np.argmax(np.abs(HF[step % HF.shape[0]]).max(axis=-1))),
-                                    feasible.shape)
-            design = tuple(int(i) for i in np.unravel_index(d, batch)) if batch else ()
-            at = f"design {design}, " if design else ""
-            raise AnalysisError(
-                f"{_machine_where(self.machine)} at {at}phi = {float(kin.phi_deg[k]):.6g}"
-                " deg", f"the force analysis with friction did not settle in {MAX_STEPS} steps"
-                f" (a change of {change:.2g} of the largest force remained): the friction may"
-                " lock the mechanism there", "Lower the friction coefficients or pin radii"
-                " ([friction]), or check the pairs' geometry near this angle")
-        # the friction of the settled forces (the last step's came from the step before)
-        K.friction_forces(ints, vals, X, cp, cn, a["OM"], a["GP"], a["GV"], XB0, XB,
-                          out["FP"], out["FF"])
+    def _check_settled(self, kin, settle) -> None:
+        """Raise where the force kernel's friction iteration did not settle (``settle`` (n_d,
+        2): per design the change left relative to its largest force and the position where,
+        -1 when it settled): at the first such design."""
+        bad = np.flatnonzero(settle[:, 1] >= 0)
+        if not len(bad):
+            return
+        d = int(bad[0])
+        change, k = settle[d, 0], int(settle[d, 1])
+        batch = kin.batch_shape
+        design = tuple(int(i) for i in np.unravel_index(d, batch)) if batch else ()
+        at = f"design {design}, " if design else ""
+        raise AnalysisError(
+            f"{_machine_where(self.machine)} at {at}phi = {float(kin.phi_deg[k]):.6g}"
+            " deg", f"the force analysis with friction did not settle in {MAX_STEPS} steps"
+            f" (a change of {change:.2g} of the largest force remained): the friction may"
+            " lock the mechanism there", "Lower the friction coefficients or pin radii"
+            " ([friction]), or check the pairs' geometry near this angle")
 
     # ---- counterweights -----------------------------------------------------------------------
     # The forces are linear in the loads a point mass m at r = (u, v) of link L's frame puts on
@@ -1151,7 +1140,8 @@ class DynamicsPlan:
             mass, inertia = (cw["unit"][j], cw["nothing"]) if b < 3 else \
                 (cw["nothing"], cw["unit"][j])
             solve(*head, kernel_params(P), *state, cw["GP"], cw["GA"], mass, inertia, gravity,
-                  cw["XB"], *rest, cw["X"][j, b], cw["MINPIV"], self._max_written)
+                  cw["XB"], *rest, cw["X"][j, b], cw["MINPIV"], *self._frictionless,
+                  self._max_written)
         X0, Xu, Xv, XI = cw["X"][j]
         Xu -= X0 + XI
         Xv -= X0 + XI

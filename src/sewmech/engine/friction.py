@@ -6,13 +6,16 @@ mu N along the contact's tangent; each acts against the relative motion of the p
 (the sign smoothed as v / sqrt(v^2 + s^2) below the sliding speed s, ``smooth_mm_s``; a
 revolute pair's sliding speed is its relative angular velocity times r), and a viscous part adds
 ``viscous_N_mm_s`` per unit of relative speed. Friction depends on the pair forces, which
-depend on the friction: the force analysis becomes nonlinear. :mod:`sewmech.engine.dynamics`
-solves it at every position by fixed-point iteration from the frictionless solution (each step
-one call of the force kernel with the friction of the last step as applied forces),
-accelerated by Anderson's method (each position's next step the combination of its last four
-that best cancels their changes), to a change below 1e-10 of each design's largest force.
-Where it does not settle the mechanism is self-locking or near it, and the analysis says
-where.
+depend on the friction: the force analysis becomes nonlinear. The force kernel
+(:func:`sewmech.engine._kernels.force_solve`) solves it at every position by fixed-point
+iteration from the frictionless solution (each step a solve with the friction of the last step
+as applied forces), accelerated by Anderson's method (each position's next step the combination
+of its last four that best cancels their changes), to a change below 1e-10 of each design's
+largest force. Friction enters only the right-hand sides (the applied forces), not the matrix,
+which depends on the positions alone: the kernel factors each position's equations once and
+runs a design's whole iteration with those factors, so that a step costs a back-substitution,
+the friction forces and Anderson's update. Where it does not settle the mechanism is
+self-locking or near it, and the analysis says where.
 
 mu = 0 everywhere (or no ``[friction]`` table) is the frictionless analysis, exactly.
 """
@@ -34,14 +37,15 @@ KIND_CODE = {"revolute": K.PAIR_REVOLUTE, "prismatic": K.PAIR_PRISMATIC, "cam": 
 #: its design's largest force, or fails after MAX_STEPS
 TOLERANCE = 1e-10
 MAX_STEPS = 60
-#: the steps Anderson's acceleration combines (:func:`sewmech._kernels.anderson_step`)
+#: the steps Anderson's acceleration combines (:func:`sewmech.engine._kernels._anderson`;
+#: at most 3: the kernel's sums are written out for 3)
 ANDERSON_DEPTH = 3
 
 
 @dataclass(frozen=True)
 class FrictionTables:
     """The frictional pairs of a machine for the friction kernel
-    (:func:`sewmech._kernels.friction_forces`): their indices among the machine's pairs, the
+    (:func:`sewmech.engine._kernels.force_solve`): their indices among the machine's pairs, the
     integer rows (kind, first link, second link, first unknown's column) and the values (mu,
     pin radius mm, viscous part, smoothing speed mm/s)."""
 
