@@ -192,18 +192,28 @@ def _hermite_room(y: np.ndarray, d: np.ndarray) -> np.ndarray:
     m, n + 1) a margin at n + 1 equally spaced angles of a turn, its start and its end (s
     settings, m designs), d its slopes times the step. The cubic Hermite interpolant of each
     step is read at the 1 deg grid's angles between, and the error bound (the largest |4th
-    difference| / 96) taken off. (m,)"""
-    k = COARSE_STEP_DEG
-    t = (np.arange(1, k) / k)[:, None, None, None]
+    difference| / 96) taken off. Where a cheaper lower bound of the interpolant (the least end
+    value less 4/27 of both end slopes' sizes: the values' weights are positive and sum to 1,
+    the slopes' are at most 4/27 in size) already clears :data:`ASSEMBLY_CLEARANCE_MM`, that
+    bound is returned instead. (m,)"""
     y0, d0, y1, d1 = y[..., :-1], d[..., :-1], y[..., 1:], d[..., 1:]
-    t2, t3 = t * t, t * t * t
-    H = ((2 * t3 - 3 * t2 + 1) * y0 + (t3 - 2 * t2 + t) * d0 + (3 * t2 - 2 * t3) * y1
-         + (t3 - t2) * d1)
-    low = np.where(np.isnan(H), -np.inf, H).min(axis=(0, 1, 3))
     with np.errstate(invalid="ignore"):
         d4 = np.diff(y, n=4, axis=2)
         err = np.where(np.isfinite(d4), np.abs(d4), np.inf).max(axis=(0, 2)) / 96.0
-    return low - err - HERMITE_FLOOR_MM
+        bound = np.minimum(y0, y1) - 4.0 / 27.0 * (np.abs(d0) + np.abs(d1))
+        room = np.where(np.isnan(bound), -np.inf, bound).min(axis=(0, 2)) - err \
+            - HERMITE_FLOOR_MM
+    near = np.nonzero(~(room >= ASSEMBLY_CLEARANCE_MM))[0]
+    if near.size:
+        k = COARSE_STEP_DEG
+        t = (np.arange(1, k) / k)[:, None, None, None]
+        t2, t3 = t * t, t * t * t
+        y0, d0, y1, d1 = (x[:, near] for x in (y0, d0, y1, d1))
+        H = ((2 * t3 - 3 * t2 + 1) * y0 + (t3 - 2 * t2 + t) * d0 + (3 * t2 - 2 * t3) * y1
+             + (t3 - t2) * d1)
+        low = np.where(np.isnan(H), -np.inf, H).min(axis=(0, 1, 3))
+        room[near] = low - err[near] - HERMITE_FLOOR_MM
+    return room
 
 
 #: the needle-thread balance's figures (:func:`sewmech.sewing.thread.thread_balance`) as

@@ -38,6 +38,16 @@ def distance(res, a: str, b: str):
     return n, rate
 
 
+def _less(s, value_rate):
+    """s - x and its rate, from (x, its rate): the quantity is computed once."""
+    return s - value_rate[0], -value_rate[1]
+
+
+def _more(value_rate, s):
+    """x - s and its rate, from (x, its rate)."""
+    return value_rate[0] - s, value_rate[1]
+
+
 def conditions(machine: Machine, params: np.ndarray) -> list[Condition]:
     """Every assembly condition of the machine's closed-form units."""
     out = []
@@ -51,11 +61,10 @@ def conditions(machine: Machine, params: np.ndarray) -> list[Condition]:
             a, b = names[row[1]], names[row[2]]
             s, dif = params[row[6]] + params[row[7]], abs(params[row[6]] - params[row[7]])
             out.append(Condition(ui, f"l1 + l2 - |{a} {b}|", (a, b), (),
-                                  lambda res, a=a, b=b, s=s: (s - distance(res, a, b)[0],
-                                                              -distance(res, a, b)[1])))
+                                  lambda res, a=a, b=b, s=s: _less(s, distance(res, a, b))))
             out.append(Condition(ui, f"|{a} {b}| - |l1 - l2|", (a, b), (),
-                                  lambda res, a=a, b=b, dif=dif: (distance(res, a, b)[0] - dif,
-                                                                  distance(res, a, b)[1])))
+                                  lambda res, a=a, b=b, dif=dif: _more(distance(res, a, b),
+                                                                       dif)))
         elif op == K.OP_RRP:
             pin, gp, gl = names[row[1]], names[row[2]], machine.link_names[row[3]]
             length, alpha, e = params[row[7]], params[row[8]], params[row[9]]
@@ -74,15 +83,15 @@ def conditions(machine: Machine, params: np.ndarray) -> list[Condition]:
             links = (gl,)
             label = f"l - |distance of {pin} from the guide|"
             out.append(Condition(ui, label, (pin, gp), links, lambda res, f=offset, s=length:
-                                  (s - f(res)[0], -f(res)[1])))
+                                  _less(s, f(res))))
             out.append(Condition(ui, label, (pin, gp), links, lambda res, f=offset, s=length:
-                                  (s + f(res)[0], f(res)[1])))
+                                  _more(f(res), -s)))
         else:
             pin, pivot = names[row[1]], names[row[2]]
             e = abs(params[row[5]])
             out.append(Condition(ui, f"|{pivot} {pin}| - |offset|", (pivot, pin), (),
-                                  lambda res, a=pivot, b=pin, e=e: (distance(res, a, b)[0] - e,
-                                                                    distance(res, a, b)[1])))
+                                  lambda res, a=pivot, b=pin, e=e: _more(distance(res, a, b),
+                                                                         e)))
     return out
 
 
