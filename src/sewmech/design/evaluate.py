@@ -142,6 +142,13 @@ def assembles_batch(machine: Machine, P: np.ndarray, *,
     phi = np.arange(n + 1) * h  # (the turn's end too, for the last step's interpolant)
     inputs = setting_extremes(machine)
     looped = _looped_points(machine)
+    # only what the margins read and the points that hang on loop units: a closed-form unit
+    # is not solved itself (its margins, read from its inputs, say whether it assembles), and
+    # the fixed points and points on links cannot fail
+    sel = {"points": sorted({p for c in conditions(machine, np.asarray(machine.defaults))
+                             for p in c.points} | set(looped)),
+           "links": sorted({lk for c in conditions(machine, np.asarray(machine.defaults))
+                            for lk in c.links}), "variables": []}
     ok = np.empty(len(P), dtype=bool)
     unsure = np.zeros(len(P), dtype=bool)
     step = ASSEMBLY_CHUNK * COARSE_STEP_DEG  # (the same memory as a chunk of the whole grid)
@@ -150,7 +157,7 @@ def assembles_batch(machine: Machine, P: np.ndarray, *,
         m = len(Q)
         r = kinematics(machine, phi, params=Q if inputs is None else Q[None, :, :],
                        inputs=inputs, omega=1.0, on_failure="mask",
-                       max_step_deg=COARSE_STEP_DEG)
+                       max_step_deg=COARSE_STEP_DEG, **sel)
         feasible = r.feasible.reshape(-1, m, n + 1)[..., :n].all(axis=(0, 2))
         fails = np.zeros(m, dtype=bool)  # a margin below the clearance at a coarse angle
         room = np.full(m, np.inf)  # the least margin on the interpolants less their error
@@ -160,7 +167,8 @@ def assembles_batch(machine: Machine, P: np.ndarray, *,
             room = np.minimum(room, _hermite_room(y, dy * h))
         smooth = np.ones(m, dtype=bool)
         if looped:
-            p, v, acc = (x[..., looped, :].reshape((-1, m, n + 1, len(looped), 2))
+            at = [r.point_names.index(name) for name in looped]
+            p, v, acc = (x[..., at, :].reshape((-1, m, n + 1, len(at), 2))
                          for x in (r.p, r.v, r.a))
             e = np.abs(np.diff(p, axis=2) - h * (v[:, :, :-1] + 0.5 * np.diff(v, axis=2))
                        + h * h / 12.0 * np.diff(acc, axis=2))
@@ -175,15 +183,15 @@ def assembles_batch(machine: Machine, P: np.ndarray, *,
     return ok
 
 
-def _looped_points(machine: Machine) -> list[int]:
+def _looped_points(machine: Machine) -> list[str]:
     """The points that depend on a loop unit (the only units whose solution, continued from
-    angle to angle, can change branch): indices into the machine's points."""
+    angle to angle, can change branch)."""
     from ..engine import _kernels as K
 
     if not machine.has_loops:
         return []
     loop_rows = {k for k, row in enumerate(machine.program) if int(row[0]) == K.OP_LOOP}
-    return [i for i, name in enumerate(machine.point_names)
+    return [name for name in machine.point_names
             if loop_rows & set(int(k) for k in machine.selection([name], [], [])[-1])]
 
 
