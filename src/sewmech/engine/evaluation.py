@@ -216,9 +216,17 @@ class Evaluation:
                 d1, d2 = self._init_rates
                 guess = values[k] + d * (d1[k] + 0.5 * d * d2[k])
             P[:, idx] = guess
-        plan = KinematicsPlan(self.machine, [0.0], omega=1.0, start_phi=0.0,
-                              on_failure="mask", **selection)
-        return plan(P)
+        key = tuple((k, tuple(v) if isinstance(v, (list, tuple)) else v)
+                    for k, v in sorted(selection.items()))
+        plan = self._at_plans.get(key)
+        if plan is None:  # (prepared once per selection: a locator calls this many times)
+            plan = self._at_plans[key] = KinematicsPlan(
+                self.machine, [0.0], omega=1.0, start_phi=0.0, on_failure="mask", **selection)
+        return plan.run(plan.designs(P), fresh=True)
+
+    @cached_property
+    def _at_plans(self) -> dict:
+        return {}
 
     # ---- events ------------------------------------------------------------------------------
     @cached_property
