@@ -210,9 +210,10 @@ def _feed_values(sweep: Sweep, o, P: np.ndarray, ok: np.ndarray, start: int,
     """A feed metric (mm) of the designs that assemble, each event located by Newton's method
     from where the sweep's centre design has it moved by the event's derivative, with the
     guards of :func:`sewmech.sewing.samples.sample_feed_values` (a design not located there is
-    located from its whole turn, on the 1 deg grid the grid evaluation used, so that an event
-    it saw is seen; every :data:`CHECK_EVERY`-th design is compared with its value from its
-    whole turn); NaN for the others."""
+    located from its whole turn, on the 1 deg grid the grid evaluation used where a 5 deg
+    turn shows no event, so that an event the grid saw is seen; every :data:`CHECK_EVERY`-th
+    design is compared with its value from its whole turn, in the same call); NaN for the
+    others."""
     from ..sewing.samples import sample_feed_values
 
     reg = _regulator_deg(sweep, o)
@@ -231,7 +232,7 @@ def _feed_values(sweep: Sweep, o, P: np.ndarray, ok: np.ndarray, start: int,
         return out
     grad, base = nominal
     vals, how = sample_feed_values(sweep.machine, o.metric, reg, P[rows], grad, check=check,
-                                   base=base, redo_step_deg=1.0)
+                                   base=base, fine_step_deg=1.0)
     out[rows] = vals
     counts["feed_located"] += how["located"]
     counts["feed_whole_turn"] += how["whole_turn"]

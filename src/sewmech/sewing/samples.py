@@ -222,7 +222,7 @@ def whole_turn_values(machine: Machine, metric: str, regulator_deg: float,
 
 def sample_feed_values(machine: Machine, metric: str, regulator_deg: float, P: np.ndarray,
                        nominal: Gradient, *, seed: int = 0, check: np.ndarray | None = None,
-                       base=None, redo_step_deg: float = TURN_STEP_DEG
+                       base=None, fine_step_deg: float | None = None
                        ) -> tuple[np.ndarray, dict]:
     """:func:`window_values` with its two guards (the module's docstring): the values of the
     designs ``P`` (m, n_params) and what was done, ``{"located": designs located from their
@@ -230,22 +230,38 @@ def sample_feed_values(machine: Machine, metric: str, regulator_deg: float, P: n
     designs compared, "check_max_mm": their largest difference}``. NaN only for a design
     that cannot be assembled or has no such event. ``check``: the rows compared (default
     :data:`CHECK_DESIGNS` drawn with ``seed``); ``base``: the design ``nominal`` is of
-    (default the file's); ``redo_step_deg``: the whole turn's grid for the designs located
-    again (the checks use :data:`TURN_STEP_DEG`)."""
+    (default the file's). The checked designs and those not located are taken round their
+    whole turns in one call (:data:`TURN_STEP_DEG`); ``fine_step_deg``: a finer grid for the
+    designs not located whose turn showed no such event there (a dog above the plate for less
+    than a step: the grid evaluation's 1 deg sees it), None: none."""
     vals, found = window_values(machine, metric, regulator_deg, P, nominal, base)
     m = P.shape[0]
     if check is None:
         rng = np.random.default_rng(seed)
         check = np.sort(rng.choice(m, size=min(CHECK_DESIGNS, m), replace=False))
     check = check[found[check]]
-    ref = whole_turn_values(machine, metric, regulator_deg, P[check])
-    diff = np.abs(ref - vals[check])
+    turn = np.zeros(m, dtype=bool)
+    turn[check] = True
+    turn |= ~found
+    rows = np.nonzero(turn)[0]
+    ref = whole_turn_values(machine, metric, regulator_deg, P[rows]) \
+        if rows.size else np.zeros(0)
+    if fine_step_deg is not None:
+        again = np.nonzero(np.isnan(ref) & ~found[rows])[0]
+        if again.size:
+            ref[again] = whole_turn_values(machine, metric, regulator_deg, P[rows[again]],
+                                           fine_step_deg)
+    at = np.searchsorted(rows, check)
+    diff = np.abs(ref[at] - vals[check])
     agree = bool(np.all(diff <= CHECK_MM))  # (a NaN on either side disagrees)
-    redo = ~found if agree else np.ones(m, dtype=bool)
-    if redo.any():
-        vals = vals.copy()
-        vals[redo] = whole_turn_values(machine, metric, regulator_deg, P[redo],
-                                       redo_step_deg)
+    vals = vals.copy()
+    if agree:
+        redo = ~found
+        vals[rows] = np.where(found[rows], vals[rows], ref)
+    else:
+        redo = np.ones(m, dtype=bool)
+        vals = whole_turn_values(machine, metric, regulator_deg, P, fine_step_deg or
+                                 TURN_STEP_DEG)
     worst = float(np.nanmax(diff)) if diff.size else 0.0
     return vals, {"located": int(m - redo.sum()), "whole_turn": int(redo.sum()),
                   "checked": int(check.size), "check_max_mm": worst}
