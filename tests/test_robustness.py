@@ -1716,6 +1716,9 @@ def test_8_needle_and_take_up_metrics_need_no_feed_dog(tmp_path, metric):
                      f'metric = "{metric}"\n', encoding="utf-8")
     out = run(["sweep", sweep, "--out", tmp_path / "sw", "--workers", "0"], code=0)
     assert "feasible: 3 of 3 designs" in out.stdout
+    # how the designs were evaluated: no feed metric to locate on this machine
+    assert "assembly decided on the 10 deg grid for 3 designs" in " ".join(out.stdout.split())
+    assert "located from predicted events 0 times" in " ".join(out.stdout.split())
 
 
 def test_8_an_answer_proved_to_assemble_is_not_called_undefined(tmp_path):
