@@ -1243,7 +1243,8 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
     GEO = np.zeros((nf, 4, n_phi))  # force point and direction of the frictional pairs
     FC = np.zeros((nf, 7, n_phi))  # what their friction takes from the motion (_friction)
     # the iteration's state with the positions side by side (n_eq, n_phi), unknowns in X's
-    # order: x_k (XT), g(x_k) (GT), the applied forces without (XB0T) and with friction (XBT)
+    # order: x_k (XT), g(x_k) (GT), minus the right-hand sides without (XB0T) and with friction
+    # (XBT: the applied forces, friction included, less the inertia forces and weights)
     ring = depth + 1
     nph = n_phi if friction else 0
     XT = np.zeros((n_eq, nph))
@@ -1298,19 +1299,15 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
                     el = _U((d * n_phi + k0) * EP.shape[2] + li)
                     xb = _U((d * n_phi + k0) * n_eq + 3 * (li - 1))
                     bx, by, bm = _U(rx) * CH, _U(ry) * CH, _U(rm) * CH
-                    if step >= 0:  # the friction steps' applied forces, positions side by side
-                        r = 3 * (li - 1)
-                        for kk in range(nk):
-                            k = k0 + kk
-                            Bf[bx + kk] = m * GAf[ga + kk * sg_] - XBT[r, k]
-                            Bf[by + kk] = m * GAf[ga + kk * sg_ + _U(1)] + mg - XBT[r + 1, k]
-                            Bf[bm + kk] = ii * EPf[el + kk * sl] - XBT[r + 2, k]
-                        continue
-                    for kk in range(_U(nk)):
+                    for kk in range(_U(nk) if step < 0 else _U(0)):
                         ix = xb + kk * _U(n_eq)
                         Bf[bx + kk] = m * GAf[ga + kk * sg_] - XBf[ix]
                         Bf[by + kk] = m * GAf[ga + kk * sg_ + _U(1)] + mg - XBf[ix + _U(1)]
                         Bf[bm + kk] = ii * EPf[el + kk * sl] - XBf[ix + _U(2)]
+                for r in range(n_eq if step >= 0 else 0):  # the friction steps' (XBT: minus
+                    br = _U(rpos[r]) * CH  # the right-hand sides, positions side by side)
+                    for kk in range(nk):
+                        Bf[br + kk] = -XBT[r, k0 + kk]
                 # the matrix entries of every pair (pslot: where each of its entries goes in W)
                 for i in range(pairs.shape[0] if step < 0 else 0):
                     kind = pairs[i, 0]
@@ -1497,7 +1494,15 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
                     done[k] = False
                     for e in range(n_eq):  # (the counterweights' part: linear, frictionless)
                         XT[e, k] = X[d, k, e] + CW[d, k, e] if with_cw else X[d, k, e]
-                        XB0T[e, k] = XB[d, k, e]
+                for li in range(1, n_links):  # the applied forces less the inertia forces and
+                    r = 3 * (li - 1)  # weight: minus the right-hand sides without friction
+                    m = 1e-3 * mass[li]
+                    mg = gravity * mass[li]
+                    ii = 1e-3 * inertia[li]
+                    for k in range(n_phi):
+                        XB0T[r, k] = XB[d, k, r] - m * GA[d, k, li, 0]
+                        XB0T[r + 1, k] = XB[d, k, r + 1] - (m * GA[d, k, li, 1] + mg)
+                        XB0T[r + 2, k] = XB[d, k, r + 2] - ii * EP[d, k, li]
                 _friction_motion(fr_int, fr_f, GEO, OM, GP, GV, FC, d)
             else:
                 if with_cw:
