@@ -275,11 +275,14 @@ class LoadTables:
         D, n_phi = a["P"].shape[:2]
         on = np.empty((len(self), D, n_phi))
         travel = np.zeros((len(self), D, n_phi))
-        for j in range(len(self)):
+        read: dict[str, tuple] = {}  # each channel read once a call (a thread channel's
+        for j in range(len(self)):  # length and rate cost a path and its gradient)
             m = np.broadcast_to(self.on[j] > 0.5, (D, n_phi)).copy()
             first = True
             for ref, c in self.conditions[j]:
-                val, rate = channel_values(ref, a, self.thread)
+                if ref.name not in read:
+                    read[ref.name] = channel_values(ref, a, self.thread)
+                val, rate = read[ref.name]
                 with np.errstate(invalid="ignore"):
                     if c.above is not None:
                         m &= val > c.above
