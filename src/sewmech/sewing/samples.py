@@ -123,7 +123,8 @@ class _Locator:
             else:
                 f, df = pm.p[:, 0, axis] - level, pm.v[:, 0, axis]
                 step = _step_to(f, df, pm.a[:, 0, axis])
-                right = np.sign(df + pm.a[:, 0, axis] * step) == (1 if kind == "up" else -1)
+                with np.errstate(invalid="ignore"):  # (an infinite step is not taken: ok below)
+                    right = np.sign(df + pm.a[:, 0, axis] * step) == (1 if kind == "up" else -1)
             ok = r.feasible[:, 0] & np.isfinite(step) & right
             new = phi[todo] + np.where(ok, step, 0.0)
             ok &= np.abs(new - start[todo]) <= REACH
