@@ -332,17 +332,9 @@ def _check_metric(where: str, table: str, k: int, ref: MetricRef, machine: Machi
     except km.MetricNameError as exc:
         raise MachineFileError(where, table, f"{k}.at" if ref.at is not None and
                                name in channels else key, exc.what, exc.hint) from None
-    if known_family:
-        if ref.regulator_deg is not None:  # (read at that setting)
-            if s is None or s.regulator is None:
-                raise MachineFileError(where, table, f"{k}.regulator_deg", f"machine"
-                                       f" '{machine.name}' has no stitch regulator",
-                                       "Leave out regulator_deg")
-            _in_range(where, table, k, ref, machine)
-        return channels
     channel = name.split(":", 1)[1] if name.startswith("range:") else name
-    if channel in channels:
-        if ref.regulator_deg is not None:  # the channel at that setting
+    if known_family or channel in channels:
+        if ref.regulator_deg is not None:  # (read at that setting)
             if s is None or s.regulator is None:
                 raise MachineFileError(where, table, f"{k}.regulator_deg", f"machine"
                                        f" '{machine.name}' has no stitch regulator",
