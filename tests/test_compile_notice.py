@@ -45,5 +45,5 @@ def test_the_install_compiles_the_everyday_kernels_and_leaves_the_rest():
     install = [step for _, step, at_install in warm.STEPS if at_install]
     later = [step for _, step, at_install in warm.STEPS if not at_install]
     assert install[:2] == ["kinematics", "dynamics"]
-    assert set(later) == {"sensitivities", "run"}
+    assert set(later) == {"sensitivities", "force_tangents", "run"}
     assert warm.main(["--bogus"]) == 2

@@ -30,6 +30,8 @@ FAMILIES = {
     ("sewmech.engine._kernels", "evaluate_program"): ("the kinematics interpreter", 20),
     ("sewmech.engine._kernels", "force_solve"): ("the force solver", 15),
     ("sewmech.engine._tangents", "tangents"): ("the design sensitivities' tangent kernel", 40),
+    ("sewmech.engine._force_tangents", "force_tangents"): (
+        "the force analysis' derivatives by the design", 20),
     ("sewmech.engine._running", None): ("the run in time's integrator", 10),
 }
 

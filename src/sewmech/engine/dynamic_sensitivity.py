@@ -16,13 +16,20 @@ parameter p moves the state along its exact kinematic tangent ds/dp
     (dG/dX) dX/dp = -(dG/ds) ds/dp,
 
 with dG/dX = A + dXB/dX (A alone without friction) and dG/ds ds/dp = (dA/dp) X - dB/dp +
-dXB/dp: the derivative of the force solve. Both are taken by the complex step: G is evaluated
-here once more (complex-safe numpy, the same equations as the compiled kernel) at the state
-s + i h ds/dp (and at X + i h e_k for dG/dX), and Im(G) / h is the derivative to rounding (no
-difference of nearby values is taken, so no step size is traded against round-off). One
-batched dense solve per position and design then gives every parameter's dX/dp at once; the
-derived quantities (driving torque, shaking force and moment, bearing reactions) follow the
-same way from the complex X.
+dXB/dp: the derivative of the force solve.
+
+:func:`dynamics_sensitivities` takes both in a compiled kernel
+(:mod:`sewmech.engine._force_tangents`): each term of G (a pair, a link's inertia, a
+counterweight, a load, a spring, a frictional pair) is differentiated only along the
+parameters that move what it reads (the kinematic tangents are compact: each quantity's
+derivatives by its support), by hand where it is products and sums and by the complex step
+where it has roots and quotients; dG/dX has the block upper-triangular pattern of A, so every
+parameter's dX/dp comes from one block solve per position. The derived quantities (driving
+torque, shaking force and moment, bearing reactions) follow from dX/dp and the state's
+tangents. :func:`_reference_sensitivities` is a second implementation of the same equations
+(:class:`_Model`: the whole residual in complex-safe numpy, evaluated at s + i h ds/dp, one
+direction per parameter, and a dense solve): slow, and what the tests hold the kernel
+against.
 
 What is held fixed: where each process load acts (its windows and conditions) is the turn's as
 solved; at an angle where a load switches on or off, the forces jump and have no derivative
@@ -37,6 +44,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -508,12 +516,13 @@ def _travel_tangent(plan, s, d) -> np.ndarray:
     return out
 
 
-def dynamics_sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None = None,
-                           inputs=None, rpm: float | None = None, loads=None,
-                           gravity: bool = True) -> DynamicsSensitivities:
-    """The inverse dynamics (:func:`sewmech.engine.dynamics.inverse_dynamics`, same arguments)
-    and its exact derivatives by every parameter (``machine.parameter_names``): see the module
-    doc. Every position must assemble. Units: N, N mm per unit of each parameter."""
+def _reference_sensitivities(machine: Machine, phi: ArrayLike, *,
+                             params: ArrayLike | None = None, inputs=None,
+                             rpm: float | None = None, loads=None,
+                             gravity: bool = True) -> DynamicsSensitivities:
+    """:func:`dynamics_sensitivities` by the complex step through the whole residual in numpy
+    (:class:`_Model`), one direction per parameter: slow, and a second implementation of the
+    same equations that the tests hold the compiled one against."""
     rpm = machine.rpm if rpm is None else float(rpm)
     plan = DynamicsPlan(machine, phi, rpm=rpm, loads=loads, gravity=gravity)
     res = plan(params, inputs=inputs)
@@ -669,3 +678,441 @@ class _ComplexKin:
 
 def _bearings(model, res, Xc, sc, parts, d0, d1):
     return bearing_reactions(_ComplexResult(model, res, Xc, sc, parts, d0, d1))
+
+
+# ---- the compiled derivatives -------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Terms:
+    """What the compiled derivative kernel (:func:`sewmech.engine._force_tangents.
+    force_tangents`) needs of a machine besides its loads: the tables of its counterweights,
+    springs and frictional pairs, and the parameters each term's support holds (CSR lists of
+    parameter indices: per link, pair geometry, pair, counterweight, spring, torsion spring,
+    frictional pair), from the kinematic tangents' supports."""
+
+    loc: np.ndarray
+    qoff: np.ndarray
+    qm: np.ndarray
+    link_sup: tuple
+    lists: dict
+    cw_int: np.ndarray
+    sp_int: np.ndarray
+    sp_f: np.ndarray
+    ts_int: np.ndarray
+    ts_f: np.ndarray
+    fr_int: np.ndarray
+    fr_f: np.ndarray
+    fr_pair: np.ndarray
+    used: frozenset
+
+
+def _csr(sets) -> tuple[np.ndarray, np.ndarray]:
+    ptr = np.zeros(len(sets) + 1, dtype=np.int64)
+    ptr[1:] = np.cumsum([len(x) for x in sets])
+    idx = np.array([p for x in sets for p in sorted(x)], dtype=np.int64)
+    return ptr, idx
+
+
+@lru_cache(maxsize=16)
+def _terms(machine: Machine) -> _Terms:
+    from .dynamics import _pair_table, link_masses
+    from .friction import FrictionTables
+    from .sensitivity import _plan
+    from .springs import SpringTables
+
+    plan = _plan(machine, None)
+    lay = plan.layout
+    sup = [frozenset(int(p) for p in s) for s in plan.support]
+    n_pt, n_l = len(machine.point_names), len(machine.link_names)
+    n_p = len(machine.parameter_names)
+    loc = np.full((len(sup), n_p), -1, dtype=np.int64)
+    for q, s in enumerate(plan.support):
+        loc[q, np.asarray(s, dtype=np.int64)] = np.arange(len(s))
+
+    def pt(i):
+        return sup[i]
+
+    def lk(i):
+        return sup[n_pt + i]
+
+    def var(i):
+        return sup[n_pt + n_l + i]
+
+    lm = link_masses(machine)
+    link_sup = tuple(pt(int(o)) | lk(li) if o >= 0 and li > 0 else frozenset()
+                     for li, o in enumerate(lm.origins))
+    table, _, cam_rows = _pair_table(machine)
+    terms = machine.terms
+    geo, pair = [], []
+    for row in table:
+        kind = row[0]
+        s: set = set()
+        if kind != K.PAIR_DRIVER:
+            if kind == K.PAIR_CAM:
+                for r in range(row[9], row[9] + row[10]):
+                    t = terms[cam_rows[r]]
+                    if t[0] == K.TERM_POINT:
+                        s |= pt(int(t[4]))
+                        continue
+                    s |= {int(t[4])} if t[3] == K.SRC_PARAM else var(int(t[4]))
+                    s |= lk(int(t[6])) if t[5] == K.SRC_LINK else var(int(t[6]))
+                    if t[7] >= 0:
+                        s.add(int(t[7]))
+            else:
+                s |= pt(int(row[3]))
+            if kind != K.PAIR_REVOLUTE:
+                s |= lk(int(row[4])) if row[4] >= 0 else var(int(row[5]))
+                if row[6] >= 0:
+                    s.add(int(row[6]))
+        geo.append(s)
+        pair.append(set() if kind == K.PAIR_DRIVER else
+                    s | link_sup[int(row[1])] | link_sup[int(row[2])])
+    cws = machine.counterweights
+    cw_int = np.array([[c.link_index, machine.point_index(c.origin), int(c.by_moment),
+                        *c.params] for c in cws], dtype=np.int64).reshape(-1, 6)
+    cw = [set(int(i) for i in c.params) | pt(machine.point_index(c.origin)) | lk(c.link_index)
+          | link_sup[c.link_index] for c in cws]
+    sp = SpringTables.build(machine)
+    sp_int = np.array(sp.ends, dtype=np.int64).reshape(-1, 4)
+    sp_f = np.stack([sp.k, sp.free, sp.c], axis=-1).reshape(-1, 3)
+    springs = [pt(pa) | pt(pb) | link_sup[la] | link_sup[lb] for la, pa, lb, pb in sp.ends]
+    ts_int = np.array(sp.torsion_links, dtype=np.int64).reshape(-1, 2)
+    ts_f = np.stack([sp.kt, sp.free_angle, sp.ct], axis=-1).reshape(-1, 3)
+    torsion = [lk(la) | lk(lb) for la, lb in sp.torsion_links]
+    fr = FrictionTables.build(machine)
+    if fr is None:
+        fr_int, fr_f, fr_pair, friction = (np.zeros((0, 4), dtype=np.int64), np.zeros((0, 4)),
+                                           np.zeros(0, dtype=np.int64), [])
+    else:
+        fr_int, fr_f = fr.ints, fr.values
+        fr_pair = np.asarray(fr.pair_index, dtype=np.int64)
+        friction = [lk(int(la)) | lk(int(lb)) if kind == K.PAIR_REVOLUTE else
+                    geo[i] | link_sup[int(la)] | link_sup[int(lb)]
+                    for (kind, la, lb, _), i in zip(fr.ints, fr.pair_index, strict=True)]
+    lists = {"lk": link_sup, "geo": geo, "pr": pair, "cw": cw, "sp": springs, "ts": torsion,
+             "fr": friction}
+    used = frozenset().union(*(x for v in lists.values() for x in v))
+    used |= {p.ratio_param for p in machine.pairs if p.kind == "driver" and p.input == SHAFT}
+    out = _Terms(loc, np.asarray(lay.qoff, dtype=np.int64), np.asarray(lay.qm, dtype=np.int64),
+                 link_sup, lists, cw_int, sp_int, sp_f, ts_int, ts_f, fr_int, fr_f, fr_pair,
+                 frozenset(used))
+    for a in (out.loc, out.qoff, out.qm, out.cw_int, out.sp_int, out.sp_f, out.ts_int, out.ts_f,
+              out.fr_int, out.fr_f, out.fr_pair):
+        a.setflags(write=False)
+    return out
+
+
+def _load_tables(plan: DynamicsPlan, terms: _Terms, travel_sup: list) -> tuple:
+    """The loads as the kernel takes them: (link, point, law, fixed direction) and (force N,
+    smoothing speed mm/s, rate N/mm, direction), the toward points (CSR) and each load's
+    support (its point, the toward points, its travel's condition and its link)."""
+    from ._force_tangents import LAW_CONSTANT, LAW_ELASTIC, LAW_RESISTIVE
+    from .sensitivity import _plan
+
+    L = plan._loads
+    sup = _plan(plan.machine, None).support
+    law = {"resistive": LAW_RESISTIVE, "constant": LAW_CONSTANT, "elastic": LAW_ELASTIC}
+    ints, vals, tw, sets = [], [], [], []
+    for j, spec in enumerate(L.specs):
+        d = L.direction[j]
+        ints.append((L.links[j], L.points[j], law[spec.law], int(d is not None)))
+        vals.append((spec.force_N, spec.smooth_mm_s, spec.rate_N_per_mm if spec.law ==
+                     "elastic" else 0.0, *(d if d is not None else (0.0, 0.0))))
+        tw.append(tuple(int(q) for q in L.toward[j]))
+        s = set(int(p) for p in sup[L.points[j]]) | travel_sup[j] | terms.link_sup[L.links[j]]
+        for q in L.toward[j]:
+            s |= set(int(p) for p in sup[q])
+        sets.append(s)
+    tw_ptr = np.zeros(len(tw) + 1, dtype=np.int64)
+    tw_ptr[1:] = np.cumsum([len(t) for t in tw])
+    return (np.array(ints, dtype=np.int64).reshape(-1, 4), np.array(vals).reshape(-1, 5),
+            tw_ptr, np.array([q for t in tw for q in t], dtype=np.int64), sets)
+
+
+def _travel_derivative(plan: DynamicsPlan, s: dict, sens, scale: float
+                       ) -> tuple[np.ndarray, list]:
+    """d(travel)/d(parameter) of each elastic load (D, n_phi, n_loads, n_params) and each
+    load's support of it: the derivative of its first above/below condition's channel where
+    the travel is positive (0 elsewhere), from the compact kinematic tangents."""
+    from .threadpath import path_length_gradient
+
+    L = plan._loads
+    m = plan.machine
+    n_p = len(m.parameter_names)
+    n_pt, n_l = len(m.point_names), len(m.link_names)
+    shape = s["P"].shape[:2]
+    out = np.zeros(shape + (len(L), n_p))
+    sets = [set() for _ in range(len(L))]
+    if "travel" not in s:
+        return out, sets
+    cp = sens._plan
+    n = shape[0] * shape[1]
+
+    def dense(level, q, comp=0):
+        from .sensitivity import _lanes
+
+        off, mq = int(cp.layout.qoff[q]) + comp * int(cp.layout.qm[q]), int(cp.layout.qm[q])
+        x = np.zeros((n, n_p))
+        x[:, cp.support[q]] = _lanes(sens._t[level], off, mq, n)
+        return x.reshape(shape + (n_p,))
+
+    for j, spec in enumerate(L.specs):
+        if spec.law != "elastic":
+            continue
+        for ref, c in L.conditions[j]:
+            if c.above is None and c.below is None:
+                continue
+            if ref.kind == "thread":
+                pts = list(L.thread.points)
+                g = path_length_gradient(s["P"][:, :, pts], L.thread.rho)  # (D, n_phi, g, 2)
+                dval = sum(g[:, :, i, comp, None] * dense(0, q, comp)
+                           for i, q in enumerate(pts) for comp in (0, 1))
+            else:
+                from .channels import KINDS
+
+                level = {"P": 0, "V": 1, "A": 2, "TH": 0, "OM": 1, "EP": 2, "S": 0, "SD": 1,
+                         "SDD": 2}[KINDS[ref.kind][0]]
+                base = {"p": 0, "v": 0, "a": 0}.get(ref.kind)
+                if base is not None:
+                    dval = dense(level, ref.index, ref.comp)
+                elif KINDS[ref.kind][0] in ("TH", "OM", "EP"):
+                    dval = dense(level, n_pt + ref.index)
+                else:
+                    dval = dense(level, n_pt + n_l + ref.index)
+                dval = dval * scale ** level  # (the tangents' rates are the file's speed's)
+            moving = s["travel"][..., j] > 0.0
+            out[..., j, :] = np.where(moving[..., None], dval if c.above is not None else -dval,
+                                      0.0)
+            sets[j] = set(int(p) for p in np.flatnonzero(np.any(out[..., j, :] != 0.0,
+                                                                axis=(0, 1))))
+            break
+    return out, sets
+
+
+def dynamics_sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None = None,
+                           inputs=None, rpm: float | None = None, loads=None,
+                           gravity: bool = True) -> DynamicsSensitivities:
+    """The inverse dynamics (:func:`sewmech.engine.dynamics.inverse_dynamics`, same arguments)
+    and its exact derivatives by every parameter (``machine.parameter_names``): see the module
+    doc. Every position must assemble. Units: N, N mm per unit of each parameter."""
+    from . import _force_tangents as FT
+    from .kinematics import kernel_input
+
+    rpm = machine.rpm if rpm is None else float(rpm)
+    plan = DynamicsPlan(machine, phi, rpm=rpm, loads=loads, gravity=gravity)
+    res = plan(params, inputs=inputs)
+    kin = res.kin
+    if not kin.all_feasible:
+        raise AnalysisError(f"machine '{machine.name}'", "cannot be assembled at some of the"
+                            " angles: the derivatives are not defined there",
+                            "Choose angles where it assembles (sewmech check)")
+    sens = sensitivities(machine, phi, params=params, inputs=inputs, rates=True)
+    terms = _terms(machine)
+    batch = kin.batch_shape
+    n_d = int(np.prod(batch, dtype=np.int64))
+    n_phi = kin.phi.shape[0]
+    n_p = len(machine.parameter_names)
+    n_links = len(machine.link_names)
+    scale = rpm / machine.rpm
+
+    def flat(x):
+        return kernel_input(np.asarray(x, dtype=float).reshape(
+            (n_d, n_phi) + x.shape[len(batch) + 1:]))
+
+    s = {"P": flat(kin.p)}
+    n_ld = len(plan._loads)
+    if n_ld:
+        s0 = _state(res, plan)
+        travel = kernel_input(s0["travel"])
+        s["travel"] = s0["travel"]
+        dtr, travel_sup = _travel_derivative(plan, s, sens, scale)
+    else:
+        travel = kernel_input(np.zeros((n_d, n_phi, 0)))
+        dtr, travel_sup = np.zeros((n_d, n_phi, 0, n_p)), []
+    ld_int, ld_f, tw_ptr, tw_pts, ld_sets = _load_tables(plan, terms, travel_sup)
+    used = set(terms.used).union(*ld_sets) if ld_sets else set(terms.used)
+    act = np.array(sorted(used), dtype=np.int64)
+    n_act = len(act)
+    jpos = np.full(n_p, -1, dtype=np.int64)
+    jpos[act] = np.arange(n_act)
+    csr = {k: _csr(v) for k, v in terms.lists.items()}
+    ld_ptr, ld_p = _csr(ld_sets)
+    # what the bearings read: the shaft links' centres of mass, the geometry of their pairs
+    shaft = machine.spec.shaft
+    ga_out = np.full(n_links, -1, dtype=np.int64)
+    geo_out = np.full(len(machine.pairs), -1, dtype=np.int64)
+    if shaft is not None:
+        names = machine.link_names
+        for k, lname in enumerate(shaft.links):
+            ga_out[names.index(lname)] = k
+        g = 0
+        for i, pair in enumerate(machine.pairs):
+            if pair.kind in ("driver", "revolute"):
+                continue
+            if any(x in shaft.links for x in pair.links):
+                geo_out[i] = g
+                g += 1
+    n_geo = int((geo_out >= 0).sum())
+    n_ga = int((ga_out >= 0).sum())
+    n_eq = plan.structure.pattern.shape[0]
+    n_fr = len(terms.fr_int)
+    n_cw = len(terms.cw_int)
+    Y = np.empty((n_d, n_phi, n_eq, n_act))
+    dSF = np.empty((n_d, n_phi, 2, n_act))
+    dSM = np.empty((n_d, n_phi, n_act))
+    dFF = np.zeros((n_d, n_phi, n_fr, n_act))
+    dGEO = np.zeros((n_d, n_phi, n_geo, 4, n_act))
+    dGA = np.zeros((n_d, n_phi, n_ga, 2, n_act))
+    dLF = np.zeros((n_d, n_phi, n_ld, 2, n_act))
+    dCWm = np.zeros((n_d, n_cw, n_act))
+    dCWa = np.zeros((n_d, n_phi, n_cw, 2, n_act))
+    G0 = np.empty((n_d, n_phi, n_eq))
+    st = plan.structure
+    lm = plan.masses
+    X = flat(res.unknowns)
+    on = flat(res.load_on) if n_ld else kernel_input(np.zeros((n_d, n_phi, 0)))
+    dtravel = kernel_input(dtr[..., act]) if n_ld else kernel_input(np.zeros((n_d, n_phi, 0,
+                                                                                n_act)))
+    ki = kernel_input
+    FT.force_tangents(
+        0, n_d, s["P"], flat(kin.v), flat(kin.a), flat(kin.theta), flat(kin.omega),
+        flat(kin.epsilon), flat(kin.q), ki(np.asarray(res.params, dtype=float).reshape(n_d, -1)),
+        flat(res.com_p), flat(res.com_v), flat(res.com_a), X, travel, dtravel, on,
+        *(ki(t) for t in sens._t), terms.qoff, terms.qm, terms.loc, scale, scale * scale,
+        ki(st.table), ki(st.angles), ki(st.cam_rows), ki(machine.terms), ki(lm.mass),
+        ki(lm.inertia), ki(lm.com_u), ki(lm.com_v), ki(lm.origins),
+        GRAVITY if gravity else 0.0, terms.cw_int, ld_int, ld_f, tw_ptr, tw_pts,
+        terms.sp_int, terms.sp_f, terms.ts_int, terms.ts_f, terms.fr_int, terms.fr_f,
+        terms.fr_pair, len(machine.point_names),
+        *csr["lk"], *csr["geo"], *csr["pr"], *csr["cw"], ld_ptr, ld_p, *csr["sp"], *csr["ts"],
+        *csr["fr"], jpos, ki(st.blk_ptr), ki(st.rperm), ki(st.cperm), ki(st.cpl_ptr),
+        ki(st.cpl_row), ki(st.cpl_col), geo_out, ga_out,
+        Y, dSF, dSM, dFF, dGEO, dGA, dLF, dCWm, dCWa, G0)
+    worst = float(np.abs(G0).max()) / max(float(np.abs(X).max()), 1.0) if G0.size else 0.0
+
+    def full(x, shape):
+        out = np.zeros(shape + (n_p,))
+        out[..., act] = x
+        return out.reshape(batch + shape[1:] + (n_p,))
+
+    dX = full(Y, (n_d, n_phi, n_eq))
+    # the driving torque: sum of the shaft drivers' torques times their speed ratios
+    prm = np.asarray(res.params, dtype=float).reshape(n_d, -1)
+    dT = np.zeros((n_d, n_phi, n_act))
+    dT_ratio = np.zeros((n_d, n_phi, n_p))
+    for pair, row in zip(machine.pairs, st.table, strict=True):
+        if pair.kind == "driver" and pair.input == SHAFT:
+            dT += Y[:, :, row[7], :] * prm[:, None, pair.ratio_param, None]
+            dT_ratio[:, :, pair.ratio_param] += X[:, :, row[7]]
+    dT = full(dT, (n_d, n_phi)) + dT_ratio.reshape(batch + (n_phi, n_p))
+    out = dict(dT=dT, dF=full(dSF, (n_d, n_phi, 2)), dM=full(dSM, (n_d, n_phi)))
+    if shaft is not None:
+        b = _bearing_derivatives(res, Y, dFF, dGEO, geo_out, dGA, ga_out, dLF, dCWm, dCWa, sens,
+                                 act, scale)
+        for key, x in (("dBf", b[0]), ("dBr", b[1])):
+            out[key] = full(x, (n_d, n_phi, 2))
+    return DynamicsSensitivities(res, machine.parameter_names, dX, out["dT"], out["dF"],
+                                 out["dM"], out.get("dBf"), out.get("dBr"), worst)
+
+
+def _bearing_derivatives(res, Y, dFF, dGEO, geo_out, dGA, ga_out, dLF, dCWm, dCWa, sens, act,
+                         vs):
+    """d(front, rear bearing reaction)/d(active parameters), each (D, n_phi, 2, n_act): the
+    derivative of :func:`sewmech.engine.dynamics.shaft_bearings` term by term (it is sums of
+    forces and their moments, the shaft parts' dH/dt and m a, then two linear equations)."""
+    from .dynamics import FRAME, GRAVITY
+    from .sensitivity import _lanes
+
+    m = res.machine
+    shaft = m.spec.shaft
+    names = m.link_names
+    n_d, n_phi, _, n_act = Y.shape
+    n = n_d * n_phi
+    n_pt, n_links = len(m.point_names), len(m.link_names)
+    kin = res.kin
+    cp = sens._plan
+    X = res.unknowns.reshape(n_d, n_phi, -1)
+    fr = res.friction
+    dS = np.zeros((n_d, n_phi, 2, n_act))
+    dmS = np.zeros((n_d, n_phi, 2, n_act))
+    dMx, dMy, dHx, dHy = (np.zeros((n_d, n_phi, n_act)) for _ in range(4))
+
+    def add_force(dF, z):
+        dS[...] += dF
+        dMx[...] -= z * dF[:, :, 1]
+        dMy[...] += z * dF[:, :, 0]
+
+    def tangent(li, level):  # d(theta, omega or epsilon of link li) (D, n_phi, n_act)
+        q = n_pt + li
+        off, mq, sup = int(cp.layout.qoff[q]), int(cp.layout.qm[q]), cp.support[q]
+        t = np.zeros((n, n_act))
+        t[:, np.searchsorted(act, sup)] = _lanes(sens._t[level], off, mq, n) * vs ** level
+        return t.reshape(n_d, n_phi, n_act)
+
+    for lname, z in shaft.links.items():
+        li = names.index(lname)
+        for pair in m.pairs:  # (the pairs bearing_reactions sums)
+            if pair.kind == "driver" or lname not in pair.links or FRAME in pair.links:
+                continue
+            if pair.links[0] in shaft.links and pair.links[1] in shaft.links:
+                continue
+            sg = 1.0 if pair.links[1] == lname else -1.0
+            c, _ = res._columns[pair.name]
+            if pair.kind == "revolute":
+                add_force(sg * Y[:, :, c:c + 2], z)
+                continue
+            i = m.pairs.index(pair)
+            nrm = res._geometry[1].reshape(n_d, n_phi, -1, 2)[:, :, i]
+            dn = dGEO[:, :, geo_out[i], 2:4]
+            dF = Y[:, :, None, c] * nrm[..., None] + X[:, :, c, None, None] * dn
+            if fr is not None and pair.name in fr.pairs:
+                f = fr.pairs.index(pair.name)
+                t = np.stack([nrm[..., 1], -nrm[..., 0]], axis=-1)
+                dt = np.stack([dn[:, :, 1], -dn[:, :, 0]], axis=2)
+                FF = fr.force.reshape(n_d, n_phi, -1)[:, :, f]
+                dF = dF + dFF[:, :, None, f] * t[..., None] + FF[..., None, None] * dt
+            add_force(sg * dF, z)
+        for k, li_load in enumerate(res.load_links):
+            if li_load == li:
+                add_force(dLF[:, :, k], z)
+        mp = res.mass_props.get(lname)
+        if mp is None:
+            continue
+        if not np.isfinite(mp.inertia).all():
+            raise ValueError(f"link '{lname}' turns with the upper shaft but its [masses] table"
+                             " gives only inertia_zz: the bearing reactions need its products"
+                             " of inertia (give the full inertia tensor or solids)")
+        th, w, e = (x.reshape(n_d, n_phi, n_links)[:, :, li, None]
+                    for x in (kin.theta, kin.omega, kin.epsilon))
+        dth, dw, de = (tangent(li, level) for level in range(3))
+        c, s = np.cos(th), np.sin(th)
+        J = mp.about(np.zeros(3))
+        jxz = c * J[0, 2] - s * J[1, 2]
+        jyz = s * J[0, 2] + c * J[1, 2]
+        djxz = (-s * J[0, 2] - c * J[1, 2]) * dth
+        djyz = (c * J[0, 2] - s * J[1, 2]) * dth
+        dHx += 1e-3 * (djxz * e + jxz * de - djyz * w * w - 2.0 * jyz * w * dw)
+        dHy += 1e-3 * (djyz * e + jyz * de + djxz * w * w + 2.0 * jxz * w * dw)
+        dmS += 1e-3 * mp.mass * dGA[:, :, ga_out[li]]
+    cw = res.counterweights
+    for k in range(0 if cw is None else len(cw.names)):
+        if names[cw.links[k]] not in shaft.links:
+            continue
+        mc = cw.mass.reshape(n_d, -1)[:, None, k, None]  # (D, 1, 1)
+        a = cw.a.reshape(n_d, n_phi, -1, 2)[:, :, k]  # (D, n_phi, 2)
+        dm = dCWm[:, None, k]  # (D, 1, n_act)
+        dma = dm[:, :, None, :] * a[..., None] + mc[..., None] * dCWa[:, :, k]
+        z = cw.z[k]
+        dmS += 1e-3 * dma
+        dHx += -1e-3 * z * dma[:, :, 1]
+        dHy += 1e-3 * z * dma[:, :, 0]
+        if res.gravity:
+            dS[:, :, 1] -= dm * GRAVITY
+            dMx += z * dm * GRAVITY
+    need = dmS - dS
+    zf, zr = shaft.bearings["front"], shaft.bearings["rear"]
+    bfy = (dHx - dMx + zr * need[:, :, 1]) / (zr - zf)
+    bfx = (dHy - dMy - zr * need[:, :, 0]) / (zf - zr)
+    front = np.stack([bfx, bfy], axis=2)
+    return front, need - front

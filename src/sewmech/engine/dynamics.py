@@ -564,16 +564,33 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
     components of dH/dt = (J_xz alpha - J_yz omega^2, J_yz alpha + J_xz omega^2) with the
     products of inertia J_xz, J_yz of the turning parts about that point.
     """
-    machine = res.machine
+    kin = res.kin
+    cw = res.counterweights
+    return shaft_bearings(
+        res.machine, res.pairs, res.gravity, res.mass_props, res.load_links,
+        res.total_force, lambda k: res.load_force[..., k, :],
+        lambda li: (kin.theta[..., li], kin.omega[..., li], kin.epsilon[..., li],
+                    res.com_a[..., li, :]),
+        None if cw is None else (cw.names, cw.links, cw.z,
+                                 lambda k: (cw.mass[..., k, None], cw.a[..., k, :])),
+        kin.theta.shape[:-1], np.result_type(kin.theta, res.com_a))
+
+
+def shaft_bearings(machine: Machine, pairs, gravity: bool, mass_props: dict, load_links,
+                   total_force, load_force, link_motion, counterweights, bshape: tuple,
+                   dtype) -> BearingReactions:
+    """:func:`bearing_reactions` from what it reads, each asked for when needed:
+    ``total_force(pair name)`` (.., 2) N, ``load_force(k)`` (.., 2) N, ``link_motion(link
+    index)`` (theta, omega, epsilon, centre-of-mass acceleration) of a shaft link, and
+    ``counterweights`` (names, links, z, ``k -> (mass (.., 1), acceleration (.., 2))``) or
+    None; arrays of shape ``bshape`` (+ components) and type ``dtype`` (complex for the
+    complex step of :mod:`sewmech.engine.dynamic_sensitivity`)."""
     shaft = machine.spec.shaft
     if shaft is None:
         raise ValueError(f"machine '{machine.name}' has no [shaft] table: give the z of its"
                          " cranks' planes and of its two bearings")
-    kin = res.kin
     names = machine.link_names
-    bshape = kin.theta.shape[:-1]
-    # (complex for the complex step of sewmech.engine.dynamic_sensitivity)
-    dt = np.result_type(kin.theta, res.com_a)
+    dt = dtype
     S = np.zeros(bshape + (2,), dtype=dt)  # sum of forces from outside the shaft (not the
     Mx = np.zeros(bshape, dtype=dt)  # bearings), their moments about the axis point, N mm
     My = np.zeros(bshape, dtype=dt)
@@ -584,54 +601,54 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
         li = names.index(lname)
         # pairs of this crank with links that are not the frame (the frame's share is the
         # bearings' job) and not the shaft itself
-        for pair in res.pairs:
+        for pair in pairs:
             if pair.kind == "driver" or lname not in pair.links or FRAME in pair.links:
                 continue
             if pair.links[0] in shaft.links and pair.links[1] in shaft.links:
                 continue
-            F = res.total_force(pair.name) * (1.0 if pair.links[1] == lname else -1.0)
+            F = total_force(pair.name) * (1.0 if pair.links[1] == lname else -1.0)
             S += F
             Mx += -z * F[..., 1]
             My += z * F[..., 0]
-        for k, li_load in enumerate(res.load_links):
+        for k, li_load in enumerate(load_links):
             if li_load == li:
-                F = res.load_force[..., k, :]
+                F = load_force(k)
                 S += F
                 Mx += -z * F[..., 1]
                 My += z * F[..., 0]
-        mp = res.mass_props.get(lname)
+        mp = mass_props.get(lname)
         if mp is None:
             continue
         if not np.isfinite(mp.inertia).all():
             raise ValueError(f"link '{lname}' turns with the upper shaft but its [masses] table"
                              " gives only inertia_zz: the bearing reactions need its products"
                              " of inertia (give the full inertia tensor or solids)")
-        th = kin.theta[..., li]
+        th, w, e, a = link_motion(li)
         c, s = np.cos(th), np.sin(th)
         J = mp.about(np.zeros(3))  # about the axis point at z = 0
         zc = mp.com[2]
-        w, e = kin.omega[..., li], kin.epsilon[..., li]
         jxz = c * J[0, 2] - s * J[1, 2]
         jyz = s * J[0, 2] + c * J[1, 2]
         dHx += 1e-3 * (jxz * e - jyz * w * w)
         dHy += 1e-3 * (jyz * e + jxz * w * w)
         m = mp.mass
-        a = res.com_a[..., li, :]
         mass_S += 1e-3 * m * a
-        if res.gravity:
+        if gravity:
             S[..., 1] -= m * GRAVITY
             Mx += zc * m * GRAVITY
-    cw = res.counterweights
-    for k in range(0 if cw is None else len(cw.names)):
-        if names[cw.links[k]] not in shaft.links:
-            continue
-        m, z, a = cw.mass[..., k, None], cw.z[k], cw.a[..., k, :]  # a point mass at plane z
-        mass_S += 1e-3 * m[..., None] * a
-        dHx += -1e-3 * z * m * a[..., 1]  # dH/dt = r x m a, about the axis point
-        dHy += 1e-3 * z * m * a[..., 0]
-        if res.gravity:
-            S[..., 1] -= m * GRAVITY
-            Mx += z * m * GRAVITY
+    if counterweights is not None:
+        cw_names, cw_links, cw_z, cw_of = counterweights
+        for k in range(len(cw_names)):
+            if names[cw_links[k]] not in shaft.links:
+                continue
+            m, a = cw_of(k)  # a point mass at plane z
+            z = cw_z[k]
+            mass_S += 1e-3 * m[..., None] * a
+            dHx += -1e-3 * z * m * a[..., 1]  # dH/dt = r x m a, about the axis point
+            dHy += 1e-3 * z * m * a[..., 0]
+            if gravity:
+                S[..., 1] -= m * GRAVITY
+                Mx += z * m * GRAVITY
     # bearings: B_f + B_r + S = sum m a ; z x B terms + M = dH/dt
     need = mass_S - S
     zf, zr = shaft.bearings["front"], shaft.bearings["rear"]

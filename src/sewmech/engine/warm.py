@@ -4,9 +4,10 @@ numba compiles a kernel on its first call and keeps the machine code on disk (be
 sources, or in ``NUMBA_CACHE_DIR``). ``make install`` (and so ``make demo`` and ``make test``)
 runs this right after installing: it compiles the kinematics interpreter and the force solver,
 which nearly every command calls first, in about 45 s of CPU from an empty cache on the busy
-2-core machine (35-40 s user; benchmarks/results/compile.json). The two big kernels that only some commands call, the design
-sensitivities' tangent kernel (sensitivities, tolerances, gradients; about 40 s) and the run in
-time's integrator (about 10 s), are compiled by the first command that needs them, which says
+2-core machine (35-40 s user; benchmarks/results/compile.json). The big kernels that only some commands call, the design
+sensitivities' tangent kernel (sensitivities, tolerances, gradients; about 40 s), the force
+analysis' derivatives by the design (dynamic gradients; about 20 s) and the run in time's
+integrator (about 10 s), are compiled by the first command that needs them, which says
 so on stderr (:mod:`sewmech.engine._compiling`); ``--all`` compiles them here too (``make
 test`` does, so that no test meets a compile). It says what it compiles, step by step, so that
 a silent ``make`` is never mistaken for a hung one. Running it again costs about a second (it
@@ -29,6 +30,7 @@ STEPS = (
     ("the force directions of the pairs", "pairs", True),
     ("friction in the pairs", "friction", True),
     ("the design sensitivities' tangent kernel", "sensitivities", False),
+    ("the force analysis' derivatives by the design", "force_tangents", False),
     ("the run in time's integrator", "run", False),
 )
 
@@ -65,6 +67,10 @@ def warm(progress=None, *, everything: bool = False) -> float:
         elif step == "sensitivities":  # one kernel for every level, every unit type
             sensitivities(m, phi)
             sensitivities(m, phi, rates=True)
+        elif step == "force_tangents":  # one kernel for every kind of term
+            from .dynamic_sensitivity import dynamics_sensitivities
+
+            dynamics_sensitivities(m, phi)
         else:  # a short run at a low speed: the tables, the integrator, the samples
             from .running import run
 
@@ -108,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
 
     if everything:
         say("sewmech: compiling every numerical kernel once, so that no command waits for the"
-            " compiler later (about 1.5 min of CPU; each step is listed as it is compiled)")
+            " compiler later (about 2 min of CPU; each step is listed as it is compiled)")
     else:
         say("sewmech: compiling the numerical kernels the commands call first, so that they"
             " need not wait for the compiler (about 45 s of CPU; each step is listed as it is"
