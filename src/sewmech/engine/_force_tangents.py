@@ -67,13 +67,11 @@ LAW_ELASTIC = 2
 
 
 @njit(inline="always", **_OPTS)
-def _t(T, n, qoff, qm, loc, q, comp, p):
-    """The tangent of quantity q (component comp of a point) by parameter p at position n (0
-    outside its support)."""
-    k = loc[q, p]
-    if k < 0:
-        return 0.0
-    return T[n // LANES, qoff[q] + comp * qm[q] + k, n % LANES]
+def _d(DT, level, q, comp, j):
+    """The tangent of quantity q (component comp of a point) at level 0, 1, 2 (position, rate,
+    acceleration) by active parameter j, at the position being worked on (0 outside the
+    quantity's support)."""
+    return DT[level, q, comp, j]
 
 
 @njit(inline="always", **_OPTS)
@@ -88,7 +86,7 @@ def _zsqrt(x):
 
 @njit(**_OPTS)
 def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, dtravel, on,
-                   T0, T1, T2, qoff, qm, loc, vs, as_,
+                   T0, T1, T2, qm, ent_q, ent_off, ent_j, vs, as_,
                    pairs, pair_angle, cam_rows, terms, mass, inertia, com_u, com_v, origins,
                    gravity, cw_int, ld_int, ld_f, tw_ptr, tw_pts, sp_int, sp_f, ts_int, ts_f,
                    fr_int, fr_f, fr_pair, n_pt,
@@ -96,7 +94,7 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                    sp_ptr, sp_p, ts_ptr, ts_p, fr_ptr, fr_p, jpos,
                    blk_ptr, rperm, cperm, cpl_ptr, cpl_row, cpl_col,
                    geo_out, ga_out,
-                   Y, dSF, dSM, dFF, dGEO, dGA, dLF, dCWm, dCWa, G0):
+                   fr_out, act, dX, dSF, dSM, dFF, dGEO, dGA, dLF, dCWm, dCWa, G0):
     """The derivatives of the force analysis of designs d0 <= d < d1 by the active parameters
     (compact columns: parameter p is column jpos[p]); see the module doc.
 
@@ -105,13 +103,17 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
     unknowns, travel and dtravel (D, n_phi, n_loads[, n_act]) the elastic loads' travel and
     its derivative, on (D, n_phi, n_loads) where each load acts. T0, T1, T2: the compact
     tangents of positions, rates and accelerations (at the file's speed: the rates are scaled
-    by vs, the accelerations by as_), quantity q at qoff[q] (points: x then y, qm[q] each),
-    loc (n_q, n_params) the place of each parameter in each quantity's support (-1: none).
+    by vs, the accelerations by as_; points: x then y, qm[q] entries each); ent_q, ent_off,
+    ent_j: every support entry an active parameter has, its quantity, its offset in T's rows
+    and the parameter's column. Each position's entries are spread into a dense scratch
+    (quantity, component, column) first: the terms then read their tangents in column order.
     The machine's tables as the force kernel and :mod:`sewmech.engine.dynamic_sensitivity`
     lay them out; the CSR lists (*_ptr, *_p) give the parameters each term's support holds.
 
-    Fills Y (D, n_phi, n_eq, n_act) dX/dp; dSF (.., 2, n_act), dSM the shaking force and
-    moment's; dFF (.., n_fr, n_act) each frictional pair's friction (total); dGEO (.., n_geo,
+    Fills dX (D, n_phi, n_eq, n_params) dX/dp at the active parameters' columns act (its
+    other columns are left as they are); dSF (.., 2, n_act), dSM the shaking force and
+    moment's; dFF (.., n_fr_out, n_act) the friction (its total derivative) of the frictional
+    pairs fr_out numbers (-1: not asked); dGEO (.., n_geo,
     4, n_act) the force point and direction of the pairs geo_out numbers (-1: not asked);
     dGA (.., n_ga, 2, n_act) the centre-of-mass accelerations of the links ga_out numbers;
     dLF (.., n_loads, 2, n_act) the loads' forces; dCWm (D, n_cw, n_act), dCWa (.., n_cw, 2,
@@ -121,7 +123,8 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
     n_eq = X.shape[2]
     n_links = mass.shape[0]
     n_pairs = pairs.shape[0]
-    n_act = Y.shape[3]
+    n_act = act.shape[0]
+    Yk = np.zeros((n_eq, n_act))  # this position's dX/dp, active columns
     n_fr = fr_int.shape[0]
     ql = n_pt  # the first link quantity
     # per position scratch: tangents of the centres of mass and of the pairs' geometry, the
@@ -140,13 +143,31 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
     for f in range(n_fr):
         frpos[fr_pair[f]] = f
     dfdx = np.zeros((n_fr, 2))  # d(friction)/d(its pair's unknowns)
+    tFF = np.zeros((n_fr, n_act))  # d(friction)/dp at fixed unknowns
     g = np.zeros(n_eq)
+    n_q = qm.shape[0]
+    DT = np.zeros((3, n_q, 2, n_act))  # this position's tangents (entries outside the
+    # supports are never written: they stay 0)
     camL = np.zeros(cam_rows.shape[0])  # each cam loop term's length, cos and sin
     camC = np.zeros(cam_rows.shape[0])
     camS = np.zeros(cam_rows.shape[0])
     for d in range(d0, d1):
         for k in range(n_phi):
             n = d * n_phi + k
+            nb = n // LANES
+            lane = n % LANES
+            for e in range(ent_q.shape[0]):
+                q = ent_q[e]
+                j = ent_j[e]
+                o = ent_off[e]
+                DT[0, q, 0, j] = T0[nb, o, lane]
+                DT[1, q, 0, j] = vs * T1[nb, o, lane]
+                DT[2, q, 0, j] = as_ * T2[nb, o, lane]
+                if q < n_pt:
+                    o += qm[q]
+                    DT[0, q, 1, j] = T0[nb, o, lane]
+                    DT[1, q, 1, j] = vs * T1[nb, o, lane]
+                    DT[2, q, 1, j] = as_ * T2[nb, o, lane]
             R[:, :] = 0.0
             J[:, :] = 0.0
             g[:] = 0.0
@@ -174,20 +195,20 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                 for e in range(lk_ptr[li], lk_ptr[li + 1]):
                     p = lk_p[e]
                     j = jpos[p]
-                    dth = _t(T0, n, qoff, qm, loc, ql + li, 0, p)
-                    dom = vs * _t(T1, n, qoff, qm, loc, ql + li, 0, p)
-                    dep = as_ * _t(T2, n, qoff, qm, loc, ql + li, 0, p)
+                    dth = _d(DT, 0, ql + li, 0, j)
+                    dom = _d(DT, 1, ql + li, 0, j)
+                    dep = _d(DT, 2, ql + li, 0, j)
                     drx = -ry * dth
                     dry = rx * dth
-                    dgpx = _t(T0, n, qoff, qm, loc, o, 0, p) + drx
-                    dgpy = _t(T0, n, qoff, qm, loc, o, 1, p) + dry
+                    dgpx = _d(DT, 0, o, 0, j) + drx
+                    dgpy = _d(DT, 0, o, 1, j) + dry
                     tGP[li, 0, j] = dgpx
                     tGP[li, 1, j] = dgpy
-                    tGV[li, 0, j] = vs * _t(T1, n, qoff, qm, loc, o, 0, p) - dom * ry - om * dry
-                    tGV[li, 1, j] = vs * _t(T1, n, qoff, qm, loc, o, 1, p) + dom * rx + om * drx
-                    dgax = (as_ * _t(T2, n, qoff, qm, loc, o, 0, p) - dep * ry - ep * dry
+                    tGV[li, 0, j] = _d(DT, 1, o, 0, j) - dom * ry - om * dry
+                    tGV[li, 1, j] = _d(DT, 1, o, 1, j) + dom * rx + om * drx
+                    dgax = (_d(DT, 2, o, 0, j) - dep * ry - ep * dry
                             - 2.0 * om * dom * rx - om * om * drx)
-                    dgay = (as_ * _t(T2, n, qoff, qm, loc, o, 1, p) + dep * rx + ep * drx
+                    dgay = (_d(DT, 2, o, 1, j) + dep * rx + ep * drx
                             - 2.0 * om * dom * ry - om * om * dry)
                     tGA[li, 0, j] = dgax
                     tGA[li, 1, j] = dgay
@@ -249,17 +270,17 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                             t = cam_rows[r]
                             sg = float(terms[t, 2])
                             if terms[t, 0] == TERM_POINT:
-                                sx += sg * _t(T0, n, qoff, qm, loc, terms[t, 4], 0, p)
-                                sy += sg * _t(T0, n, qoff, qm, loc, terms[t, 4], 1, p)
+                                sx += sg * _d(DT, 0, terms[t, 4], 0, j)
+                                sy += sg * _d(DT, 0, terms[t, 4], 1, j)
                                 continue
                             if terms[t, 3] == SRC_PARAM:
                                 dL = 1.0 if terms[t, 4] == p else 0.0
                             else:
-                                dL = _t(T0, n, qoff, qm, loc, ql + n_links + terms[t, 4], 0, p)
+                                dL = _d(DT, 0, ql + n_links + terms[t, 4], 0, j)
                             if terms[t, 5] == SRC_LINK:
-                                da = _t(T0, n, qoff, qm, loc, ql + terms[t, 6], 0, p)
+                                da = _d(DT, 0, ql + terms[t, 6], 0, j)
                             else:
-                                da = _t(T0, n, qoff, qm, loc, ql + n_links + terms[t, 6], 0, p)
+                                da = _d(DT, 0, ql + n_links + terms[t, 6], 0, j)
                             if terms[t, 7] == p:
                                 da += 1.0
                             L = camL[r]
@@ -269,15 +290,15 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                         dxx = -sign * sx
                         dxy = -sign * sy
                     else:
-                        dxx = _t(T0, n, qoff, qm, loc, pairs[i, 3], 0, p)
-                        dxy = _t(T0, n, qoff, qm, loc, pairs[i, 3], 1, p)
+                        dxx = _d(DT, 0, pairs[i, 3], 0, j)
+                        dxy = _d(DT, 0, pairs[i, 3], 1, j)
                     tGEO[i, 0, j] = dxx
                     tGEO[i, 1, j] = dxy
                     if kind != PAIR_REVOLUTE:
                         if pairs[i, 4] >= 0:
-                            da = _t(T0, n, qoff, qm, loc, ql + pairs[i, 4], 0, p)
+                            da = _d(DT, 0, ql + pairs[i, 4], 0, j)
                         else:
-                            da = _t(T0, n, qoff, qm, loc, ql + n_links + pairs[i, 5], 0, p)
+                            da = _d(DT, 0, ql + n_links + pairs[i, 5], 0, j)
                         if pairs[i, 6] == p:
                             da += 1.0
                         tGEO[i, 2, j] = -fy * da
@@ -350,14 +371,13 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                         cu = z1
                         cv = z2
                     tg = 1.0 if p >= 0 else 0.0
-                    pp = p if p >= 0 else 0
-                    zth = _z(TH[d, k, li], tg * _t(T0, n, qoff, qm, loc, ql + li, 0, pp))
-                    zom = _z(OM[d, k, li], tg * vs * _t(T1, n, qoff, qm, loc, ql + li, 0, pp))
-                    zep = _z(EP[d, k, li], tg * as_ * _t(T2, n, qoff, qm, loc, ql + li, 0, pp))
-                    px = _z(P[d, k, o, 0], tg * _t(T0, n, qoff, qm, loc, o, 0, pp))
-                    py = _z(P[d, k, o, 1], tg * _t(T0, n, qoff, qm, loc, o, 1, pp))
-                    zax = _z(A[d, k, o, 0], tg * as_ * _t(T2, n, qoff, qm, loc, o, 0, pp))
-                    zay = _z(A[d, k, o, 1], tg * as_ * _t(T2, n, qoff, qm, loc, o, 1, pp))
+                    zth = _z(TH[d, k, li], tg * _d(DT, 0, ql + li, 0, j))
+                    zom = _z(OM[d, k, li], tg * _d(DT, 1, ql + li, 0, j))
+                    zep = _z(EP[d, k, li], tg * _d(DT, 2, ql + li, 0, j))
+                    px = _z(P[d, k, o, 0], tg * _d(DT, 0, o, 0, j))
+                    py = _z(P[d, k, o, 1], tg * _d(DT, 0, o, 1, j))
+                    zax = _z(A[d, k, o, 0], tg * _d(DT, 2, o, 0, j))
+                    zay = _z(A[d, k, o, 1], tg * _d(DT, 2, o, 1, j))
                     gx = _z(GP[d, k, li, 0], tGP[li, 0, j] if p >= 0 else 0.0)
                     gy = _z(GP[d, k, li, 1], tGP[li, 1, j] if p >= 0 else 0.0)
                     zc = cmath.cos(zth)
@@ -407,12 +427,11 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                     p = -1 if e < ld_ptr[lj] else ld_p[e]
                     j = jpos[p] if p >= 0 else 0
                     tg = 1.0 if p >= 0 else 0.0
-                    pp = p if p >= 0 else 0
-                    px = _z(P[d, k, pi, 0], tg * _t(T0, n, qoff, qm, loc, pi, 0, pp))
-                    py = _z(P[d, k, pi, 1], tg * _t(T0, n, qoff, qm, loc, pi, 1, pp))
+                    px = _z(P[d, k, pi, 0], tg * _d(DT, 0, pi, 0, j))
+                    py = _z(P[d, k, pi, 1], tg * _d(DT, 0, pi, 1, j))
                     if law == LAW_RESISTIVE:
-                        vx = _z(V[d, k, pi, 0], tg * vs * _t(T1, n, qoff, qm, loc, pi, 0, pp))
-                        vy = _z(V[d, k, pi, 1], tg * vs * _t(T1, n, qoff, qm, loc, pi, 1, pp))
+                        vx = _z(V[d, k, pi, 0], tg * _d(DT, 1, pi, 0, j))
+                        vy = _z(V[d, k, pi, 1], tg * _d(DT, 1, pi, 1, j))
                         if fixed:
                             x = vx * ux + vy * uy
                             zf = -F0 * x / _zsqrt(x * x + sm * sm)
@@ -431,8 +450,8 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                             zy = _z(0.0, 0.0)
                             for tq in range(tw_ptr[lj], tw_ptr[lj + 1]):
                                 qi = tw_pts[tq]
-                                ex = _z(P[d, k, qi, 0], tg * _t(T0, n, qoff, qm, loc, qi, 0, pp)) - px
-                                ey = _z(P[d, k, qi, 1], tg * _t(T0, n, qoff, qm, loc, qi, 1, pp)) - py
+                                ex = _z(P[d, k, qi, 0], tg * _d(DT, 0, qi, 0, j)) - px
+                                ey = _z(P[d, k, qi, 1], tg * _d(DT, 0, qi, 1, j)) - py
                                 q = _zsqrt(ex * ex + ey * ey)
                                 zx += ex / q
                                 zy += ey / q
@@ -474,15 +493,14 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                     p = -1 if e < sp_ptr[si] else sp_p[e]
                     j = jpos[p] if p >= 0 else 0
                     tg = 1.0 if p >= 0 else 0.0
-                    pp = p if p >= 0 else 0
-                    ax_ = _z(P[d, k, pa, 0], tg * _t(T0, n, qoff, qm, loc, pa, 0, pp))
-                    ay_ = _z(P[d, k, pa, 1], tg * _t(T0, n, qoff, qm, loc, pa, 1, pp))
-                    bx_ = _z(P[d, k, pb, 0], tg * _t(T0, n, qoff, qm, loc, pb, 0, pp))
-                    by_ = _z(P[d, k, pb, 1], tg * _t(T0, n, qoff, qm, loc, pb, 1, pp))
-                    dvx = (_z(V[d, k, pb, 0], tg * vs * _t(T1, n, qoff, qm, loc, pb, 0, pp))
-                           - _z(V[d, k, pa, 0], tg * vs * _t(T1, n, qoff, qm, loc, pa, 0, pp)))
-                    dvy = (_z(V[d, k, pb, 1], tg * vs * _t(T1, n, qoff, qm, loc, pb, 1, pp))
-                           - _z(V[d, k, pa, 1], tg * vs * _t(T1, n, qoff, qm, loc, pa, 1, pp)))
+                    ax_ = _z(P[d, k, pa, 0], tg * _d(DT, 0, pa, 0, j))
+                    ay_ = _z(P[d, k, pa, 1], tg * _d(DT, 0, pa, 1, j))
+                    bx_ = _z(P[d, k, pb, 0], tg * _d(DT, 0, pb, 0, j))
+                    by_ = _z(P[d, k, pb, 1], tg * _d(DT, 0, pb, 1, j))
+                    dvx = (_z(V[d, k, pb, 0], tg * _d(DT, 1, pb, 0, j))
+                           - _z(V[d, k, pa, 0], tg * _d(DT, 1, pa, 0, j)))
+                    dvy = (_z(V[d, k, pb, 1], tg * _d(DT, 1, pb, 1, j))
+                           - _z(V[d, k, pa, 1], tg * _d(DT, 1, pa, 1, j)))
                     ex = bx_ - ax_
                     ey = by_ - ay_
                     zL = _zsqrt(ex * ex + ey * ey)
@@ -527,10 +545,10 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                 for e in range(ts_ptr[si], ts_ptr[si + 1]):
                     p = ts_p[e]
                     j = jpos[p]
-                    drel = (_t(T0, n, qoff, qm, loc, ql + lb, 0, p)
-                            - _t(T0, n, qoff, qm, loc, ql + la, 0, p))
-                    dw = vs * (_t(T1, n, qoff, qm, loc, ql + lb, 0, p)
-                               - _t(T1, n, qoff, qm, loc, ql + la, 0, p))
+                    drel = (_d(DT, 0, ql + lb, 0, j)
+                            - _d(DT, 0, ql + la, 0, j))
+                    dw = (_d(DT, 1, ql + lb, 0, j)
+                          - _d(DT, 1, ql + la, 0, j))
                     dM = -(ts_f[si, 0] * drel + ts_f[si, 2] * dw)
                     if lb > 0:
                         R[3 * (lb - 1) + 2, j] -= dM
@@ -570,14 +588,14 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                         J[3 * (link - 1) + 2, c0] += sg * dfdx[f, 0]
                         J[3 * (link - 1) + 2, c0 + 1] += sg * dfdx[f, 1]
                     for j in range(n_act):
-                        dFF[d, k, f, j] = 0.0
+                        tFF[f, j] = 0.0
                     for e in range(fr_ptr[f], fr_ptr[f + 1]):
                         p = fr_p[e]
                         j = jpos[p]
-                        dw = vs * (_t(T1, n, qoff, qm, loc, ql + lb, 0, p)
-                                   - _t(T1, n, qoff, qm, loc, ql + la, 0, p))
+                        dw = (_d(DT, 1, ql + lb, 0, j)
+                              - _d(DT, 1, ql + la, 0, j))
                         dm = kw * dw
-                        dFF[d, k, f, j] = dm
+                        tFF[f, j] = dm
                         if lb > 0:
                             R[3 * (lb - 1) + 2, j] -= dm
                         if la > 0:
@@ -622,7 +640,7 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                     J[r + 1, c0] += sg * ty * dfdx[f, 0]
                     J[r + 2, c0] += sg * arm * dfdx[f, 0]
                 for j in range(n_act):
-                    dFF[d, k, f, j] = 0.0
+                    tFF[f, j] = 0.0
                 for e in range(fr_ptr[f], fr_ptr[f + 1]):
                     p = fr_p[e]
                     j = jpos[p]
@@ -633,13 +651,13 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                     dvbx = dvby = drbx = drby = 0.0
                     dvax = dvay = drax = dray = 0.0
                     if lb > 0:
-                        dom = vs * _t(T1, n, qoff, qm, loc, ql + lb, 0, p)
+                        dom = _d(DT, 1, ql + lb, 0, j)
                         drbx = dpx - tGP[lb, 0, j]
                         drby = dpy - tGP[lb, 1, j]
                         dvbx = tGV[lb, 0, j] - dom * rby - omb * drby
                         dvby = tGV[lb, 1, j] + dom * rbx + omb * drbx
                     if la > 0:
-                        dom = vs * _t(T1, n, qoff, qm, loc, ql + la, 0, p)
+                        dom = _d(DT, 1, ql + la, 0, j)
                         drax = dpx - tGP[la, 0, j]
                         dray = dpy - tGP[la, 1, j]
                         dvax = tGV[la, 0, j] - dom * ray - oma * dray
@@ -647,7 +665,7 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                     dv = (dtx * (vbx - vax) + tx * (dvbx - dvax) + dty * (vby - vay)
                           + ty * (dvby - dvay))
                     df = kv * dv
-                    dFF[d, k, f, j] = df
+                    tFF[f, j] = df
                     for side in range(2):
                         link = lb if side == 0 else la
                         if link == 0:
@@ -681,7 +699,7 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                     w = J[rperm[r0 + a], cc]
                     if w != 0.0:
                         for j in range(n_act):
-                            B[a, j] -= w * Y[d, k, cc, j]
+                            B[a, j] -= w * Yk[cc, j]
                 # LU with partial pivoting, applied to the right-hand sides as it goes
                 for a in range(nb):
                     best = a
@@ -715,14 +733,20 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                     cy = cperm[r0 + a]
                     for j in range(n_act):
                         B[a, j] *= inv
-                        Y[d, k, cy, j] = B[a, j]
-            # ---- the friction's total derivative: through the unknowns too -------------------
+                        Yk[cy, j] = B[a, j]
+                    for j in range(n_act):
+                        dX[d, k, cy, act[j]] = B[a, j]
+            # ---- the friction's total derivative (through the unknowns too), where asked -----
             for f in range(n_fr):
+                fo = fr_out[f]
+                if fo < 0:
+                    continue
                 c0 = fr_int[f, 3]
                 if fr_int[f, 0] == PAIR_REVOLUTE:
                     for j in range(n_act):
-                        dFF[d, k, f, j] += dfdx[f, 0] * Y[d, k, c0, j] + dfdx[f, 1] * Y[d, k, c0 + 1, j]
+                        dFF[d, k, fo, j] = (tFF[f, j] + dfdx[f, 0] * Yk[c0, j]
+                                            + dfdx[f, 1] * Yk[c0 + 1, j])
                 else:
                     for j in range(n_act):
-                        dFF[d, k, f, j] += dfdx[f, 0] * Y[d, k, c0, j]
+                        dFF[d, k, fo, j] = tFF[f, j] + dfdx[f, 0] * Yk[c0, j]
     return 0

@@ -705,6 +705,9 @@ class _Terms:
     fr_f: np.ndarray
     fr_pair: np.ndarray
     used: frozenset
+    ent_q: np.ndarray  # every support entry: its quantity, offset in the rows, parameter
+    ent_off: np.ndarray
+    ent_p: np.ndarray
 
 
 def _csr(sets) -> tuple[np.ndarray, np.ndarray]:
@@ -794,13 +797,27 @@ def _terms(machine: Machine) -> _Terms:
              "fr": friction}
     used = frozenset().union(*(x for v in lists.values() for x in v))
     used |= {p.ratio_param for p in machine.pairs if p.kind == "driver" and p.input == SHAFT}
-    out = _Terms(loc, np.asarray(lay.qoff, dtype=np.int64), np.asarray(lay.qm, dtype=np.int64),
+    qoff = np.asarray(lay.qoff, dtype=np.int64)
+    ent_q = np.concatenate([np.full(len(s), q, dtype=np.int64)
+                            for q, s in enumerate(plan.support)])
+    ent_off = np.concatenate([qoff[q] + np.arange(len(s), dtype=np.int64)
+                              for q, s in enumerate(plan.support)])
+    ent_p = np.concatenate([np.asarray(s, dtype=np.int64) for s in plan.support])
+    out = _Terms(loc, qoff, np.asarray(lay.qm, dtype=np.int64),
                  link_sup, lists, cw_int, sp_int, sp_f, ts_int, ts_f, fr_int, fr_f, fr_pair,
-                 frozenset(used))
+                 frozenset(used), ent_q, ent_off, ent_p)
     for a in (out.loc, out.qoff, out.qm, out.cw_int, out.sp_int, out.sp_f, out.ts_int, out.ts_f,
-              out.fr_int, out.fr_f, out.fr_pair):
+              out.fr_int, out.fr_f, out.fr_pair, out.ent_q, out.ent_off, out.ent_p):
         a.setflags(write=False)
     return out
+
+
+def _entries(terms: _Terms, jpos: np.ndarray) -> tuple:
+    """Every support entry of an active parameter: its quantity, its offset in the compact
+    tangents' rows and the parameter's active column (the kernel's ent_q, ent_off, ent_j)."""
+    j = jpos[terms.ent_p]
+    keep = j >= 0
+    return terms.ent_q[keep], terms.ent_off[keep], j[keep]
 
 
 def _load_tables(plan: DynamicsPlan, terms: _Terms, travel_sup: list) -> tuple:
@@ -958,10 +975,15 @@ def dynamics_sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLik
     n_eq = plan.structure.pattern.shape[0]
     n_fr = len(terms.fr_int)
     n_cw = len(terms.cw_int)
-    Y = np.empty((n_d, n_phi, n_eq, n_act))
+    dX = np.zeros((n_d, n_phi, n_eq, n_p))  # (the kernel fills the active columns)
     dSF = np.empty((n_d, n_phi, 2, n_act))
     dSM = np.empty((n_d, n_phi, n_act))
-    dFF = np.zeros((n_d, n_phi, n_fr, n_act))
+    # the friction the bearings read: the shaft's sliding pairs'
+    fr_out = np.full(n_fr, -1, dtype=np.int64)
+    for f, i in enumerate(terms.fr_pair):
+        if geo_out[i] >= 0:
+            fr_out[f] = int((fr_out >= 0).sum())
+    dFF = np.zeros((n_d, n_phi, int((fr_out >= 0).sum()), n_act))
     dGEO = np.zeros((n_d, n_phi, n_geo, 4, n_act))
     dGA = np.zeros((n_d, n_phi, n_ga, 2, n_act))
     dLF = np.zeros((n_d, n_phi, n_ld, 2, n_act))
@@ -979,7 +1001,7 @@ def dynamics_sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLik
         0, n_d, s["P"], flat(kin.v), flat(kin.a), flat(kin.theta), flat(kin.omega),
         flat(kin.epsilon), flat(kin.q), ki(np.asarray(res.params, dtype=float).reshape(n_d, -1)),
         flat(res.com_p), flat(res.com_v), flat(res.com_a), X, travel, dtravel, on,
-        *(ki(t) for t in sens._t), terms.qoff, terms.qm, terms.loc, scale, scale * scale,
+        *(ki(t) for t in sens._t), terms.qm, *_entries(terms, jpos), scale, scale * scale,
         ki(st.table), ki(st.angles), ki(st.cam_rows), ki(machine.terms), ki(lm.mass),
         ki(lm.inertia), ki(lm.com_u), ki(lm.com_v), ki(lm.origins),
         GRAVITY if gravity else 0.0, terms.cw_int, ld_int, ld_f, tw_ptr, tw_pts,
@@ -987,8 +1009,8 @@ def dynamics_sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLik
         terms.fr_pair, len(machine.point_names),
         *csr["lk"], *csr["geo"], *csr["pr"], *csr["cw"], ld_ptr, ld_p, *csr["sp"], *csr["ts"],
         *csr["fr"], jpos, ki(st.blk_ptr), ki(st.rperm), ki(st.cperm), ki(st.cpl_ptr),
-        ki(st.cpl_row), ki(st.cpl_col), geo_out, ga_out,
-        Y, dSF, dSM, dFF, dGEO, dGA, dLF, dCWm, dCWa, G0)
+        ki(st.cpl_row), ki(st.cpl_col), geo_out, ga_out, fr_out, act,
+        dX, dSF, dSM, dFF, dGEO, dGA, dLF, dCWm, dCWa, G0)
     worst = float(np.abs(G0).max()) / max(float(np.abs(X).max()), 1.0) if G0.size else 0.0
 
     def full(x, shape):
@@ -996,28 +1018,28 @@ def dynamics_sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLik
         out[..., act] = x
         return out.reshape(batch + shape[1:] + (n_p,))
 
-    dX = full(Y, (n_d, n_phi, n_eq))
     # the driving torque: sum of the shaft drivers' torques times their speed ratios
     prm = np.asarray(res.params, dtype=float).reshape(n_d, -1)
     dT = np.zeros((n_d, n_phi, n_act))
     dT_ratio = np.zeros((n_d, n_phi, n_p))
     for pair, row in zip(machine.pairs, st.table, strict=True):
         if pair.kind == "driver" and pair.input == SHAFT:
-            dT += Y[:, :, row[7], :] * prm[:, None, pair.ratio_param, None]
+            dT += dX[:, :, row[7]][..., act] * prm[:, None, pair.ratio_param, None]
             dT_ratio[:, :, pair.ratio_param] += X[:, :, row[7]]
     dT = full(dT, (n_d, n_phi)) + dT_ratio.reshape(batch + (n_phi, n_p))
     out = dict(dT=dT, dF=full(dSF, (n_d, n_phi, 2)), dM=full(dSM, (n_d, n_phi)))
     if shaft is not None:
-        b = _bearing_derivatives(res, Y, dFF, dGEO, geo_out, dGA, ga_out, dLF, dCWm, dCWa, sens,
-                                 act, scale)
+        b = _bearing_derivatives(res, dX, dFF, fr_out, dGEO, geo_out, dGA, ga_out, dLF, dCWm,
+                                 dCWa, sens, act, scale)
         for key, x in (("dBf", b[0]), ("dBr", b[1])):
             out[key] = full(x, (n_d, n_phi, 2))
-    return DynamicsSensitivities(res, machine.parameter_names, dX, out["dT"], out["dF"],
+    return DynamicsSensitivities(res, machine.parameter_names,
+                                 dX.reshape(batch + (n_phi, n_eq, n_p)), out["dT"], out["dF"],
                                  out["dM"], out.get("dBf"), out.get("dBr"), worst)
 
 
-def _bearing_derivatives(res, Y, dFF, dGEO, geo_out, dGA, ga_out, dLF, dCWm, dCWa, sens, act,
-                         vs):
+def _bearing_derivatives(res, dX, dFF, fr_out, dGEO, geo_out, dGA, ga_out, dLF, dCWm, dCWa,
+                         sens, act, vs):
     """d(front, rear bearing reaction)/d(active parameters), each (D, n_phi, 2, n_act): the
     derivative of :func:`sewmech.engine.dynamics.shaft_bearings` term by term (it is sums of
     forces and their moments, the shaft parts' dH/dt and m a, then two linear equations)."""
@@ -1027,7 +1049,8 @@ def _bearing_derivatives(res, Y, dFF, dGEO, geo_out, dGA, ga_out, dLF, dCWm, dCW
     m = res.machine
     shaft = m.spec.shaft
     names = m.link_names
-    n_d, n_phi, _, n_act = Y.shape
+    n_d, n_phi = dX.shape[:2]
+    n_act = len(act)
     n = n_d * n_phi
     n_pt, n_links = len(m.point_names), len(m.link_names)
     kin = res.kin
@@ -1060,18 +1083,18 @@ def _bearing_derivatives(res, Y, dFF, dGEO, geo_out, dGA, ga_out, dLF, dCWm, dCW
             sg = 1.0 if pair.links[1] == lname else -1.0
             c, _ = res._columns[pair.name]
             if pair.kind == "revolute":
-                add_force(sg * Y[:, :, c:c + 2], z)
+                add_force(sg * dX[:, :, c:c + 2][..., act], z)
                 continue
             i = m.pairs.index(pair)
             nrm = res._geometry[1].reshape(n_d, n_phi, -1, 2)[:, :, i]
             dn = dGEO[:, :, geo_out[i], 2:4]
-            dF = Y[:, :, None, c] * nrm[..., None] + X[:, :, c, None, None] * dn
+            dF = dX[:, :, None, c][..., act] * nrm[..., None] + X[:, :, c, None, None] * dn
             if fr is not None and pair.name in fr.pairs:
                 f = fr.pairs.index(pair.name)
                 t = np.stack([nrm[..., 1], -nrm[..., 0]], axis=-1)
                 dt = np.stack([dn[:, :, 1], -dn[:, :, 0]], axis=2)
                 FF = fr.force.reshape(n_d, n_phi, -1)[:, :, f]
-                dF = dF + dFF[:, :, None, f] * t[..., None] + FF[..., None, None] * dt
+                dF = dF + dFF[:, :, None, fr_out[f]] * t[..., None] + FF[..., None, None] * dt
             add_force(sg * dF, z)
         for k, li_load in enumerate(res.load_links):
             if li_load == li:
