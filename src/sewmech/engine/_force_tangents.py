@@ -13,21 +13,21 @@ a counterweight, a load, a spring, a frictional pair), each for the parameters t
 that term reads (its support, computed once per machine by the caller): a median JB1-3
 parameter moves four points and two links, so a position costs a few hundred small term
 evaluations instead of one whole residual per parameter. The pairs' moment arms, the inertia
-forces, the centres of mass, the torsion springs and the friction (its smoothed sign v /
-sqrt(v^2 + s^2) has a closed-form slope) are differentiated by hand; the counterweights (given
-by static moment, angle and radius), the process loads (smoothed signs, bisectors) and the line
-springs by the complex step in the same scalar code (the state plus i h times its tangent, h =
-1e-30: exact to rounding, no difference taken). J has the pattern of A
-(friction at a pair acts on the rows its own force acts on), so it is solved block by block in
-the force structure's block upper-triangular order (:func:`sewmech.engine.dynamics.
-force_structure`), every parameter's right-hand side at once, with partial pivoting in each
-small block.
+forces, the centres of mass, the springs and the friction (its smoothed sign v / sqrt(v^2 +
+s^2) has a closed-form slope) are differentiated by hand; the counterweights (given by static
+moment, angle and radius) and the process loads (smoothed signs, bisectors) by the complex step
+in the same scalar code (the state plus i h times its tangent, h = 1e-30: exact to rounding, no
+difference taken). Each position's tangents are first spread from the compact layout into a
+dense scratch (quantity, component, parameter column), so that the terms read them in column
+order. J has the pattern of A (friction at a pair acts on the rows its own force acts on), so it
+is solved block by block in the force structure's block upper-triangular order
+(:func:`sewmech.engine.dynamics.force_structure`), every parameter's right-hand side at once,
+with partial pivoting in each small block.
 
-The same pass also gives the derivatives of what the derived quantities read: the shaking force
-and moment, the friction forces (their total derivative, through dX too), the geometry of
-chosen pairs, the acceleration of the centres of mass of chosen links, the process loads'
-forces and the counterweights' masses and accelerations; and G at the solution itself (the
-equations here against the force kernel's answer).
+The same pass gives the derivatives of the shaking force and moment and of the upper shaft's
+bearing reactions (the sums of :func:`sewmech.engine.dynamics.shaft_bearings`, differentiated:
+the shaft pairs' forces with their friction, the loads on the shaft, its parts' dH/dt and m a),
+and G at the solution itself (the equations here against the force kernel's answer).
 
 Units: N, N mm per unit of each parameter; mm, rad, s inside.
 """
@@ -93,8 +93,8 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                    lk_ptr, lk_p, geo_ptr, geo_p, pr_ptr, pr_p, cw_ptr, cw_p, ld_ptr, ld_p,
                    sp_ptr, sp_p, ts_ptr, ts_p, fr_ptr, fr_p, jpos,
                    blk_ptr, rperm, cperm, cpl_ptr, cpl_row, cpl_col,
-                   geo_out, ga_out,
-                   fr_out, act, dX, dSF, dSM, dFF, dGEO, dGA, dLF, dCWm, dCWa, G0):
+                   bp_int, bp_f, bl_int, bl_z, bm_int, bm_f, bc_int, bc_z, z_front, z_rear,
+                   act, dX, dSF, dSM, dBf, dBr, G0):
     """The derivatives of the force analysis of designs d0 <= d < d1 by the active parameters
     (compact columns: parameter p is column jpos[p]); see the module doc.
 
@@ -110,15 +110,17 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
     The machine's tables as the force kernel and :mod:`sewmech.engine.dynamic_sensitivity`
     lay them out; the CSR lists (*_ptr, *_p) give the parameters each term's support holds.
 
+    The upper shaft's bearings (:func:`sewmech.engine.dynamics.shaft_bearings`, the same
+    sums differentiated): bp_int rows (column, pair, frictional pair or -1, 1 if revolute)
+    and bp_f (sign, plane z mm) of the pairs it sums, bl_int, bl_z the loads on the shaft's
+    links, bm_int, bm_f (J_xz, J_yz about the axis point, mass kg) its links with mass, bc_int,
+    bc_z its counterweights, z_front, z_rear the bearings' planes (dBf of size 0: no shaft).
+
     Fills dX (D, n_phi, n_eq, n_params) dX/dp at the active parameters' columns act (its
-    other columns are left as they are); dSF (.., 2, n_act), dSM the shaking force and
-    moment's; dFF (.., n_fr_out, n_act) the friction (its total derivative) of the frictional
-    pairs fr_out numbers (-1: not asked); dGEO (.., n_geo,
-    4, n_act) the force point and direction of the pairs geo_out numbers (-1: not asked);
-    dGA (.., n_ga, 2, n_act) the centre-of-mass accelerations of the links ga_out numbers;
-    dLF (.., n_loads, 2, n_act) the loads' forces; dCWm (D, n_cw, n_act), dCWa (.., n_cw, 2,
-    n_act) the counterweights' masses and accelerations; G0 (D, n_phi, n_eq) the equations at
-    the solution. Returns nothing; every output is overwritten where it has a value."""
+    other columns are left as they are: 0); dSF (.., 2, n_act), dSM the shaking force and
+    moment's; dBf, dBr (.., 2, n_act) the front and rear bearing reactions'; G0 (D, n_phi,
+    n_eq) the equations at the solution. Every output is overwritten where it has a value.
+    (Names are never reused with another type here: numba types a name once per function.)"""
     n_phi = X.shape[1]
     n_eq = X.shape[2]
     n_links = mass.shape[0]
@@ -144,6 +146,16 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
         frpos[fr_pair[f]] = f
     dfdx = np.zeros((n_fr, 2))  # d(friction)/d(its pair's unknowns)
     tFF = np.zeros((n_fr, n_act))  # d(friction)/dp at fixed unknowns
+    ffv = np.zeros(n_fr)  # the sliding pairs' friction forces
+    n_ld = ld_int.shape[0]
+    n_cw = cw_int.shape[0]
+    tLF = np.zeros((n_ld, 2, n_act))  # d(load force)/dp
+    tCWm = np.zeros((n_cw, n_act))  # d(counterweight mass), d(its acceleration)/dp
+    tCWa = np.zeros((n_cw, 2, n_act))
+    cwm = np.zeros(n_cw)
+    cwa = np.zeros((n_cw, 2))
+    shaft = dBf.shape[0] > 0
+    BA = np.zeros((8, n_act))  # the bearings' sums' derivatives
     g = np.zeros(n_eq)
     n_q = qm.shape[0]
     DT = np.zeros((3, n_q, 2, n_act))  # this position's tangents (entries outside the
@@ -157,17 +169,17 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
             nb = n // LANES
             lane = n % LANES
             for e in range(ent_q.shape[0]):
-                q = ent_q[e]
+                qe = ent_q[e]
                 j = ent_j[e]
-                o = ent_off[e]
-                DT[0, q, 0, j] = T0[nb, o, lane]
-                DT[1, q, 0, j] = vs * T1[nb, o, lane]
-                DT[2, q, 0, j] = as_ * T2[nb, o, lane]
-                if q < n_pt:
-                    o += qm[q]
-                    DT[0, q, 1, j] = T0[nb, o, lane]
-                    DT[1, q, 1, j] = vs * T1[nb, o, lane]
-                    DT[2, q, 1, j] = as_ * T2[nb, o, lane]
+                oe = ent_off[e]
+                DT[0, qe, 0, j] = T0[nb, oe, lane]
+                DT[1, qe, 0, j] = vs * T1[nb, oe, lane]
+                DT[2, qe, 0, j] = as_ * T2[nb, oe, lane]
+                if qe < n_pt:
+                    oe += qm[qe]
+                    DT[0, qe, 1, j] = T0[nb, oe, lane]
+                    DT[1, qe, 1, j] = vs * T1[nb, oe, lane]
+                    DT[2, qe, 1, j] = as_ * T2[nb, oe, lane]
             R[:, :] = 0.0
             J[:, :] = 0.0
             g[:] = 0.0
@@ -223,10 +235,6 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                     dSF[d, k, 1, j] -= m * dgay
                     dSM[d, k, j] -= (1e-3 * inertia[li] * dep
                                      + m * (dgpx * gay + gpx * dgay - dgpy * gax - gpy * dgax))
-                if ga_out[li] >= 0:
-                    for j in range(n_act):
-                        dGA[d, k, ga_out[li], 0, j] = tGA[li, 0, j]
-                        dGA[d, k, ga_out[li], 1, j] = tGA[li, 1, j]
                 r = 3 * (li - 1)
                 g[r] -= 1e-3 * mass[li] * gax
                 g[r + 1] -= 1e-3 * mass[li] * gay + gravity * mass[li]
@@ -303,11 +311,6 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                             da += 1.0
                         tGEO[i, 2, j] = -fy * da
                         tGEO[i, 3, j] = fx * da
-                if geo_out[i] >= 0:
-                    gi = geo_out[i]
-                    for c4 in range(4):
-                        for j in range(n_act):
-                            dGEO[d, k, gi, c4, j] = tGEO[i, c4, j]
                 for side in range(2):
                     link = lb if side == 0 else la
                     if link == 0:
@@ -396,6 +399,9 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                         g[r] -= cfx.real
                         g[r + 1] -= cfy.real
                         g[r + 2] -= gm.real
+                        cwm[ci] = cm.real
+                        cwa[ci, 0] = qax.real
+                        cwa[ci, 1] = qay.real
                         continue
                     R[r, j] += cfx.imag / H
                     R[r + 1, j] += cfy.imag / H
@@ -403,16 +409,16 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                     dSF[d, k, 0, j] -= (1e-3 * cm * qax).imag / H
                     dSF[d, k, 1, j] -= (1e-3 * cm * qay).imag / H
                     dSM[d, k, j] -= (1e-3 * cm * (qx * qay - qy * qax)).imag / H
-                    dCWm[d, ci, j] = cm.imag / H
-                    dCWa[d, k, ci, 0, j] = qax.imag / H
-                    dCWa[d, k, ci, 1, j] = qay.imag / H
+                    tCWm[ci, j] = cm.imag / H
+                    tCWa[ci, 0, j] = qax.imag / H
+                    tCWa[ci, 1, j] = qay.imag / H
             # ---- process loads (where they act as solved): complex step ----------------------
             for lj in range(ld_int.shape[0]):
                 if on[d, k, lj] == 0.0:
                     for e in range(ld_ptr[lj], ld_ptr[lj + 1]):
                         j = jpos[ld_p[e]]
-                        dLF[d, k, lj, 0, j] = 0.0
-                        dLF[d, k, lj, 1, j] = 0.0
+                        tLF[lj, 0, j] = 0.0
+                        tLF[lj, 1, j] = 0.0
                     continue
                 li = ld_int[lj, 0]
                 pi = ld_int[lj, 1]
@@ -467,8 +473,8 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                     zFx = zFx * w
                     zFy = zFy * w
                     if p >= 0:
-                        dLF[d, k, lj, 0, j] = zFx.imag / H
-                        dLF[d, k, lj, 1, j] = zFy.imag / H
+                        tLF[lj, 0, j] = zFx.imag / H
+                        tLF[lj, 1, j] = zFy.imag / H
                     if li == 0:
                         continue
                     gx = _z(GP[d, k, li, 0], tGP[li, 0, j] if p >= 0 else 0.0)
@@ -483,52 +489,65 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                         R[r, j] -= zFx.imag / H
                         R[r + 1, j] -= zFy.imag / H
                         R[r + 2, j] -= gm.imag / H
-            # ---- springs and dampers between two points: complex step ------------------------
+            # ---- springs and dampers between two points: T = k (L - L0) + c dL/dt along the
+            # unit vector u from end a to end b, +T u on a's link and -T u on b's --------------
             for si in range(sp_int.shape[0]):
                 la = sp_int[si, 0]
                 pa = sp_int[si, 1]
                 lb = sp_int[si, 2]
                 pb = sp_int[si, 3]
-                for e in range(sp_ptr[si] - 1, sp_ptr[si + 1]):
-                    p = -1 if e < sp_ptr[si] else sp_p[e]
-                    j = jpos[p] if p >= 0 else 0
-                    tg = 1.0 if p >= 0 else 0.0
-                    ax_ = _z(P[d, k, pa, 0], tg * _d(DT, 0, pa, 0, j))
-                    ay_ = _z(P[d, k, pa, 1], tg * _d(DT, 0, pa, 1, j))
-                    bx_ = _z(P[d, k, pb, 0], tg * _d(DT, 0, pb, 0, j))
-                    by_ = _z(P[d, k, pb, 1], tg * _d(DT, 0, pb, 1, j))
-                    dvx = (_z(V[d, k, pb, 0], tg * _d(DT, 1, pb, 0, j))
-                           - _z(V[d, k, pa, 0], tg * _d(DT, 1, pa, 0, j)))
-                    dvy = (_z(V[d, k, pb, 1], tg * _d(DT, 1, pb, 1, j))
-                           - _z(V[d, k, pa, 1], tg * _d(DT, 1, pa, 1, j)))
-                    ex = bx_ - ax_
-                    ey = by_ - ay_
-                    zL = _zsqrt(ex * ex + ey * ey)
-                    ux_ = ex / zL
-                    uy_ = ey / zL
-                    Ld = ux_ * dvx + uy_ * dvy
-                    Tn = sp_f[si, 0] * (zL - sp_f[si, 1]) + sp_f[si, 2] * Ld
-                    zFx = Tn * ux_
-                    zFy = Tn * uy_
+                s_k = sp_f[si, 0]
+                s_c = sp_f[si, 2]
+                s_ex = P[d, k, pb, 0] - P[d, k, pa, 0]
+                s_ey = P[d, k, pb, 1] - P[d, k, pa, 1]
+                s_L = math.sqrt(s_ex * s_ex + s_ey * s_ey)
+                s_ux = s_ex / s_L
+                s_uy = s_ey / s_L
+                s_vx = V[d, k, pb, 0] - V[d, k, pa, 0]
+                s_vy = V[d, k, pb, 1] - V[d, k, pa, 1]
+                s_Ld = s_ux * s_vx + s_uy * s_vy
+                s_T = s_k * (s_L - sp_f[si, 1]) + s_c * s_Ld
+                s_Fx = s_T * s_ux
+                s_Fy = s_T * s_uy
+                for side in range(2):
+                    link = la if side == 0 else lb
+                    if link == 0:
+                        continue
+                    sg = 1.0 if side == 0 else -1.0
+                    s_pt = pa if side == 0 else pb
+                    r = 3 * (link - 1)
+                    g[r] += sg * s_Fx
+                    g[r + 1] += sg * s_Fy
+                    g[r + 2] += sg * ((P[d, k, s_pt, 0] - GP[d, k, link, 0]) * s_Fy
+                                      - (P[d, k, s_pt, 1] - GP[d, k, link, 1]) * s_Fx)
+                for e in range(sp_ptr[si], sp_ptr[si + 1]):
+                    j = jpos[sp_p[e]]
+                    s_dex = _d(DT, 0, pb, 0, j) - _d(DT, 0, pa, 0, j)
+                    s_dey = _d(DT, 0, pb, 1, j) - _d(DT, 0, pa, 1, j)
+                    s_dL = s_ux * s_dex + s_uy * s_dey
+                    s_dux = (s_dex - s_ux * s_dL) / s_L
+                    s_duy = (s_dey - s_uy * s_dL) / s_L
+                    s_dvx = _d(DT, 1, pb, 0, j) - _d(DT, 1, pa, 0, j)
+                    s_dvy = _d(DT, 1, pb, 1, j) - _d(DT, 1, pa, 1, j)
+                    s_dLd = s_dux * s_vx + s_duy * s_vy + s_ux * s_dvx + s_uy * s_dvy
+                    s_dT = s_k * s_dL + s_c * s_dLd
+                    s_dFx = s_dT * s_ux + s_T * s_dux
+                    s_dFy = s_dT * s_uy + s_T * s_duy
                     for side in range(2):
                         link = la if side == 0 else lb
                         if link == 0:
                             continue
                         sg = 1.0 if side == 0 else -1.0
-                        atx = ax_ if side == 0 else bx_
-                        aty = ay_ if side == 0 else by_
-                        gx = _z(GP[d, k, link, 0], tGP[link, 0, j] if p >= 0 else 0.0)
-                        gy = _z(GP[d, k, link, 1], tGP[link, 1, j] if p >= 0 else 0.0)
-                        gm = (atx - gx) * zFy - (aty - gy) * zFx
+                        s_pt = pa if side == 0 else pb
+                        s_rx = P[d, k, s_pt, 0] - GP[d, k, link, 0]
+                        s_ry = P[d, k, s_pt, 1] - GP[d, k, link, 1]
+                        s_drx = _d(DT, 0, s_pt, 0, j) - tGP[link, 0, j]
+                        s_dry = _d(DT, 0, s_pt, 1, j) - tGP[link, 1, j]
                         r = 3 * (link - 1)
-                        if p < 0:
-                            g[r] += sg * zFx.real
-                            g[r + 1] += sg * zFy.real
-                            g[r + 2] += sg * gm.real
-                        else:
-                            R[r, j] -= sg * zFx.imag / H
-                            R[r + 1, j] -= sg * zFy.imag / H
-                            R[r + 2, j] -= sg * gm.imag / H
+                        R[r, j] -= sg * s_dFx
+                        R[r + 1, j] -= sg * s_dFy
+                        R[r + 2, j] -= sg * (s_drx * s_Fy + s_rx * s_dFy - s_dry * s_Fx
+                                             - s_ry * s_dFx)
             # ---- torsion springs at pairs: linear in the angles and rates --------------------
             for si in range(ts_int.shape[0]):
                 la = ts_int[si, 0]
@@ -624,6 +643,7 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                 sv = v / qv
                 absn = -N if N < 0.0 else N
                 ff = -(mu * absn * sv + visc * v)
+                ffv[f] = ff
                 kv = -(mu * absn * sm * sm / (qv * qv * qv) + visc)  # df/dv
                 dfdx[f, 0] = -mu * (-1.0 if N < 0.0 else 1.0) * sv
                 for side in range(2):
@@ -736,17 +756,89 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                         Yk[cy, j] = B[a, j]
                     for j in range(n_act):
                         dX[d, k, cy, act[j]] = B[a, j]
-            # ---- the friction's total derivative (through the unknowns too), where asked -----
-            for f in range(n_fr):
-                fo = fr_out[f]
-                if fo < 0:
-                    continue
-                c0 = fr_int[f, 3]
-                if fr_int[f, 0] == PAIR_REVOLUTE:
-                    for j in range(n_act):
-                        dFF[d, k, fo, j] = (tFF[f, j] + dfdx[f, 0] * Yk[c0, j]
-                                            + dfdx[f, 1] * Yk[c0 + 1, j])
-                else:
-                    for j in range(n_act):
-                        dFF[d, k, fo, j] = tFF[f, j] + dfdx[f, 0] * Yk[c0, j]
+            # ---- the bearings: the sums of shaft_bearings, differentiated ----------------------
+            if not shaft:
+                continue
+            # BA rows: sum of forces x, y; their moments x, y; dH/dt x, y; sum of m a x, y
+            BA[:, :] = 0.0
+            for bi in range(bp_int.shape[0]):
+                b_c0 = bp_int[bi, 0]
+                b_i = bp_int[bi, 1]
+                b_f = bp_int[bi, 2]
+                b_sg = bp_f[bi, 0]
+                b_z = bp_f[bi, 1]
+                b_rev = bp_int[bi, 3] == 1
+                b_nx = geo[b_i, 2]
+                b_ny = geo[b_i, 3]
+                b_N = X[d, k, b_c0]
+                for j in range(n_act):
+                    if b_rev:
+                        b_fx = Yk[b_c0, j]
+                        b_fy = Yk[b_c0 + 1, j]
+                    else:
+                        b_dnx = tGEO[b_i, 2, j]
+                        b_dny = tGEO[b_i, 3, j]
+                        b_dN = Yk[b_c0, j]
+                        b_fx = b_dN * b_nx + b_N * b_dnx
+                        b_fy = b_dN * b_ny + b_N * b_dny
+                        if b_f >= 0:  # friction along the tangent (ny, -nx)
+                            b_dff = tFF[b_f, j] + dfdx[b_f, 0] * b_dN
+                            b_fx += b_dff * b_ny + ffv[b_f] * b_dny
+                            b_fy -= b_dff * b_nx + ffv[b_f] * b_dnx
+                    BA[0, j] += b_sg * b_fx
+                    BA[1, j] += b_sg * b_fy
+                    BA[2, j] -= b_z * b_sg * b_fy
+                    BA[3, j] += b_z * b_sg * b_fx
+            for bi in range(bl_int.shape[0]):
+                b_z = bl_z[bi]
+                lj = bl_int[bi]
+                for j in range(n_act):
+                    BA[0, j] += tLF[lj, 0, j]
+                    BA[1, j] += tLF[lj, 1, j]
+                    BA[2, j] -= b_z * tLF[lj, 1, j]
+                    BA[3, j] += b_z * tLF[lj, 0, j]
+            for bi in range(bm_int.shape[0]):
+                b_li = bm_int[bi]
+                b_w = OM[d, k, b_li]
+                b_e = EP[d, k, b_li]
+                b_cth = math.cos(TH[d, k, b_li])
+                b_sth = math.sin(TH[d, k, b_li])
+                b_jxz = b_cth * bm_f[bi, 0] - b_sth * bm_f[bi, 1]
+                b_jyz = b_sth * bm_f[bi, 0] + b_cth * bm_f[bi, 1]
+                b_m = 1e-3 * bm_f[bi, 2]
+                for j in range(n_act):
+                    b_dth = _d(DT, 0, ql + b_li, 0, j)
+                    b_dw = _d(DT, 1, ql + b_li, 0, j)
+                    b_de = _d(DT, 2, ql + b_li, 0, j)
+                    b_djxz = -b_jyz * b_dth
+                    b_djyz = b_jxz * b_dth
+                    BA[4, j] += 1e-3 * (b_djxz * b_e + b_jxz * b_de - b_djyz * b_w * b_w
+                                        - 2.0 * b_jyz * b_w * b_dw)
+                    BA[5, j] += 1e-3 * (b_djyz * b_e + b_jyz * b_de + b_djxz * b_w * b_w
+                                        + 2.0 * b_jxz * b_w * b_dw)
+                    BA[6, j] += b_m * tGA[b_li, 0, j]
+                    BA[7, j] += b_m * tGA[b_li, 1, j]
+            for bi in range(bc_int.shape[0]):
+                b_ci = bc_int[bi]
+                b_z = bc_z[bi]
+                for j in range(n_act):
+                    b_dm = tCWm[b_ci, j]
+                    b_dmax = b_dm * cwa[b_ci, 0] + cwm[b_ci] * tCWa[b_ci, 0, j]
+                    b_dmay = b_dm * cwa[b_ci, 1] + cwm[b_ci] * tCWa[b_ci, 1, j]
+                    BA[6, j] += 1e-3 * b_dmax
+                    BA[7, j] += 1e-3 * b_dmay
+                    BA[4, j] -= 1e-3 * b_z * b_dmay
+                    BA[5, j] += 1e-3 * b_z * b_dmax
+                    BA[1, j] -= b_dm * gravity
+                    BA[2, j] += b_z * b_dm * gravity
+            # B_f + B_r = sum m a - sum F; z x B terms = dH/dt - M (two equations each)
+            for j in range(n_act):
+                b_nx_ = BA[6, j] - BA[0, j]
+                b_ny_ = BA[7, j] - BA[1, j]
+                b_bfy = (BA[4, j] - BA[2, j] + z_rear * b_ny_) / (z_rear - z_front)
+                b_bfx = (BA[5, j] - BA[3, j] - z_rear * b_nx_) / (z_front - z_rear)
+                dBf[d, k, 0, j] = b_bfx
+                dBf[d, k, 1, j] = b_bfy
+                dBr[d, k, 0, j] = b_nx_ - b_bfx
+                dBr[d, k, 1, j] = b_ny_ - b_bfy
     return 0

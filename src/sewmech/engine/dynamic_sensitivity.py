@@ -451,16 +451,29 @@ def _state(res: DynamicsResult, plan: DynamicsPlan) -> dict:
          "prm": np.asarray(res.params, dtype=float).reshape(n_d, 1, -1)}
     if len(plan._loads):
         s["load_on"] = flat(res.load_on)
-        s["travel"] = _travel(plan, s, res.params.reshape(n_d, -1))
+        s["travel"] = _travel(plan, s)
     return s
 
 
-def _travel(plan: DynamicsPlan, s: dict, params: np.ndarray) -> np.ndarray:
-    """Each elastic load's travel past its first threshold (D, n_phi, n_loads), as
-    :meth:`LoadTables.masks` finds it."""
-    a = {k: s[k] for k in ("P", "V", "A", "TH", "OM", "EP", "S", "SD", "SDD")}
-    _, travel = plan._loads.masks(a, params)
-    return np.moveaxis(travel, 0, -1)
+def _travel(plan: DynamicsPlan, s: dict) -> np.ndarray:
+    """Each elastic load's travel past its first threshold (D, n_phi, n_loads; 0 for the
+    other loads), as :meth:`LoadTables.masks` finds it (only that condition's channel read)."""
+    from .channels import channel_values
+
+    L = plan._loads
+    out = np.zeros(s["P"].shape[:2] + (len(L),))
+    for j, spec in enumerate(L.specs):
+        if spec.law != "elastic":
+            continue
+        for ref, c in L.conditions[j]:
+            if c.above is None and c.below is None:
+                continue
+            val, _ = channel_values(ref, s, L.thread)
+            with np.errstate(invalid="ignore"):
+                out[..., j] = np.maximum(val - c.above if c.above is not None else
+                                         c.below - val, 0.0)
+            break
+    return out
 
 
 def _tangent_state(plan, s: dict, sens, scale: float, n_batch: int) -> dict:
@@ -543,7 +556,7 @@ def _reference_sensitivities(machine: Machine, phi: ArrayLike, *,
     # designs in chunks: the complex state of one design is (n_params + n_eq) times its size
     per_design = (n_p + n_eq) * n_phi * (s["P"].shape[2] * 6 + 64) * 16
     step = max(1, int(MAX_BYTES // max(per_design, 1)))
-    dX = np.empty((n_d, n_phi, n_eq, n_p))
+    dX = np.zeros((n_d, n_phi, n_eq, n_p))  # (the kernel fills the active columns)
     dT = np.empty((n_d, n_phi, n_p))
     dF = np.empty((n_d, n_phi, 2, n_p))
     dM = np.empty((n_d, n_phi, n_p))
@@ -705,6 +718,7 @@ class _Terms:
     fr_f: np.ndarray
     fr_pair: np.ndarray
     used: frozenset
+    csr: dict  # the lists as CSR (ptr, parameters) arrays
     ent_q: np.ndarray  # every support entry: its quantity, offset in the rows, parameter
     ent_off: np.ndarray
     ent_p: np.ndarray
@@ -805,9 +819,11 @@ def _terms(machine: Machine) -> _Terms:
     ent_p = np.concatenate([np.asarray(s, dtype=np.int64) for s in plan.support])
     out = _Terms(loc, qoff, np.asarray(lay.qm, dtype=np.int64),
                  link_sup, lists, cw_int, sp_int, sp_f, ts_int, ts_f, fr_int, fr_f, fr_pair,
-                 frozenset(used), ent_q, ent_off, ent_p)
+                 frozenset(used), {k: _csr(v) for k, v in lists.items()}, ent_q, ent_off,
+                 ent_p)
     for a in (out.loc, out.qoff, out.qm, out.cw_int, out.sp_int, out.sp_f, out.ts_int, out.ts_f,
-              out.fr_int, out.fr_f, out.fr_pair, out.ent_q, out.ent_off, out.ent_p):
+              out.fr_int, out.fr_f, out.fr_pair, out.ent_q, out.ent_off, out.ent_p,
+              *(x for v in out.csr.values() for x in v)):
         a.setflags(write=False)
     return out
 
@@ -924,25 +940,28 @@ def dynamics_sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLik
         raise AnalysisError(f"machine '{machine.name}'", "cannot be assembled at some of the"
                             " angles: the derivatives are not defined there",
                             "Choose angles where it assembles (sewmech check)")
-    sens = sensitivities(machine, phi, params=params, inputs=inputs, rates=True)
+    # (the analysis' own kinematics, when it ran at the file's speed: the tangents' rates are
+    # taken at that speed)
+    sens = sensitivities(machine, phi, params=params, inputs=inputs, rates=True,
+                         kin=kin if rpm == machine.rpm else None)
     terms = _terms(machine)
     batch = kin.batch_shape
     n_d = int(np.prod(batch, dtype=np.int64))
     n_phi = kin.phi.shape[0]
     n_p = len(machine.parameter_names)
-    n_links = len(machine.link_names)
     scale = rpm / machine.rpm
 
     def flat(x):
         return kernel_input(np.asarray(x, dtype=float).reshape(
             (n_d, n_phi) + x.shape[len(batch) + 1:]))
 
-    s = {"P": flat(kin.p)}
+    s = {k: flat(x) for k, x in (("P", kin.p), ("V", kin.v), ("A", kin.a), ("TH", kin.theta),
+                                  ("OM", kin.omega), ("EP", kin.epsilon), ("S", kin.q),
+                                  ("SD", kin.q_dot), ("SDD", kin.q_ddot))}
     n_ld = len(plan._loads)
     if n_ld:
-        s0 = _state(res, plan)
-        travel = kernel_input(s0["travel"])
-        s["travel"] = s0["travel"]
+        s["travel"] = _travel(plan, s)
+        travel = kernel_input(s["travel"])
         dtr, travel_sup = _travel_derivative(plan, s, sens, scale)
     else:
         travel = kernel_input(np.zeros((n_d, n_phi, 0)))
@@ -953,42 +972,16 @@ def dynamics_sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLik
     n_act = len(act)
     jpos = np.full(n_p, -1, dtype=np.int64)
     jpos[act] = np.arange(n_act)
-    csr = {k: _csr(v) for k, v in terms.lists.items()}
+    csr = terms.csr
     ld_ptr, ld_p = _csr(ld_sets)
-    # what the bearings read: the shaft links' centres of mass, the geometry of their pairs
-    shaft = machine.spec.shaft
-    ga_out = np.full(n_links, -1, dtype=np.int64)
-    geo_out = np.full(len(machine.pairs), -1, dtype=np.int64)
-    if shaft is not None:
-        names = machine.link_names
-        for k, lname in enumerate(shaft.links):
-            ga_out[names.index(lname)] = k
-        g = 0
-        for i, pair in enumerate(machine.pairs):
-            if pair.kind in ("driver", "revolute"):
-                continue
-            if any(x in shaft.links for x in pair.links):
-                geo_out[i] = g
-                g += 1
-    n_geo = int((geo_out >= 0).sum())
-    n_ga = int((ga_out >= 0).sum())
+    bearings = _bearing_tables(machine, tuple(plan._load_links))
     n_eq = plan.structure.pattern.shape[0]
-    n_fr = len(terms.fr_int)
-    n_cw = len(terms.cw_int)
     dX = np.zeros((n_d, n_phi, n_eq, n_p))  # (the kernel fills the active columns)
     dSF = np.empty((n_d, n_phi, 2, n_act))
     dSM = np.empty((n_d, n_phi, n_act))
-    # the friction the bearings read: the shaft's sliding pairs'
-    fr_out = np.full(n_fr, -1, dtype=np.int64)
-    for f, i in enumerate(terms.fr_pair):
-        if geo_out[i] >= 0:
-            fr_out[f] = int((fr_out >= 0).sum())
-    dFF = np.zeros((n_d, n_phi, int((fr_out >= 0).sum()), n_act))
-    dGEO = np.zeros((n_d, n_phi, n_geo, 4, n_act))
-    dGA = np.zeros((n_d, n_phi, n_ga, 2, n_act))
-    dLF = np.zeros((n_d, n_phi, n_ld, 2, n_act))
-    dCWm = np.zeros((n_d, n_cw, n_act))
-    dCWa = np.zeros((n_d, n_phi, n_cw, 2, n_act))
+    has_shaft = machine.spec.shaft is not None
+    dBf = np.empty((n_d, n_phi, 2, n_act) if has_shaft else (0, 0, 2, n_act))
+    dBr = np.empty_like(dBf)
     G0 = np.empty((n_d, n_phi, n_eq))
     st = plan.structure
     lm = plan.masses
@@ -997,9 +990,9 @@ def dynamics_sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLik
     dtravel = kernel_input(dtr[..., act]) if n_ld else kernel_input(np.zeros((n_d, n_phi, 0,
                                                                                 n_act)))
     ki = kernel_input
+    prm = np.asarray(res.params, dtype=float).reshape(n_d, -1)
     FT.force_tangents(
-        0, n_d, s["P"], flat(kin.v), flat(kin.a), flat(kin.theta), flat(kin.omega),
-        flat(kin.epsilon), flat(kin.q), ki(np.asarray(res.params, dtype=float).reshape(n_d, -1)),
+        0, n_d, s["P"], s["V"], s["A"], s["TH"], s["OM"], s["EP"], s["S"], ki(prm),
         flat(res.com_p), flat(res.com_v), flat(res.com_a), X, travel, dtravel, on,
         *(ki(t) for t in sens._t), terms.qm, *_entries(terms, jpos), scale, scale * scale,
         ki(st.table), ki(st.angles), ki(st.cam_rows), ki(machine.terms), ki(lm.mass),
@@ -1009,8 +1002,7 @@ def dynamics_sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLik
         terms.fr_pair, len(machine.point_names),
         *csr["lk"], *csr["geo"], *csr["pr"], *csr["cw"], ld_ptr, ld_p, *csr["sp"], *csr["ts"],
         *csr["fr"], jpos, ki(st.blk_ptr), ki(st.rperm), ki(st.cperm), ki(st.cpl_ptr),
-        ki(st.cpl_row), ki(st.cpl_col), geo_out, ga_out, fr_out, act,
-        dX, dSF, dSM, dFF, dGEO, dGA, dLF, dCWm, dCWa, G0)
+        ki(st.cpl_row), ki(st.cpl_col), *bearings, act, dX, dSF, dSM, dBf, dBr, G0)
     worst = float(np.abs(G0).max()) / max(float(np.abs(X).max()), 1.0) if G0.size else 0.0
 
     def full(x, shape):
@@ -1019,7 +1011,6 @@ def dynamics_sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLik
         return out.reshape(batch + shape[1:] + (n_p,))
 
     # the driving torque: sum of the shaft drivers' torques times their speed ratios
-    prm = np.asarray(res.params, dtype=float).reshape(n_d, -1)
     dT = np.zeros((n_d, n_phi, n_act))
     dT_ratio = np.zeros((n_d, n_phi, n_p))
     for pair, row in zip(machine.pairs, st.table, strict=True):
@@ -1028,114 +1019,64 @@ def dynamics_sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLik
             dT_ratio[:, :, pair.ratio_param] += X[:, :, row[7]]
     dT = full(dT, (n_d, n_phi)) + dT_ratio.reshape(batch + (n_phi, n_p))
     out = dict(dT=dT, dF=full(dSF, (n_d, n_phi, 2)), dM=full(dSM, (n_d, n_phi)))
-    if shaft is not None:
-        b = _bearing_derivatives(res, dX, dFF, fr_out, dGEO, geo_out, dGA, ga_out, dLF, dCWm,
-                                 dCWa, sens, act, scale)
-        for key, x in (("dBf", b[0]), ("dBr", b[1])):
-            out[key] = full(x, (n_d, n_phi, 2))
+    if has_shaft:
+        out["dBf"] = full(dBf, (n_d, n_phi, 2))
+        out["dBr"] = full(dBr, (n_d, n_phi, 2))
     return DynamicsSensitivities(res, machine.parameter_names,
                                  dX.reshape(batch + (n_phi, n_eq, n_p)), out["dT"], out["dF"],
                                  out["dM"], out.get("dBf"), out.get("dBr"), worst)
 
 
-def _bearing_derivatives(res, dX, dFF, fr_out, dGEO, geo_out, dGA, ga_out, dLF, dCWm, dCWa,
-                         sens, act, vs):
-    """d(front, rear bearing reaction)/d(active parameters), each (D, n_phi, 2, n_act): the
-    derivative of :func:`sewmech.engine.dynamics.shaft_bearings` term by term (it is sums of
-    forces and their moments, the shaft parts' dH/dt and m a, then two linear equations)."""
-    from .dynamics import FRAME, GRAVITY
-    from .sensitivity import _lanes
+@lru_cache(maxsize=16)
+def _bearing_tables(m: Machine, load_links: tuple) -> tuple:
+    """What the kernel's bearing part reads (see :func:`sewmech.engine._force_tangents.
+    force_tangents`): the pairs, loads, links with mass and counterweights that
+    :func:`sewmech.engine.dynamics.shaft_bearings` sums, with their planes."""
+    from .dynamics import FRAME, _pair_table
+    from .friction import FrictionTables
 
-    m = res.machine
     shaft = m.spec.shaft
-    names = m.link_names
-    n_d, n_phi = dX.shape[:2]
-    n_act = len(act)
-    n = n_d * n_phi
-    n_pt, n_links = len(m.point_names), len(m.link_names)
-    kin = res.kin
-    cp = sens._plan
-    X = res.unknowns.reshape(n_d, n_phi, -1)
-    fr = res.friction
-    dS = np.zeros((n_d, n_phi, 2, n_act))
-    dmS = np.zeros((n_d, n_phi, 2, n_act))
-    dMx, dMy, dHx, dHy = (np.zeros((n_d, n_phi, n_act)) for _ in range(4))
-
-    def add_force(dF, z):
-        dS[...] += dF
-        dMx[...] -= z * dF[:, :, 1]
-        dMy[...] += z * dF[:, :, 0]
-
-    def tangent(li, level):  # d(theta, omega or epsilon of link li) (D, n_phi, n_act)
-        q = n_pt + li
-        off, mq, sup = int(cp.layout.qoff[q]), int(cp.layout.qm[q]), cp.support[q]
-        t = np.zeros((n, n_act))
-        t[:, np.searchsorted(act, sup)] = _lanes(sens._t[level], off, mq, n) * vs ** level
-        return t.reshape(n_d, n_phi, n_act)
-
-    for lname, z in shaft.links.items():
-        li = names.index(lname)
-        for pair in m.pairs:  # (the pairs bearing_reactions sums)
-            if pair.kind == "driver" or lname not in pair.links or FRAME in pair.links:
+    bp_int, bp_f, bl_int, bl_z, bm_int, bm_f, bc_int, bc_z = [], [], [], [], [], [], [], []
+    zf = zr = 0.0
+    if shaft is not None:
+        names = m.link_names
+        zf, zr = float(shaft.bearings["front"]), float(shaft.bearings["rear"])
+        fr = FrictionTables.build(m)
+        fr_of = {} if fr is None else {int(i): f for f, i in enumerate(fr.pair_index)}
+        columns = _pair_table(m)[0][:, 7]
+        for lname, z in shaft.links.items():
+            li = names.index(lname)
+            for i, pair in enumerate(m.pairs):  # (the pairs shaft_bearings sums)
+                if pair.kind == "driver" or lname not in pair.links or FRAME in pair.links:
+                    continue
+                if pair.links[0] in shaft.links and pair.links[1] in shaft.links:
+                    continue
+                rev = pair.kind == "revolute"
+                bp_int.append((int(columns[i]), i, -1 if rev else fr_of.get(i, -1), int(rev)))
+                bp_f.append((1.0 if pair.links[1] == lname else -1.0, float(z)))
+            for k, li_load in enumerate(load_links):
+                if li_load == li:
+                    bl_int.append(k)
+                    bl_z.append(float(z))
+            mp = m.masses.get(lname)
+            if mp is None:
                 continue
-            if pair.links[0] in shaft.links and pair.links[1] in shaft.links:
-                continue
-            sg = 1.0 if pair.links[1] == lname else -1.0
-            c, _ = res._columns[pair.name]
-            if pair.kind == "revolute":
-                add_force(sg * dX[:, :, c:c + 2][..., act], z)
-                continue
-            i = m.pairs.index(pair)
-            nrm = res._geometry[1].reshape(n_d, n_phi, -1, 2)[:, :, i]
-            dn = dGEO[:, :, geo_out[i], 2:4]
-            dF = dX[:, :, None, c][..., act] * nrm[..., None] + X[:, :, c, None, None] * dn
-            if fr is not None and pair.name in fr.pairs:
-                f = fr.pairs.index(pair.name)
-                t = np.stack([nrm[..., 1], -nrm[..., 0]], axis=-1)
-                dt = np.stack([dn[:, :, 1], -dn[:, :, 0]], axis=2)
-                FF = fr.force.reshape(n_d, n_phi, -1)[:, :, f]
-                dF = dF + dFF[:, :, None, fr_out[f]] * t[..., None] + FF[..., None, None] * dt
-            add_force(sg * dF, z)
-        for k, li_load in enumerate(res.load_links):
-            if li_load == li:
-                add_force(dLF[:, :, k], z)
-        mp = res.mass_props.get(lname)
-        if mp is None:
-            continue
-        if not np.isfinite(mp.inertia).all():
-            raise ValueError(f"link '{lname}' turns with the upper shaft but its [masses] table"
-                             " gives only inertia_zz: the bearing reactions need its products"
-                             " of inertia (give the full inertia tensor or solids)")
-        th, w, e = (x.reshape(n_d, n_phi, n_links)[:, :, li, None]
-                    for x in (kin.theta, kin.omega, kin.epsilon))
-        dth, dw, de = (tangent(li, level) for level in range(3))
-        c, s = np.cos(th), np.sin(th)
-        J = mp.about(np.zeros(3))
-        jxz = c * J[0, 2] - s * J[1, 2]
-        jyz = s * J[0, 2] + c * J[1, 2]
-        djxz = (-s * J[0, 2] - c * J[1, 2]) * dth
-        djyz = (c * J[0, 2] - s * J[1, 2]) * dth
-        dHx += 1e-3 * (djxz * e + jxz * de - djyz * w * w - 2.0 * jyz * w * dw)
-        dHy += 1e-3 * (djyz * e + jyz * de + djxz * w * w + 2.0 * jxz * w * dw)
-        dmS += 1e-3 * mp.mass * dGA[:, :, ga_out[li]]
-    cw = res.counterweights
-    for k in range(0 if cw is None else len(cw.names)):
-        if names[cw.links[k]] not in shaft.links:
-            continue
-        mc = cw.mass.reshape(n_d, -1)[:, None, k, None]  # (D, 1, 1)
-        a = cw.a.reshape(n_d, n_phi, -1, 2)[:, :, k]  # (D, n_phi, 2)
-        dm = dCWm[:, None, k]  # (D, 1, n_act)
-        dma = dm[:, :, None, :] * a[..., None] + mc[..., None] * dCWa[:, :, k]
-        z = cw.z[k]
-        dmS += 1e-3 * dma
-        dHx += -1e-3 * z * dma[:, :, 1]
-        dHy += 1e-3 * z * dma[:, :, 0]
-        if res.gravity:
-            dS[:, :, 1] -= dm * GRAVITY
-            dMx += z * dm * GRAVITY
-    need = dmS - dS
-    zf, zr = shaft.bearings["front"], shaft.bearings["rear"]
-    bfy = (dHx - dMx + zr * need[:, :, 1]) / (zr - zf)
-    bfx = (dHy - dMy - zr * need[:, :, 0]) / (zf - zr)
-    front = np.stack([bfx, bfy], axis=2)
-    return front, need - front
+            if not np.isfinite(mp.inertia).all():
+                raise ValueError(f"link '{lname}' turns with the upper shaft but its [masses]"
+                                 " table gives only inertia_zz: the bearing reactions need its"
+                                 " products of inertia (give the full inertia tensor or solids)")
+            J = mp.about(np.zeros(3))  # about the axis point at z = 0
+            bm_int.append(li)
+            bm_f.append((float(J[0, 2]), float(J[1, 2]), float(mp.mass)))
+        for k, c in enumerate(m.counterweights):
+            if names[c.link_index] in shaft.links:
+                bc_int.append(k)
+                bc_z.append(float(c.z))
+    ints = np.int64
+    out = (np.array(bp_int, dtype=ints).reshape(-1, 4), np.array(bp_f).reshape(-1, 2),
+           np.array(bl_int, dtype=ints), np.array(bl_z, dtype=float),
+           np.array(bm_int, dtype=ints), np.array(bm_f).reshape(-1, 3),
+           np.array(bc_int, dtype=ints), np.array(bc_z, dtype=float))
+    for a in out:
+        a.setflags(write=False)
+    return (*out, zf, zr)

@@ -260,7 +260,7 @@ def _plan(machine: Machine, outputs) -> _Plan:
 
 def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None = None,
                   inputs=None, rates: bool = False,
-                  outputs: list[str] | None = None) -> Sensitivities:
+                  outputs: list[str] | None = None, kin=None) -> Sensitivities:
     """Exact derivatives of every point position, link angle and joint variable with respect
     to every parameter (``machine.parameter_names``), at shaft angles ``phi`` (rad), for the
     designs ``params`` (default: the file's) and setting ``inputs`` (rad, as for
@@ -271,13 +271,20 @@ def sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLike | None 
     ``outputs`` (channel names as :meth:`Sensitivities.channel` takes them, e.g.
     ``["p_needle.point_y"]``; None: every channel): only the units these depend on are solved
     and differentiated, and the result holds the points, links and variables of those units
-    (a gradient of one channel then costs a few of its own kinematics evaluations)."""
+    (a gradient of one channel then costs a few of its own kinematics evaluations).
+
+    ``kin``: the kinematics of these very designs, angles and settings at the file's speed,
+    when the caller has them (every point, link and variable; ``outputs`` None): they are
+    not computed again."""
     designs = int(np.prod(np.shape(params)[:-1])) if params is not None else 1
     for v in (inputs or {}).values():
         designs = max(designs, int(np.size(v)))
     _check_size(machine, designs * int(np.size(phi)) * (3 if rates else 1))
     plan = _plan(machine, outputs)
-    r = kinematics(machine, phi, params=params, inputs=inputs, **plan.names)
+    if kin is not None and outputs is None:
+        r = kin
+    else:
+        r = kinematics(machine, phi, params=params, inputs=inputs, **plan.names)
     if not r.all_feasible:
         raise AnalysisError(f"machine '{machine.name}'", "cannot be assembled at some of the"
                             " angles: the sensitivities are not defined there",
