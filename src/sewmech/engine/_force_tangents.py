@@ -129,6 +129,7 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
     Yk = np.zeros((n_eq, n_act))  # this position's dX/dp, active columns
     n_fr = fr_int.shape[0]
     ql = n_pt  # the first link quantity
+    q_var = n_pt + n_links  # the first joint variable
     # per position scratch: tangents of the centres of mass and of the pairs' geometry, the
     # right-hand sides and the equations' matrix
     tGP = np.zeros((n_links, 2, n_act))
@@ -173,6 +174,8 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
                 j = ent_j[e]
                 oe = ent_off[e]
                 DT[0, qe, 0, j] = T0[nb, oe, lane]
+                if qe >= q_var:  # a joint variable: only its value is read
+                    continue
                 DT[1, qe, 0, j] = vs * T1[nb, oe, lane]
                 DT[2, qe, 0, j] = as_ * T2[nb, oe, lane]
                 if qe < n_pt:

@@ -719,6 +719,7 @@ class _Terms:
     fr_pair: np.ndarray
     used: frozenset
     csr: dict  # the lists as CSR (ptr, parameters) arrays
+    read_q: np.ndarray  # the quantities the terms read (the loads' points apart)
     ent_q: np.ndarray  # every support entry: its quantity, offset in the rows, parameter
     ent_off: np.ndarray
     ent_p: np.ndarray
@@ -811,6 +812,16 @@ def _terms(machine: Machine) -> _Terms:
              "fr": friction}
     used = frozenset().union(*(x for v in lists.values() for x in v))
     used |= {p.ratio_param for p in machine.pairs if p.kind == "driver" and p.input == SHAFT}
+    # the points the terms read: the links' frame origins, the pairs' points and cam loops'
+    # points, the counterweights' origins, the springs' ends (every link and variable)
+    read_q = np.ones(len(sup), dtype=bool)
+    read_q[:n_pt] = False
+    pts = {int(o) for o in lm.origins if o >= 0}
+    pts |= {int(r[3]) for r in table if r[0] != K.PAIR_DRIVER and r[3] >= 0}
+    pts |= {int(terms[t, 4]) for t in cam_rows if terms[t, 0] == K.TERM_POINT}
+    pts |= {machine.point_index(c.origin) for c in cws}
+    pts |= {int(x) for la, pa, lb, pb in sp.ends for x in (pa, pb)}
+    read_q[sorted(pts)] = True
     qoff = np.asarray(lay.qoff, dtype=np.int64)
     ent_q = np.concatenate([np.full(len(s), q, dtype=np.int64)
                             for q, s in enumerate(plan.support)])
@@ -819,20 +830,26 @@ def _terms(machine: Machine) -> _Terms:
     ent_p = np.concatenate([np.asarray(s, dtype=np.int64) for s in plan.support])
     out = _Terms(loc, qoff, np.asarray(lay.qm, dtype=np.int64),
                  link_sup, lists, cw_int, sp_int, sp_f, ts_int, ts_f, fr_int, fr_f, fr_pair,
-                 frozenset(used), {k: _csr(v) for k, v in lists.items()}, ent_q, ent_off,
-                 ent_p)
+                 frozenset(used), {k: _csr(v) for k, v in lists.items()}, read_q, ent_q,
+                 ent_off, ent_p)
     for a in (out.loc, out.qoff, out.qm, out.cw_int, out.sp_int, out.sp_f, out.ts_int, out.ts_f,
-              out.fr_int, out.fr_f, out.fr_pair, out.ent_q, out.ent_off, out.ent_p,
+              out.fr_int, out.fr_f, out.fr_pair, out.read_q, out.ent_q, out.ent_off, out.ent_p,
               *(x for v in out.csr.values() for x in v)):
         a.setflags(write=False)
     return out
 
 
-def _entries(terms: _Terms, jpos: np.ndarray) -> tuple:
-    """Every support entry of an active parameter: its quantity, its offset in the compact
-    tangents' rows and the parameter's active column (the kernel's ent_q, ent_off, ent_j)."""
+def _entries(terms: _Terms, jpos: np.ndarray, load_points) -> tuple:
+    """Every support entry of an active parameter and of a quantity a term reads (the points
+    the terms read, the loads' ``load_points``, every link and variable): its quantity, its
+    offset in the compact tangents' rows and the parameter's active column (the kernel's
+    ent_q, ent_off, ent_j)."""
+    read = terms.read_q
+    if len(load_points):
+        read = read.copy()
+        read[np.asarray(load_points, dtype=np.int64)] = True
     j = jpos[terms.ent_p]
-    keep = j >= 0
+    keep = (j >= 0) & read[terms.ent_q]
     return terms.ent_q[keep], terms.ent_off[keep], j[keep]
 
 
@@ -994,7 +1011,9 @@ def dynamics_sensitivities(machine: Machine, phi: ArrayLike, *, params: ArrayLik
     FT.force_tangents(
         0, n_d, s["P"], s["V"], s["A"], s["TH"], s["OM"], s["EP"], s["S"], ki(prm),
         flat(res.com_p), flat(res.com_v), flat(res.com_a), X, travel, dtravel, on,
-        *(ki(t) for t in sens._t), terms.qm, *_entries(terms, jpos), scale, scale * scale,
+        *(ki(t) for t in sens._t), terms.qm,
+        *_entries(terms, jpos, [*plan._loads.points, *tw_pts]),
+        scale, scale * scale,
         ki(st.table), ki(st.angles), ki(st.cam_rows), ki(machine.terms), ki(lm.mass),
         ki(lm.inertia), ki(lm.com_u), ki(lm.com_v), ki(lm.origins),
         GRAVITY if gravity else 0.0, terms.cw_int, ld_int, ld_f, tw_ptr, tw_pts,
