@@ -159,11 +159,11 @@ def test_the_compiled_derivatives_are_the_complex_step_through_the_whole_residua
     direction per parameter, and a dense solve. The same to 1e-12 of each quantity's largest
     derivative (both are exact: what is left is rounding); the equations at the solution
     vanish in both."""
-    from sewmech.engine.dynamic_sensitivity import _reference_sensitivities
+    from sewmech.engine._dynamic_reference import reference_sensitivities
 
     m = _machines()[which]
     a = dynamics_sensitivities(m, PHI, rpm=900.0)
-    b = _reference_sensitivities(m, PHI, rpm=900.0)
+    b = reference_sensitivities(m, PHI, rpm=900.0)
     assert a.residual < 1e-9 and b.residual < 1e-9
     for name in ("dX", "input_torque", "shaking_force", "shaking_moment", "bearings_front",
                  "bearings_rear"):
@@ -178,13 +178,13 @@ def test_the_compiled_derivatives_are_the_complex_step_through_the_whole_residua
 
 def test_the_compiled_derivatives_of_a_batch():
     """Two designs in one call: each design's derivatives equal the reference's."""
-    from sewmech.engine.dynamic_sensitivity import _reference_sensitivities
+    from sewmech.engine._dynamic_reference import reference_sensitivities
 
     m = sewmech.load_machine("jb1-3")
     P = m.parameters({"take_up.length1": np.array([m.defaults[m.parameter_names.index(
         "take_up.length1")], 1.01 * m.defaults[m.parameter_names.index("take_up.length1")]])})
     a = dynamics_sensitivities(m, PHI, params=P)
-    b = _reference_sensitivities(m, PHI, params=P)
+    b = reference_sensitivities(m, PHI, params=P)
     for x, y in ((a.dX, b.dX), (a.bearings_rear, b.bearings_rear),
                  (a.input_torque, b.input_torque)):
         assert x.shape == y.shape and x.shape[0] == 2

@@ -84,7 +84,7 @@ def _zsqrt(x):
     return cmath.sqrt(x)
 
 
-@njit(**_OPTS)
+@njit(nogil=True, **_OPTS)
 def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, dtravel, on,
                    T0, T1, T2, qm, ent_q, ent_off, ent_j, vs, as_,
                    pairs, pair_angle, cam_rows, terms, mass, inertia, com_u, com_v, origins,
@@ -120,6 +120,7 @@ def force_tangents(d0, d1, P, V, A, TH, OM, EP, Q, prm, GP, GV, GA, X, travel, d
     other columns are left as they are: 0); dSF (.., 2, n_act), dSM the shaking force and
     moment's; dBf, dBr (.., 2, n_act) the front and rear bearing reactions'; G0 (D, n_phi,
     n_eq) the equations at the solution. Every output is overwritten where it has a value.
+    It releases the GIL: a batch runs as chunks of designs on threads.
     (Names are never reused with another type here: numba types a name once per function.)"""
     n_phi = X.shape[1]
     n_eq = X.shape[2]
