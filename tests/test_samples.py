@@ -13,7 +13,7 @@ import pytest
 import sewmech
 from sewmech.design.tolerance_file import tolerances_of
 from sewmech.engine.evaluation import evaluation
-from sewmech.sewing import samples
+from sewmech.sewing import _locate, samples
 from sewmech.sewing.gradients import METRICS
 
 
@@ -122,7 +122,7 @@ def test_a_design_out_of_reach_is_located_from_its_whole_turn(monkeypatch):
     g = METRICS["stitch_length"](m, 25.0)
     blind = type(g)(g.metric, g.value, g.unit, g.parameter_names, g.d_dparam, g.events_deg,
                     {k: np.zeros_like(v) for k, v in g.events_d.items()})
-    monkeypatch.setattr(samples, "REACH", math.radians(1.0))
+    monkeypatch.setattr(_locate, "REACH", math.radians(1.0))
     vals, how = samples.sample_feed_values(m, "stitch_length", 25.0, P, blind)
     assert 0 < how["whole_turn"] < P.shape[0]
     assert how["located"] + how["whole_turn"] == P.shape[0]

@@ -670,8 +670,9 @@ def aggregate_batch(machine: Machine, family: str, channel: str, P: np.ndarray, 
                     pieces: list | None = None) -> np.ndarray:
     """An aggregate of a channel for a batch of designs P (m, n_params), values only, from one
     kinematics call on :data:`N_TURN` angles at omega = 1 (the extremes on the Hermite
-    interpolant of the grid, within about 1e-7 of the located ones; an acceleration's with the
-    slopes of its fourth-order central differences). NaN where
+    interpolant of the grid, about 1e-7 of the located ones where the channel is smooth, more
+    where a cam's arcs join near an extreme; an acceleration's with the slopes of its
+    fourth-order central differences). NaN where
     a design does not assemble. ``pieces`` (a list) receives each design's pieces."""
     from ..engine.kinematics import kinematics
 

@@ -567,8 +567,9 @@ class Problem:
         (m,), the constraints g (m, n_g), >= 0 where met, in the order and units of
         :meth:`constraints`, and which designs assemble over the whole turn (m,). One
         kinematics call per metric (:func:`batch_values`: events on a 1 deg grid refined on
-        its Hermite interpolant, within about 1e-7 of the located ones); NaN where a design
-        does not assemble."""
+        its Hermite interpolant, about 1e-7 of the located ones where the path is smooth; the
+        stitch lengths located on the exact kinematics); NaN where a design does not
+        assemble."""
         vals, ok = batch_values(self, X)
         spec = self.spec
         uniform = spec.objective.form == "weighted_uniform"

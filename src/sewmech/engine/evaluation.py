@@ -108,6 +108,12 @@ class Evaluation:
         return m.unknowns[:, 3].astype(np.int64), np.stack(cols, axis=1)
 
     @cached_property
+    def init_params(self) -> np.ndarray:
+        """Parameter index of each loop unknown's initial value (the columns :meth:`at_angles`
+        sets from its guess)."""
+        return self.machine.unknowns[:, 3].astype(np.int64)
+
+    @cached_property
     def _init_rates(self) -> tuple[np.ndarray, np.ndarray]:
         """The loop unknowns' first and second derivatives by the shaft angle at every grid
         angle, (n_grid, n_unknowns) each (the grid is at omega = 1 rad/s)."""
@@ -207,8 +213,9 @@ class Evaluation:
         for j, r in zip(phase, ratio):
             P[:, j] += P[:, r] * phi
         if self.machine.has_loops:
-            idx, values = self._inits
-            if guess is None:
+            idx = self.init_params
+            if guess is None:  # (the grid is computed only here)
+                values = self._inits[1]
                 x = np.mod(phi, 2.0 * math.pi) / self.h
                 k = np.rint(x).astype(np.int64)
                 d = ((x - k) * self.h)[:, None]
