@@ -434,3 +434,35 @@ def test_friction_batch_equals_one_design_at_a_time():
     for i in range(3):
         one = inverse_dynamics(m, phi, params=P[i]).unknowns
         assert np.abs(batch[i] - one).max() <= 1e-9 * np.abs(one).max()
+
+
+def test_designs_with_the_same_take_up_share_its_thread_channel(monkeypatch):
+    """The JB loads' conditions read the take-up's thread length (a path and its gradient at
+    every position): a batch computes it once for designs whose take-up parameters agree (a
+    sweep of the feed's dimensions), and every design's loads and forces are still its own
+    (each against the design analysed alone)."""
+    from sewmech.engine import loads
+
+    m = sewmech.load_machine("jb1-3")
+    P = np.stack([m.defaults] * 3)
+    P[1, m.parameter_names.index("feed_fork.slot.1.length")] += 0.5  # the feed only
+    P[2, m.parameter_names.index("take_up.length1")] += 0.3  # the take-up itself
+    sizes = []
+    real = loads.channel_values
+
+    def counting(ref, a, thread=None):
+        if ref.kind == "thread":
+            sizes.append(a["P"].shape[0])
+        return real(ref, a, thread)
+
+    monkeypatch.setattr(loads, "channel_values", counting)
+    phi = np.radians(np.arange(0.0, 360.0, 5.0))
+    batch = inverse_dynamics(m, phi, params=P)
+    assert 2 in sizes and 3 not in sizes  # (designs 0 and 1 share it)
+    for d in range(3):
+        one = inverse_dynamics(m, phi, params=P[d])
+        np.testing.assert_array_equal(batch.load_on[d], one.load_on)
+        np.testing.assert_allclose(batch.load_force[d], one.load_force, rtol=0,
+                                   atol=1e-12 * np.abs(one.load_force).max())
+        np.testing.assert_allclose(batch.unknowns[d], one.unknowns, rtol=0,
+                                   atol=1e-12 * np.abs(one.unknowns).max())

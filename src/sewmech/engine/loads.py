@@ -186,22 +186,23 @@ class LoadTables:
         P = params.reshape(-1, params.shape[-1])
         out = np.empty(P.shape[0])
         support = self._support(ref)
-        todo = []
+        todo: dict = {}  # key -> the designs that need it (designs alike in it share it)
         for d in range(P.shape[0]):
             key = (ref.name, P[d, support].tobytes())
             hit = self.machine._condition_maxima.get(key)
             if hit is None:
-                todo.append((d, key))
+                todo.setdefault(key, []).append(d)
             else:
                 out[d] = hit
         if not todo:
             return out
+        todo = [(ds, key) for key, ds in todo.items()]
         if self._max_plan is None:
             n = round(360.0 / MAX_COARSE_DEG)
             self._max_plan = KinematicsPlan(self.machine, np.arange(n) * (2 * math.pi / n),
                                             on_failure="mask")
         plan = self._max_plan
-        rows = np.array([d for d, _ in todo])
+        rows = np.array([ds[0] for ds, _ in todo])
         plan.run(P[rows])
         coarse = channel_values(ref, plan.kernel_arrays(), self.thread)[0]  # (m, n)
         h = math.radians(MAX_COARSE_DEG)
@@ -227,12 +228,28 @@ class LoadTables:
                     den = y0 - 2.0 * y1 + y2
                     if den < 0.0:
                         peak = max(y1, y1 - 0.125 * (y2 - y0) ** 2 / den)
-                d, key = todo[g]
-                out[d] = peak
+                ds, key = todo[g]
+                out[ds] = peak
                 if len(cache) >= 4096:
                     cache.pop(next(iter(cache)))
                 cache[key] = peak
         return out
+
+    def _channel(self, ref: ChannelRef, a: dict[str, np.ndarray], params: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray | None]:
+        """:func:`channel_values` of the designs of ``a``; a thread channel (a path and its
+        gradient at every position) only once for designs whose parameters that move its
+        guides are the same (a sweep of the feed's dimensions shares the take-up's thread)."""
+        D = a["P"].shape[0]
+        if ref.kind != "thread" or D < 2:
+            return channel_values(ref, a, self.thread)
+        P = np.asarray(params, dtype=float).reshape(D, -1)[:, self._support(ref)]
+        _, first, back = np.unique(P, axis=0, return_index=True, return_inverse=True)
+        if len(first) == D:
+            return channel_values(ref, a, self.thread)
+        val, rate = channel_values(ref, {"P": a["P"][first], "V": a["V"][first]}, self.thread)
+        back = back.reshape(-1)
+        return val[back], (None if rate is None else rate[back])
 
     def _support(self, ref: ChannelRef) -> np.ndarray:
         """The parameters a channel's values depend on (indices): its largest value is kept
@@ -281,7 +298,7 @@ class LoadTables:
             first = True
             for ref, c in self.conditions[j]:
                 if ref.name not in read:
-                    read[ref.name] = channel_values(ref, a, self.thread)
+                    read[ref.name] = self._channel(ref, a, params)
                 val, rate = read[ref.name]
                 with np.errstate(invalid="ignore"):
                     if c.above is not None:

@@ -122,7 +122,7 @@ def whole_turn_values(machine: Machine, metric: str, regulator_deg: float,
         starts = {"needle_at_plate": np.where(np.isfinite(first), first, np.nan)}
     else:
         c = feed_cycles(machine, regulator_deg, params=P, step_deg=step_deg,
-                        on_failure="mask")
+                        on_failure="mask", exact=False)  # (the steps below locate them)
         starts = {"rise": np.radians(c.rise_deg), "fall": np.radians(c.fall_deg),
                   "top": np.radians(c.top_deg)}
     Pp, _, ev = _prepare(machine, regulator_deg, P)
