@@ -190,3 +190,37 @@ def test_a_stitch_the_predictions_miss_is_found_on_the_one_degree_turn(shipped):
         assert 0.1 < got < 0.15 and abs(got - grid) <= 1e-6
         assert abs(got - whole_turn_values(shipped.machine, "stitch_length", 30.0,
                                            P[d - a:d - a + 1], 1.0)[0]) <= 1e-12
+
+
+def test_the_units_no_design_of_the_batch_changes_are_checked_once(monkeypatch):
+    """A batch that varies the feed's dimensions alone: the conditions of the units no design
+    changes (the needle bar's, the take-up's, the hook's) are evaluated for its first design
+    only, and the answers are the whole grid's; with the take-up too short to close in every
+    design, every design fails, as on the whole grid."""
+    from sewmech.design import evaluate as ev
+    from sewmech.engine.margins import conditions
+
+    m = load_machine("jb1-3")
+    P = np.repeat(m.defaults[None], 6, axis=0)
+    P[:, m.parameter_names.index("feed_fork.slot.1.length")] = np.linspace(14.0, 18.0, 6)
+    n_cond = len(conditions(m, np.asarray(m.defaults)))
+    calls = []
+    real = ev._coarse
+
+    def spy(machine, Q, which, looped, *rest):
+        calls.append((len(Q), int(which.sum()), len(looped)))
+        return real(machine, Q, which, looped, *rest)
+
+    monkeypatch.setattr(ev, "_coarse", spy)
+    got = assembles_batch(m, P)
+    assert np.array_equal(got, assembles_on_grid(m, P)) and got.all()
+    shared = [(w, lp) for n, w, lp in calls if n == 1]
+    own = [(w, lp) for n, w, lp in calls if n == 6]
+    # (the fork hangs on a loop unit: the points on it, not a closed-form unit's margins,
+    # are what the designs change)
+    assert shared and own and shared[0][0] + own[0][0] == n_cond and shared[0][0] > 0
+    assert own[0][1] > 0
+    P[:, m.parameter_names.index("take_up.length1")] *= 0.5
+    got = assembles_batch(m, P)
+    want = assembles_on_grid(m, P)
+    assert np.array_equal(got, want) and not want.any()

@@ -133,7 +133,6 @@ def assembles_batch(machine: Machine, P: np.ndarray, *,
       may depend on the steps it takes), are checked on the whole grid.
 
     ``counts`` (an :class:`AssemblyCounts`) receives how many took each way. (m,) bool."""
-    from ..engine.kinematics import kinematics
     from ..engine.margins import conditions
 
     P = np.atleast_2d(np.asarray(P, dtype=float))
@@ -142,45 +141,104 @@ def assembles_batch(machine: Machine, P: np.ndarray, *,
     phi = np.arange(n + 1) * h  # (the turn's end too, for the last step's interpolant)
     inputs = setting_extremes(machine)
     looped = _looped_points(machine)
-    # only what the margins read and the points that hang on loop units: a closed-form unit
-    # is not solved itself (its margins, read from its inputs, say whether it assembles), and
-    # the fixed points and points on links cannot fail
-    sel = {"points": sorted({p for c in conditions(machine, np.asarray(machine.defaults))
-                             for p in c.points} | set(looped)),
-           "links": sorted({lk for c in conditions(machine, np.asarray(machine.defaults))
-                            for lk in c.links}), "variables": []}
+    # the conditions and loop-hung points whose support holds a parameter that varies within
+    # the batch are evaluated for every design; the others (a sweep of the feed's dimensions
+    # leaves the needle bar, take-up and hook alike in every design) for its first alone
+    n_cond = len(conditions(machine, np.asarray(machine.defaults)))
+    own = np.ones(n_cond, dtype=bool)
+    own_pts = np.ones(len(looped), dtype=bool)
+    if len(P) > 1:
+        varying = set(np.nonzero(np.ptp(P, axis=0) > 0.0)[0].tolist())
+        own, own_pts = _depends_on(machine, looped, varying)
     ok = np.empty(len(P), dtype=bool)
     unsure = np.zeros(len(P), dtype=bool)
+    shared = None
+    if not (own.all() and own_pts.all()):
+        shared = _coarse(machine, P[:1], ~own, [p for p, o in zip(looped, own_pts) if not o],
+                         phi, n, h, inputs)
     step = ASSEMBLY_CHUNK * COARSE_STEP_DEG  # (the same memory as a chunk of the whole grid)
     for a in range(0, len(P), step):
         Q = P[a:a + step]
-        m = len(Q)
-        r = kinematics(machine, phi, params=Q if inputs is None else Q[None, :, :],
-                       inputs=inputs, omega=1.0, on_failure="mask",
-                       max_step_deg=COARSE_STEP_DEG, **sel)
-        feasible = r.feasible.reshape(-1, m, n + 1)[..., :n].all(axis=(0, 2))
-        fails = np.zeros(m, dtype=bool)  # a margin below the clearance at a coarse angle
-        room = np.full(m, np.inf)  # the least margin on the interpolants less their error
-        for c in conditions(machine, Q.T[:, :, None]):  # (n_params, m, 1): per design
-            y, dy = (np.asarray(v).reshape(-1, m, n + 1) for v in c.fn(r))
-            fails |= (y[..., :n] < ASSEMBLY_CLEARANCE_MM).any(axis=(0, 2))
-            room = np.minimum(room, _hermite_room(y, dy * h))
-        smooth = np.ones(m, dtype=bool)
-        if looped:
-            at = [r.point_names.index(name) for name in looped]
-            p, v, acc = (x[..., at, :].reshape((-1, m, n + 1, len(at), 2))
-                         for x in (r.p, r.v, r.a))
-            e = np.abs(np.diff(p, axis=2) - h * (v[:, :, :-1] + 0.5 * np.diff(v, axis=2))
-                       + h * h / 12.0 * np.diff(acc, axis=2))
-            smooth = (e <= BRANCH_JUMP_MM).all(axis=(0, 2, 3, 4))  # (False where NaN)
-        ok[a:a + m] = feasible & ~fails
+        feasible, fails, room, smooth = _coarse(
+            machine, Q, own, [p for p, o in zip(looped, own_pts) if o], phi, n, h, inputs)
+        if shared is not None:
+            feasible &= shared[0][0]
+            fails |= shared[1][0]
+            room = np.minimum(room, shared[2][0])
+            smooth &= shared[3][0]
+        ok[a:a + len(Q)] = feasible & ~fails
         # a loop unit's failure may depend on the steps the solver took: the grid decides
-        unsure[a:a + m] = ~fails & (~feasible | ~smooth | ~(room >= ASSEMBLY_CLEARANCE_MM))
+        unsure[a:a + len(Q)] = ~fails & (~feasible | ~smooth | ~(room >= ASSEMBLY_CLEARANCE_MM))
     if unsure.any():
         ok[unsure] = assembles_on_grid(machine, P[unsure])
     if counts is not None:
         counts.add(AssemblyCounts(int(len(P) - unsure.sum()), int(unsure.sum())))
     return ok
+
+
+def _depends_on(machine: Machine, looped: list[str], varying: set) -> tuple[np.ndarray,
+                                                                            np.ndarray]:
+    """Which assembly conditions (in :func:`sewmech.engine.margins.conditions`' order) and
+    which of the ``looped`` points depend on a parameter in ``varying``: the support of what
+    the condition's unit writes (its own parameters and its inputs'), of the point."""
+    from ..engine.margins import conditions
+    from ..engine.sensitivity import _plan
+
+    sup = _plan(machine, None).support
+    n_pt, n_l = len(machine.point_names), len(machine.link_names)
+    offset = {"p": 0, "l": n_pt, "v": n_pt + n_l}
+    row_of = {u: r for r, u in enumerate(machine.kernel_unit_of_row) if u >= 0}
+    own = []
+    for c in conditions(machine, np.asarray(machine.defaults)):
+        params: set = set()
+        for tag, i in machine._row_io[row_of[c.unit]][1]:
+            params |= {int(q) for q in sup[offset[tag] + i]}
+        own.append(bool(params & varying))
+    pts = [bool({int(q) for q in sup[machine.point_index(p)]} & varying) for p in looped]
+    return np.array(own, dtype=bool), np.array(pts, dtype=bool)
+
+
+def _coarse(machine: Machine, Q: np.ndarray, which: np.ndarray, looped: list[str],
+            phi: np.ndarray, n: int, h: float, inputs) -> tuple:
+    """The coarse grid's verdicts for the designs Q (m, n_params) on the assembly conditions
+    ``which`` (a mask over :func:`sewmech.engine.margins.conditions`) and the ``looped``
+    points: every position solved (m,), a margin below the clearance at a coarse angle (m,),
+    the least margin on the interpolants less their error (m,), no branch jump (m,)."""
+    from ..engine.kinematics import kinematics
+    from ..engine.margins import conditions
+
+    m = len(Q)
+    conds = [c for c, w in zip(conditions(machine, np.asarray(machine.defaults)), which) if w]
+    # only what the margins read and the points that hang on loop units: a closed-form unit
+    # is not solved itself (its margins, read from its inputs, say whether it assembles), and
+    # the fixed points and points on links cannot fail
+    sel = {"points": sorted({p for c in conds for p in c.points} | set(looped)),
+           "links": sorted({lk for c in conds for lk in c.links}), "variables": []}
+    if not sel["points"] and not sel["links"]:
+        return (np.ones(m, dtype=bool), np.zeros(m, dtype=bool), np.full(m, np.inf),
+                np.ones(m, dtype=bool))
+    r = kinematics(machine, phi, params=Q if inputs is None else Q[None, :, :],
+                   inputs=inputs, omega=1.0, on_failure="mask",
+                   max_step_deg=COARSE_STEP_DEG, **sel)
+    feasible = r.feasible.reshape(-1, m, n + 1)[..., :n].all(axis=(0, 2))
+    fails = np.zeros(m, dtype=bool)  # a margin below the clearance at a coarse angle
+    room = np.full(m, np.inf)  # the least margin on the interpolants less their error
+    per_design = conditions(machine, Q.T[:, :, None])  # (n_params, m, 1): per design
+    for c, w in zip(per_design, which):
+        if not w:
+            continue
+        y, dy = (np.asarray(v).reshape(-1, m, n + 1) for v in c.fn(r))
+        fails |= (y[..., :n] < ASSEMBLY_CLEARANCE_MM).any(axis=(0, 2))
+        room = np.minimum(room, _hermite_room(y, dy * h))
+    smooth = np.ones(m, dtype=bool)
+    if looped:
+        at = [r.point_names.index(name) for name in looped]
+        p, v, acc = (x[..., at, :].reshape((-1, m, n + 1, len(at), 2))
+                     for x in (r.p, r.v, r.a))
+        e = np.abs(np.diff(p, axis=2) - h * (v[:, :, :-1] + 0.5 * np.diff(v, axis=2))
+                   + h * h / 12.0 * np.diff(acc, axis=2))
+        smooth = (e <= BRANCH_JUMP_MM).all(axis=(0, 2, 3, 4))  # (False where NaN)
+    return feasible, fails, room, smooth
 
 
 def _looped_points(machine: Machine) -> list[str]:
