@@ -3,7 +3,8 @@
 The shipped sweep's designs (examples/sweeps/jb-feed.toml: six feed dimensions, four feed
 metrics at the regulator's settings, the whole-turn assembly at both regulator ends, peak
 torque and shaking force), its first ``DESIGNS`` designs (a Sobol sequence's prefix: the same
-designs the full sweep starts with), in chunks of ``CHUNK``:
+designs the full sweep starts with), in chunks of ``CHUNK`` (the command's default; until
+2026-11-27 this ran 640 designs in chunks of 80, where a chunk's fixed costs weigh more):
 
 - in this process (``--workers 0``: the kernels on every core through threads), and on a Dask
   LocalCluster of 1 and of 2 worker processes (one thread each), timed in interleaved rounds
@@ -39,8 +40,10 @@ from _timing import figure, interleave, table, write_results
 
 SHIPPED = HERE.parent / "examples" / "sweeps" / "jb-feed.toml"
 RESULTS = HERE / "results" / "sweep.json"
-DESIGNS = 640
-CHUNK = 80
+DESIGNS = 1000
+#: the chunk ``sewmech sweep`` takes by default (sewmech.app.sweep_run.DEFAULT_CHUNK): the
+#: shipped sweep as it runs (four chunks: two for each of 2 workers)
+CHUNK = 250
 ROUNDS = 3
 TARGET_OVERHEAD = 0.10
 TARGET_PER_CORE = 1000.0  # designs/s per core on the shipped sweep (issue 34)

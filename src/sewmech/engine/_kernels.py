@@ -1152,10 +1152,12 @@ _FORCE_DOC = """Right-hand sides and pair forces of every design and position.
     the links' angular velocities, GV (D, n_phi, >= n_links, 2) the velocities of the points
     GP; feasible (D, n_phi) the assembled positions. After the frictionless solve, each design
     on its own runs a fixed-point iteration of its pair forces with the friction of the last
-    step as applied forces (:func:`_friction`, :func:`_friction_motion`: XB[d] becomes the
-    loads of XB plus that friction), accelerated by Anderson's method of depth ``depth``
+    step added to the loads of XB (:func:`_friction`, :func:`_friction_motion`; XB itself is
+    left as given), accelerated by Anderson's method of depth ``depth``
     (:func:`_anderson`), until no assembled position changes by more than ``tol`` of the
-    design's largest force, at most max_steps steps. The matrix does not depend on the
+    design's largest force, at most max_steps steps; the steps hold a design's unknowns with
+    its positions side by side (n_eq, n_phi), so that their loops over the positions
+    vectorise, and write X[d] once, when they end. The matrix does not depend on the
     friction: every step solves with the QR factors of the first solve, kept per position
     (Fa; the written solvers' factors, see :mod:`sewmech.engine._blocks`). CW (D, n_phi, n_eq) or empty: a part
     added to X after every solve (the counterweights', linear and frictionless). Fills FF, FP
@@ -1240,14 +1242,21 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
         frpos[fr_pair[i]] = i
     GEO = np.zeros((nf, 4, n_phi))  # force point and direction of the frictional pairs
     FC = np.zeros((nf, 7, n_phi))  # what their friction takes from the motion (_friction)
+    # the iteration's state with the positions side by side (n_eq, n_phi), unknowns in X's
+    # order: x_k (XT), g(x_k) (GT), minus the right-hand sides without (XB0T) and with friction
+    # (XBT: the applied forces, friction included, less the inertia forces and weights)
     ring = depth + 1
-    XB0 = np.zeros((n_phi if friction else 0, n_eq))
-    Xold = np.zeros((n_phi if friction else 0, n_eq))
-    HF = np.zeros((ring, n_phi if friction else 0, n_eq))
-    HG = np.zeros((ring, n_phi if friction else 0, n_eq))
+    nph = n_phi if friction else 0
+    XT = np.zeros((n_eq, nph))
+    GT = np.zeros((n_eq, nph))
+    XB0T = np.zeros((n_eq, nph))
+    XBT = np.zeros((n_eq, nph))
+    HF = np.zeros((ring, n_eq, nph))
+    HG = np.zeros((ring, n_eq, nph))
     done = np.zeros(n_phi, dtype=np.bool_)
+    T = np.zeros((14, nph))
+    MODE = np.zeros(nph, dtype=np.int64)
     A = np.zeros((depth, depth + 1))
-    gamma = np.zeros(depth)
     for d in range(d0, d1):
         step = -1  # -1: factor and solve; then the friction steps with the kept factors
         n_bad = 0  # assembled positions with a zero pivot: no friction iteration
@@ -1259,8 +1268,11 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
             if step >= 0:  # the friction of the last step's forces as applied forces
                 # (settled: of the settled forces, the answer's; one call site, as each site
                 # of an inlined function is compiled on its own)
-                _friction(fr_int, FC, X, XB0, XB, FF, FP, d, settled)
+                _friction(fr_int, FC, XT, XB0T, XBT, FF, FP, d, settled)
                 if settled:
+                    for k in range(n_phi):
+                        for e in range(n_eq):
+                            X[d, k, e] = XT[e, k]
                     break
             for ci in range(n_chunks):
                 k0 = ci * FORCE_CHUNK
@@ -1287,11 +1299,15 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
                     el = _U((d * n_phi + k0) * EP.shape[2] + li)
                     xb = _U((d * n_phi + k0) * n_eq + 3 * (li - 1))
                     bx, by, bm = _U(rx) * CH, _U(ry) * CH, _U(rm) * CH
-                    for kk in range(_U(nk)):
+                    for kk in range(_U(nk) if step < 0 else _U(0)):
                         ix = xb + kk * _U(n_eq)
                         Bf[bx + kk] = m * GAf[ga + kk * sg_] - XBf[ix]
                         Bf[by + kk] = m * GAf[ga + kk * sg_ + _U(1)] + mg - XBf[ix + _U(1)]
                         Bf[bm + kk] = ii * EPf[el + kk * sl] - XBf[ix + _U(2)]
+                for r in range(n_eq if step >= 0 else 0):  # the friction steps' (XBT: minus
+                    br = _U(rpos[r]) * CH  # the right-hand sides, positions side by side)
+                    for kk in range(nk):
+                        Bf[br + kk] = -XBT[r, k0 + kk]
                 # the matrix entries of every pair (pslot: where each of its entries goes in W)
                 for i in range(pairs.shape[0] if step < 0 else 0):
                     kind = pairs[i, 0]
@@ -1459,6 +1475,12 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
                             n_low += 1
                             if feasible[d, k0 + kk]:
                                 n_bad += 1
+                if step >= 0:  # g(x_k), positions side by side
+                    for e in range(n_eq):
+                        ce = cperm[e]
+                        for kk in range(nk):
+                            GT[ce, k0 + kk] = XV[e, kk]
+                    continue
                 bx = _U((d * n_phi + k0) * n_eq)
                 for e in range(n_eq):
                     xo = bx + _U(cperm[e])
@@ -1467,28 +1489,38 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
                         Xf[xo + kk * _U(n_eq)] = XVf[xi + kk]
             if not friction or n_bad > 0:  # (a singular design is reported, not iterated)
                 break
-            if with_cw:  # the counterweights' part, linear and frictionless
-                for k in range(n_phi):
-                    for e in range(n_eq):
-                        X[d, k, e] += CW[d, k, e]
             if step < 0:
                 for k in range(n_phi):
                     done[k] = False
-                    for e in range(n_eq):
-                        XB0[k, e] = XB[d, k, e]
+                    for e in range(n_eq):  # (the counterweights' part: linear, frictionless)
+                        XT[e, k] = X[d, k, e] + CW[d, k, e] if with_cw else X[d, k, e]
+                for li in range(1, n_links):  # the applied forces less the inertia forces and
+                    r = 3 * (li - 1)  # weight: minus the right-hand sides without friction
+                    m = 1e-3 * mass[li]
+                    mg = gravity * mass[li]
+                    ii = 1e-3 * inertia[li]
+                    for k in range(n_phi):
+                        XB0T[r, k] = XB[d, k, r] - m * GA[d, k, li, 0]
+                        XB0T[r + 1, k] = XB[d, k, r + 1] - (m * GA[d, k, li, 1] + mg)
+                        XB0T[r + 2, k] = XB[d, k, r + 2] - ii * EP[d, k, li]
                 _friction_motion(fr_int, fr_f, GEO, OM, GP, GV, FC, d)
             else:
-                change, kw = _anderson(X, Xold, HF, HG, step, feasible, done, tol, A, gamma, d)
+                if with_cw:
+                    for k in range(n_phi):
+                        for e in range(n_eq):
+                            GT[e, k] += CW[d, k, e]
+                change, kw = _anderson(GT, XT, HF, HG, step, feasible, done, tol, T, MODE, A,
+                                       d)
                 if change <= tol:  # every position settled (each keeps its own answer)
                     settled = True
                     continue
                 if step + 1 >= max_steps:
                     SETTLE[d, 0] = change
                     SETTLE[d, 1] = kw
+                    for k in range(n_phi):
+                        for e in range(n_eq):
+                            X[d, k, e] = XT[e, k]
                     break
-            for k in range(n_phi):
-                for e in range(n_eq):
-                    Xold[k, e] = X[d, k, e]
             step += 1
     return n_low
 
@@ -1547,20 +1579,21 @@ def _friction_motion(fr_int, fr_f, GEO, OM, GP, GV, FC, d):
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
-def _friction(fr_int, FC, X, XB0, XB, FF, FP, d, final):
-    """The friction of every frictional pair of design d from its pair forces X[d], as
-    generalized forces XB[d] = XB0 + friction (see :func:`force_solve`'s friction arguments),
-    with what it takes from the motion in FC (:func:`_friction_motion`).
+def _friction(fr_int, FC, XT, XB0T, XBT, FF, FP, d, final):
+    """The friction of every frictional pair of design d from its pair forces XT (n_eq, n_phi:
+    unknown by position, the positions side by side), as generalized forces XBT = XB0T +
+    friction (the same layout; see :func:`force_solve`'s friction arguments), with what it
+    takes from the motion in FC (:func:`_friction_motion`).
 
     Revolute pairs: a moment -(mu r |F| s(r w) + viscous w) on the second link, the opposite on
     the first; prismatic, cam and slot pairs: a force -(mu |N| s(v) + viscous v) along the
     contact's tangent on the second link at the force point, the opposite on the first.
     ``final``: also fill FF[d] (n_phi, n_fr) with that moment (N mm) or force (N) on the second
     link and FP[d] with the power it takes out of the machine (N mm/s, >= 0)."""
-    n_phi = X.shape[1]
-    for k in range(n_phi):
-        for r in range(XB.shape[2]):
-            XB[d, k, r] = XB0[k, r]
+    n_phi = XT.shape[1]
+    for r in range(XBT.shape[0]):
+        for k in range(n_phi):
+            XBT[r, k] = XB0T[r, k]
     for i in range(fr_int.shape[0]):
         kind = fr_int[i, 0]
         la = fr_int[i, 1]
@@ -1570,121 +1603,135 @@ def _friction(fr_int, FC, X, XB0, XB, FF, FP, d, final):
         ra = 3 * (la - 1)
         if kind == PAIR_REVOLUTE:
             for k in range(n_phi):
-                fx = X[d, k, c]
-                fy = X[d, k, c + 1]
+                fx = XT[c, k]
+                fy = XT[c + 1, k]
                 m = -(FC[i, 0, k] * math.sqrt(fx * fx + fy * fy) + FC[i, 1, k])
                 if lb > 0:
-                    XB[d, k, rb + 2] += m
+                    XBT[rb + 2, k] += m
                 if la > 0:
-                    XB[d, k, ra + 2] -= m
-                if final:
-                    FF[d, k, i] = m
-                    FP[d, k, i] = -m * FC[i, 2, k]
+                    XBT[ra + 2, k] -= m
+            for k in range(n_phi if final else 0):
+                fx = XT[c, k]
+                fy = XT[c + 1, k]
+                m = -(FC[i, 0, k] * math.sqrt(fx * fx + fy * fy) + FC[i, 1, k])
+                FF[d, k, i] = m
+                FP[d, k, i] = -m * FC[i, 2, k]
             continue
         for k in range(n_phi):
-            f = -(FC[i, 0, k] * abs(X[d, k, c]) + FC[i, 1, k])
-            fx = f * FC[i, 3, k]
-            fy = f * FC[i, 4, k]
+            f = -(FC[i, 0, k] * abs(XT[c, k]) + FC[i, 1, k])
             if lb > 0:
-                XB[d, k, rb] += fx
-                XB[d, k, rb + 1] += fy
-                XB[d, k, rb + 2] += f * FC[i, 5, k]
+                XBT[rb, k] += f * FC[i, 3, k]
+                XBT[rb + 1, k] += f * FC[i, 4, k]
+                XBT[rb + 2, k] += f * FC[i, 5, k]
             if la > 0:
-                XB[d, k, ra] -= fx
-                XB[d, k, ra + 1] -= fy
-                XB[d, k, ra + 2] -= f * FC[i, 6, k]
-            if final:
-                FF[d, k, i] = f
-                FP[d, k, i] = -f * FC[i, 2, k]
+                XBT[ra, k] -= f * FC[i, 3, k]
+                XBT[ra + 1, k] -= f * FC[i, 4, k]
+                XBT[ra + 2, k] -= f * FC[i, 6, k]
+        for k in range(n_phi if final else 0):
+            f = -(FC[i, 0, k] * abs(XT[c, k]) + FC[i, 1, k])
+            FF[d, k, i] = f
+            FP[d, k, i] = -f * FC[i, 2, k]
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
-def _anderson(X, Xold, HF, HG, k, feasible, done, tol, A, gamma, d):
+def _anderson(GT, XT, HF, HG, k, feasible, done, tol, T, MODE, A, d):
     """One step of Anderson acceleration (type II, depth HF.shape[0] - 1, at most 3) of the fixed
-    point x = g(x) at every position of design d on its own: Xold (n_phi, n) is x_k, X[d] holds
-    g(x_k) on entry and x_{k+1} on return. HF, HG (depth + 1, n_phi, n): the residuals f = g(x) - x
-    and the images g(x) of the last steps (a ring, step k in slot k % (depth + 1)). x_{k+1} = g_k -
-    sum_j gamma_j (g_{k-j} - g_{k-j-1}), gamma the least-squares combination of the residuals'
+    point x = g(x) at every position of design d on its own, the positions side by side (the
+    loops over them vectorise): XT (n, n_phi) is x_k on entry and x_{k+1} on return, GT (n,
+    n_phi) holds g(x_k). HF, HG (depth + 1, n, n_phi): the residuals f = g(x) - x and the images
+    g(x) of the last steps (a ring, step k in slot k % (depth + 1)). x_{k+1} = g_k - sum_j
+    gamma_j (g_{k-j} - g_{k-j-1}), gamma the least-squares combination of the residuals'
     differences that best cancels f_k (normal equations of at most depth unknowns per position,
-    solved by Gaussian elimination, damped by 1e-12 of their trace). A position whose |f_k| is at
-    most ``tol`` of the design's largest |g| is done (``done`` (n_phi,) bool, kept across the
-    steps): X keeps that g_k and later steps leave it. Returns max |f_k| relative to the design's
-    largest |g| over its assembled positions not yet done (0 when all are) and the position where
-    it is (-1: none)."""
+    solved by Gaussian elimination, damped by 1e-12 of their trace). A position whose |f_k| is
+    at most ``tol`` of the design's largest |g| is done (``done`` (n_phi,) bool, kept across the
+    steps): XT takes that g_k and later steps leave it. T (14, n_phi), MODE (n_phi,), A (depth,
+    depth + 1) scratch.
+    Returns max |f_k| relative to the design's largest |g| over its assembled positions not yet
+    done (0 when all are) and the position where it is (-1: none)."""
     depth = HF.shape[0] - 1
     ring = depth + 1
     slot = k % ring
-    n_phi, n = X.shape[1], X.shape[2]
+    n, n_phi = GT.shape
     mk = min(k, depth)
-    worst = 0.0
-    kw = -1
     s0, s1, s2, s3 = slot, (k - 1) % ring, (k - 2) % ring, (k - 3) % ring  # steps k, k - 1, ...
+    # per position: |f_k| (T[9]) and |g| (T[10]) largest over the unknowns; the ring's slots
+    # (every position's, the done ones' unread)
+    for kk in range(n_phi):
+        T[9, kk] = 0.0
+        T[10, kk] = 0.0
+    for e in range(n):
+        for kk in range(n_phi):
+            g = GT[e, kk]
+            f = g - XT[e, kk]
+            HF[slot, e, kk] = f
+            HG[slot, e, kk] = g
+            T[9, kk] = max(T[9, kk], abs(f))
+            T[10, kk] = max(T[10, kk], abs(g))
     scale = 1.0
     for kk in range(n_phi):
         if feasible[d, kk]:
-            for e in range(n):
-                scale = max(scale, abs(X[d, kk, e]))
-    for kk in range(n_phi):
+            scale = max(scale, T[10, kk])
+    worst = 0.0
+    kw = -1
+    n_acc = 0
+    for kk in range(n_phi):  # MODE: 0 keeps XT (done), 1 takes g_k, 2 Anderson's combination
         if done[kk]:  # settled before: its forces stay as they were
-            for e in range(n):
-                X[d, kk, e] = Xold[kk, e]
+            MODE[kk] = 0
             continue
-        res = 0.0
-        for e in range(n):
-            f = X[d, kk, e] - Xold[kk, e]
-            HF[slot, kk, e] = f
-            HG[slot, kk, e] = X[d, kk, e]
-            res = max(res, abs(f))
+        MODE[kk] = 1
         if not feasible[d, kk]:
             continue
-        if res / scale <= tol:  # settled now: X holds g_k, the forces of this solve
+        res = T[9, kk]
+        if res / scale <= tol:  # settled now: it takes g_k, the forces of this solve
             done[kk] = True
             continue
         if not res / scale <= worst:
             worst = res / scale
             kw = kk
-        if mk == 0:
+        if mk > 0:
+            MODE[kk] = 2
+            n_acc += 1
+    # normal equations [A | b] of min |f_k - sum_j gamma_j (f_{k-j} - f_{k-j-1})| at every
+    # position (depth <= 3, unused sums 0), each sum in the unknowns' order: T[0..8] = a00, a01,
+    # a02, a11, a12, a22, b0, b1, b2
+    for j in range(9 if n_acc > 0 else 0):
+        for kk in range(n_phi):
+            T[j, kk] = 0.0
+    for e in range(n if n_acc > 0 else 0):
+        for kk in range(n_phi):
+            fk = HF[s0, e, kk]
+            q0 = HF[s0, e, kk] - HF[s1, e, kk]
+            q1 = HF[s1, e, kk] - HF[s2, e, kk] if mk > 1 else 0.0
+            q2 = HF[s2, e, kk] - HF[s3, e, kk] if mk > 2 else 0.0
+            T[0, kk] += q0 * q0
+            T[1, kk] += q0 * q1
+            T[2, kk] += q0 * q2
+            T[3, kk] += q1 * q1
+            T[4, kk] += q1 * q2
+            T[5, kk] += q2 * q2
+            T[6, kk] += q0 * fk
+            T[7, kk] += q1 * fk
+            T[8, kk] += q2 * fk
+    for kk in range(n_phi if n_acc > 0 else 0):  # gamma in T[11..13] (elimination, symmetric
+        if MODE[kk] != 2:  # positive definite)
             continue
-        # normal equations [A | b] of min |f_k - sum_j gamma_j (f_{k-j} - f_{k-j-1})|: all
-        # their sums in one pass over the unknowns, in scalars (independent chains of
-        # multiply-adds, each sum still in the unknowns' order; depth <= 3, unused ones 0)
-        a00 = a01 = a02 = a11 = a12 = a22 = b0 = b1 = b2 = 0.0
-        for e in range(n):
-            fk = HF[s0, kk, e]
-            q0 = HF[s0, kk, e] - HF[s1, kk, e] if mk > 0 else 0.0
-            q1 = HF[s1, kk, e] - HF[s2, kk, e] if mk > 1 else 0.0
-            q2 = HF[s2, kk, e] - HF[s3, kk, e] if mk > 2 else 0.0
-            b0 += q0 * fk
-            b1 += q1 * fk
-            b2 += q2 * fk
-            a00 += q0 * q0
-            a01 += q0 * q1
-            a02 += q0 * q2
-            a11 += q1 * q1
-            a12 += q1 * q2
-            a22 += q2 * q2
-        A[0, 0] = a00
+        A[0, 0] = T[0, kk]
         if mk > 1:
-            A[0, 1] = A[1, 0] = a01
-            A[1, 1] = a11
+            A[0, 1] = A[1, 0] = T[1, kk]
+            A[1, 1] = T[3, kk]
         if mk > 2:
-            A[0, 2] = A[2, 0] = a02
-            A[1, 2] = A[2, 1] = a12
-            A[2, 2] = a22
-        A[0, mk] = b0
-        if mk > 1:
-            A[1, mk] = b1
-        if mk > 2:
-            A[2, mk] = b2
+            A[0, 2] = A[2, 0] = T[2, kk]
+            A[1, 2] = A[2, 1] = T[4, kk]
+            A[2, 2] = T[5, kk]
+        for i in range(mk):
+            A[i, mk] = T[6 + i, kk]
         tr = 0.0
         for i in range(mk):
             tr += A[i, i]
-        if not tr > 0.0:
-            continue
+        ok = tr > 0.0
         for i in range(mk):
             A[i, i] += 1e-12 * tr
-        ok = True
-        for c in range(mk):  # elimination (symmetric positive definite: no pivoting)
+        for c in range(mk if ok else 0):
             p = A[c, c]
             if not p > 0.0:
                 ok = False
@@ -1694,16 +1741,21 @@ def _anderson(X, Xold, HF, HG, k, feasible, done, tol, A, gamma, d):
                 for j in range(c, mk + 1):
                     A[r, j] -= q * A[c, j]
         if not ok:
+            MODE[kk] = 1
             continue
         for c in range(mk - 1, -1, -1):
             t = A[c, mk]
             for j in range(c + 1, mk):
-                t -= A[c, j] * gamma[j]
-            gamma[c] = t / A[c, c]
-        for i in range(mk):
-            si = (k - i) % ring
-            si1 = (k - i - 1) % ring
-            gi = gamma[i]
-            for e in range(n):
-                X[d, kk, e] -= gi * (HG[si, kk, e] - HG[si1, kk, e])
+                t -= A[c, j] * T[11 + j, kk]
+            T[11 + c, kk] = t / A[c, c]
+    for e in range(n):
+        for kk in range(n_phi):
+            g = GT[e, kk]
+            v = g - T[11, kk] * (HG[s0, e, kk] - HG[s1, e, kk])
+            if mk > 1:
+                v -= T[12, kk] * (HG[s1, e, kk] - HG[s2, e, kk])
+            if mk > 2:
+                v -= T[13, kk] * (HG[s2, e, kk] - HG[s3, e, kk])
+            m = MODE[kk]
+            XT[e, kk] = XT[e, kk] if m == 0 else (v if m == 2 else g)
     return worst, kw
