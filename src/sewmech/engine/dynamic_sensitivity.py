@@ -119,9 +119,7 @@ class _Terms:
     parameter indices: per link, pair geometry, pair, counterweight, spring, torsion spring,
     frictional pair), from the kinematic tangents' supports."""
 
-    loc: np.ndarray
-    qoff: np.ndarray
-    qm: np.ndarray
+    qm: np.ndarray  # each quantity's support size (a point: per coordinate)
     link_sup: tuple
     lists: dict
     cw_int: np.ndarray
@@ -158,10 +156,6 @@ def _terms(machine: Machine) -> _Terms:
     lay = plan.layout
     sup = [frozenset(int(p) for p in s) for s in plan.support]
     n_pt, n_l = len(machine.point_names), len(machine.link_names)
-    n_p = len(machine.parameter_names)
-    loc = np.full((len(sup), n_p), -1, dtype=np.int64)
-    for q, s in enumerate(plan.support):
-        loc[q, np.asarray(s, dtype=np.int64)] = np.arange(len(s))
 
     def pt(i):
         return sup[i]
@@ -243,11 +237,11 @@ def _terms(machine: Machine) -> _Terms:
     ent_off = np.concatenate([qoff[q] + np.arange(len(s), dtype=np.int64)
                               for q, s in enumerate(plan.support)])
     ent_p = np.concatenate([np.asarray(s, dtype=np.int64) for s in plan.support])
-    out = _Terms(loc, qoff, np.asarray(lay.qm, dtype=np.int64),
+    out = _Terms(np.asarray(lay.qm, dtype=np.int64),
                  link_sup, lists, cw_int, sp_int, sp_f, ts_int, ts_f, fr_int, fr_f, fr_pair,
                  frozenset(used), {k: _csr(v) for k, v in lists.items()}, read_q, ent_q,
                  ent_off, ent_p)
-    for a in (out.loc, out.qoff, out.qm, out.cw_int, out.sp_int, out.sp_f, out.ts_int, out.ts_f,
+    for a in (out.qm, out.cw_int, out.sp_int, out.sp_f, out.ts_int, out.ts_f,
               out.fr_int, out.fr_f, out.fr_pair, out.read_q, out.ent_q, out.ent_off, out.ent_p,
               *(x for v in out.csr.values() for x in v)):
         a.setflags(write=False)
