@@ -164,9 +164,10 @@ def feed_cycles(machine: Machine, regulator_deg: ArrayLike, *, params: ArrayLike
     out = {}
     if ok.any():
         out = _cycle_figures(X[ok], Y[ok], VX[ok], VY[ok], AX[ok], AY[ok], h, fwd)
-        P = np.broadcast_to(machine.parameters(base=params, inputs=inputs),
-                            batch + machine.defaults.shape).reshape(-1, machine.defaults.size)
         if exact:
+            P = np.broadcast_to(machine.parameters(base=params, inputs=inputs),
+                                batch + machine.defaults.shape).reshape(-1,
+                                                                        machine.defaults.size)
             _polish(ev, s, r, P, np.nonzero(ok)[0], out, h, fwd)
     out = {k: _scatter(nan, ok, out.get(k)) for k in ("stitch_mm", "lift_mm", "drop_mm",
                                                        "top_deg", "rise_deg", "fall_deg",
@@ -186,9 +187,9 @@ def _polish(ev: Evaluation, s: SewingSpec, r, P: np.ndarray, rows: np.ndarray, o
             h: float, fwd: float) -> None:
     """Locate the dog's rise through the plate and its drop by Newton's method on the exact
     kinematics (:class:`sewmech.sewing._locate.Locator`), from the interpolant's crossings, and
-    take the stitch length from the tip's x there: exact to round-off where the interpolant's
-    crossings are not (a cam's arcs joining near a crossing make the path's third derivative
-    jump, and the interpolant's error there is of order h^3). ``rows``: the rows of ``P`` (the
+    take the stitch length from the tip's x there: exact to the loop units' tolerance where the
+    interpolant's crossings are not (a cam's arcs joining near a crossing make the path's third
+    derivative jump, and the interpolant's error there is of order h^3). ``rows``: the rows of ``P`` (the
     designs and settings, flat) that ``out`` holds, in order; a crossing not located keeps the
     interpolant's."""
     from ._locate import Locator
