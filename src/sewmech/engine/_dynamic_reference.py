@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from . import _kernels as K
-from .dynamic_sensitivity import DynamicsSensitivities, _travel
+from .dynamic_sensitivity import DynamicsSensitivities, _travel, _travel_derivative
 from .dynamics import GRAVITY, DynamicsPlan, DynamicsResult, bearing_reactions
 from .errors import AnalysisError
 from .machine import Machine
@@ -406,40 +406,9 @@ def _tangent_state(plan, s: dict, sens, scale: float, n_batch: int) -> dict:
          "EP": t(sens.depsilon, scale * scale), "S": t(sens.dq), "SD": t(sens.dqd, scale),
          "SDD": t(sens.dqdd, scale * scale)}
     d["prm"] = np.broadcast_to(np.eye(n_p).reshape(n_p, 1, 1, n_p), (n_p, n_d, 1, n_p))
-    if "travel" in s:
-        d["travel"] = _travel_tangent(plan, s, d)
+    if "travel" in s:  # (the compiled path's: a kinematic input, like the tangents above)
+        d["travel"] = np.moveaxis(_travel_derivative(plan, s, sens, scale)[0], -1, 0)
     return d
-
-
-def _travel_tangent(plan, s, d) -> np.ndarray:
-    """d(travel)/d(parameter) (n_params, D, n_phi, n_loads): the derivative of the first
-    above/below channel where the travel is positive (0 elsewhere)."""
-    from .threadpath import path_length_gradient
-
-    L = plan._loads
-    n_p = d["P"].shape[0]
-    out = np.zeros((n_p,) + s["travel"].shape)
-    for j, spec in enumerate(L.specs):
-        if spec.law != "elastic":
-            continue
-        for ref, c in L.conditions[j]:
-            if c.above is None and c.below is None:
-                continue
-            if ref.kind == "thread":
-                pts = list(L.thread.points)
-                g = path_length_gradient(s["P"][:, :, pts], L.thread.rho)  # (D, n_phi, g, 2)
-                dval = np.einsum("dkgc,pdkgc->pdk", g, d["P"][:, :, :, pts])
-            else:
-                from .channels import KINDS
-
-                key = KINDS[ref.kind][0]
-                x = d[key]
-                dval = x[..., ref.index, ref.comp] if ref.kind in ("p", "v", "a") else \
-                    x[..., ref.index]
-            moving = s["travel"][..., j] > 0.0
-            out[..., j] = np.where(moving, dval if c.above is not None else -dval, 0.0)
-            break
-    return out
 
 
 def reference_sensitivities(machine: Machine, phi: ArrayLike, *,

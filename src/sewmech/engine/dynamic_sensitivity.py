@@ -465,7 +465,7 @@ def _bearing_tables(m: Machine, load_links: tuple) -> tuple:
     """What the kernel's bearing part reads (see :func:`sewmech.engine._force_tangents.
     force_tangents`): the pairs, loads, links with mass and counterweights that
     :func:`sewmech.engine.dynamics.shaft_bearings` sums, with their planes."""
-    from .dynamics import FRAME, _pair_table
+    from .dynamics import _pair_table, shaft_mass, shaft_pairs
     from .friction import FrictionTables
 
     shaft = m.spec.shaft
@@ -479,25 +479,18 @@ def _bearing_tables(m: Machine, load_links: tuple) -> tuple:
         columns = _pair_table(m)[0][:, 7]
         for lname, z in shaft.links.items():
             li = names.index(lname)
-            for i, pair in enumerate(m.pairs):  # (the pairs shaft_bearings sums)
-                if pair.kind == "driver" or lname not in pair.links or FRAME in pair.links:
-                    continue
-                if pair.links[0] in shaft.links and pair.links[1] in shaft.links:
-                    continue
+            for pair, sign in shaft_pairs(shaft, m.pairs, lname):
+                i = m.pairs.index(pair)
                 rev = pair.kind == "revolute"
                 bp_int.append((int(columns[i]), i, -1 if rev else fr_of.get(i, -1), int(rev)))
-                bp_f.append((1.0 if pair.links[1] == lname else -1.0, float(z)))
+                bp_f.append((sign, float(z)))
             for k, li_load in enumerate(load_links):
                 if li_load == li:
                     bl_int.append(k)
                     bl_z.append(float(z))
-            mp = m.masses.get(lname)
+            mp = shaft_mass(m.masses, lname)
             if mp is None:
                 continue
-            if not np.isfinite(mp.inertia).all():
-                raise ValueError(f"link '{lname}' turns with the upper shaft but its [masses]"
-                                 " table gives only inertia_zz: the bearing reactions need its"
-                                 " products of inertia (give the full inertia tensor or solids)")
             J = mp.about(np.zeros(3))  # about the axis point at z = 0
             bm_int.append(li)
             bm_f.append((float(J[0, 2]), float(J[1, 2]), float(mp.mass)))

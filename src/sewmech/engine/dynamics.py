@@ -576,6 +576,29 @@ def bearing_reactions(res: DynamicsResult) -> BearingReactions:
         kin.theta.shape[:-1], np.result_type(kin.theta, res.com_a))
 
 
+def shaft_pairs(shaft, pairs, lname: str):
+    """The pairs a crank of the upper shaft (link ``lname``) sums for its bearings, with the
+    sign of their force on it: those with a link that is neither the frame (the frame's share
+    is the bearings' job) nor the shaft itself."""
+    for pair in pairs:
+        if pair.kind == "driver" or lname not in pair.links or FRAME in pair.links:
+            continue
+        if pair.links[0] in shaft.links and pair.links[1] in shaft.links:
+            continue
+        yield pair, (1.0 if pair.links[1] == lname else -1.0)
+
+
+def shaft_mass(mass_props: dict, lname: str):
+    """The mass properties of a part of the upper shaft (None: massless); the bearings need
+    its products of inertia."""
+    mp = mass_props.get(lname)
+    if mp is not None and not np.isfinite(mp.inertia).all():
+        raise ValueError(f"link '{lname}' turns with the upper shaft but its [masses] table"
+                         " gives only inertia_zz: the bearing reactions need its products"
+                         " of inertia (give the full inertia tensor or solids)")
+    return mp
+
+
 def shaft_bearings(machine: Machine, pairs, gravity: bool, mass_props: dict, load_links,
                    total_force, load_force, link_motion, counterweights, bshape: tuple,
                    dtype) -> BearingReactions:
@@ -601,12 +624,8 @@ def shaft_bearings(machine: Machine, pairs, gravity: bool, mass_props: dict, loa
         li = names.index(lname)
         # pairs of this crank with links that are not the frame (the frame's share is the
         # bearings' job) and not the shaft itself
-        for pair in pairs:
-            if pair.kind == "driver" or lname not in pair.links or FRAME in pair.links:
-                continue
-            if pair.links[0] in shaft.links and pair.links[1] in shaft.links:
-                continue
-            F = total_force(pair.name) * (1.0 if pair.links[1] == lname else -1.0)
+        for pair, sign in shaft_pairs(shaft, pairs, lname):
+            F = total_force(pair.name) * sign
             S += F
             Mx += -z * F[..., 1]
             My += z * F[..., 0]
@@ -616,13 +635,9 @@ def shaft_bearings(machine: Machine, pairs, gravity: bool, mass_props: dict, loa
                 S += F
                 Mx += -z * F[..., 1]
                 My += z * F[..., 0]
-        mp = mass_props.get(lname)
+        mp = shaft_mass(mass_props, lname)
         if mp is None:
             continue
-        if not np.isfinite(mp.inertia).all():
-            raise ValueError(f"link '{lname}' turns with the upper shaft but its [masses] table"
-                             " gives only inertia_zz: the bearing reactions need its products"
-                             " of inertia (give the full inertia tensor or solids)")
         th, w, e, a = link_motion(li)
         c, s = np.cos(th), np.sin(th)
         J = mp.about(np.zeros(3))  # about the axis point at z = 0
