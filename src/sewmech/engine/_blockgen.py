@@ -48,21 +48,33 @@ CHUNK = {CHUNK}
 _U = np.uint64'''
 
 
+def _at(array: str, base: str, entry: int) -> str:
+    """The element of a flat scratch array at entry ``entry`` of the position whose entry 0 is
+    at ``base`` (a loop variable), the entry's offset a module constant (``_E<entry>``): a
+    constant is typed once per function, while ``_U(offset)`` at every access cost numba's
+    compiler a call and an addition to type each time (0.5 s of the install's compile)."""
+    return f"{array}[{base}]" if entry == 0 else f"{array}[{base} + _E{entry}]"
+
+
 def _solver(n: int) -> str:
     """Source of the solver for an n x n block."""
-    lines = ["", "", '@njit(cache=True, error_model="numpy", fastmath={"contract"})',
+    lines = ["", "",
+             '@njit(cache=True, error_model="numpy", fastmath={"contract"}, no_cpython_wrapper=True)',
              f"def block_qr_{n}(W, off, F, foff, B, X, start, nk, worst):",
              "    wo = _U(off * CHUNK)",
              "    fo = _U(foff * CHUNK)",
              "    bo = _U(start * CHUNK)",
-             "    for kk in range(_U(nk)):"]
+             "    for kk in range(_U(nk)):",
+             "        w = wo + kk",
+             "        f = fo + kk",
+             "        x = bo + kk"]
     body: list[str] = []
     b = body.append
     for i in range(n):
         for j in range(n):
-            b(f"a{i}_{j} = W[wo + _U({(i * n + j) * CHUNK}) + kk]")
+            b(f"a{i}_{j} = {_at('W', 'w', i * n + j)}")
     for i in range(n):
-        b(f"b{i} = B[bo + _U({i * CHUNK}) + kk]")
+        b(f"b{i} = {_at('B', 'x', i)}")
     # the block's largest entry, the scale of the pivot check
     b("sc = abs(a0_0)")
     for i in range(n):
@@ -84,18 +96,18 @@ def _solver(n: int) -> str:
             b("s = tau * (" + " + ".join(f"{v} * {x}" for v, x in zip(vec, col)) + ")")
             for v, x in zip(vec, col):
                 b(f"{x} -= s * {v}")
-        b(f"F[fo + _U({(n * n + j) * CHUNK}) + kk] = v0")
-        b(f"F[fo + _U({(n * n + n + j) * CHUNK}) + kk] = tau")
+        b(f"{_at('F', 'f', n * n + j)} = v0")
+        b(f"{_at('F', 'f', n * n + n + j)} = tau")
         b(f"a{j}_{j} = al")
     b("# the factors, kept for other right-hand sides")
     for i in range(n):
         for j in range(n):
-            b(f"F[fo + _U({(i * n + j) * CHUNK}) + kk] = a{i}_{j}")
+            b(f"{_at('F', 'f', i * n + j)} = a{i}_{j}")
     b("# back substitution with R")
     for j in range(n - 1, -1, -1):
         terms = "".join(f" - a{j}_{c} * x{c}" for c in range(j + 1, n))
         b(f"x{j} = {f'(b{j}{terms})' if terms else f'b{j}'} / a{j}_{j}")
-        b(f"X[bo + _U({j * CHUNK}) + kk] = x{j}")
+        b(f"{_at('X', 'x', j)} = x{j}")
     b("worst[kk] = min(worst[kk], amin / sc if sc > 0.0 else 0.0)  # a zero block: singular")
     lines.extend("        " + line for line in body)
     return "\n".join(lines)
@@ -103,7 +115,8 @@ def _solver(n: int) -> str:
 
 def source(max_block: int = MAX_BLOCK) -> str:
     """The whole module :mod:`sewmech._blocks`."""
-    parts = [_HEAD]
+    parts = [_HEAD, "# the entries' offsets in the flat scratch (see _at in the writer)"]
+    parts.extend(f"_E{e} = _U({e} * CHUNK)" for e in range(1, max_block * (max_block + 2)))
     parts.extend(_solver(n) for n in range(1, max_block + 1))
     lines = ["", "", f"MAX_BLOCK = {max_block}", "", "",
              '@njit(cache=True, error_model="numpy", fastmath={"contract"})',

@@ -16,6 +16,12 @@ equations, the method of the dynamics report's feed-mechanism analysis; velociti
 accelerations come from the same loop Jacobian.
 
 Units: mm, rad, s. Nothing here allocates per angle, prints or writes files.
+
+What the install compiles is kept small (issue 34; benchmarks/HISTORY.md): functions that only
+other kernels call are compiled with ``no_cpython_wrapper=True`` (numba otherwise writes and
+compiles code that unboxes their every argument from Python, about 0.8 s of the install's
+compile), and big helpers are called rather than inlined by numba (``inline="always"`` types
+the helper again inside its caller; LLVM still inlines what pays).
 """
 
 from __future__ import annotations
@@ -102,7 +108,7 @@ def _solve2(m11, m12, m21, m22, b1, b2):
     return (b1 * m22 - m12 * b2) / det, (m11 * b2 - m21 * b1) / det, det
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, no_cpython_wrapper=True)
 def _gauss_solve(M, b, n):
     """Solve M x = b in place (partial pivoting). Returns (x in b, smallest |pivot| / scale)."""
     scale = 0.0
@@ -314,7 +320,7 @@ def rpr_guide(bx, by, bvx, bvy, bax, bay, ax_, ay_, avx, avy, aax, aay, e, branc
 # ---- loop groups ---------------------------------------------------------------------------------
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def arc_of(cam, rho, d, params, cams_i, arcs_i):
     """The arc of cam ``cam`` (an index into arcs_i) whose normal-angle range (cam frame) holds
     the contact normal's angle ``rho`` (rad) for design d; -1 for none. Shared by the loop
@@ -331,7 +337,7 @@ def arc_of(cam, rho, d, params, cams_i, arcs_i):
     return -1
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, no_cpython_wrapper=True)
 def _loop_steps(u, g, k0, nb, grp, unk, terms, cams_i, arcs_i, params, d, march_phi, march_omega,
                 march_eps, march_store, tol, max_iter, p, v, a, th, om, ep, lc, ls, s, sd, sdd,
                 fu, fc, q_prev, dq1_prev, dq2_prev, phi_prev, n_hist, lost, loop_res, loop_worst,
@@ -632,7 +638,7 @@ BLOCK = 32
 _U = np.uint64  # unsigned lane indices: numba then emits no negative-index wrap-around
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, no_cpython_wrapper=True)
 def _nan_row(d, row, P, V, A, TH, OM, EP, S, SD, SDD, GP, GV, GA):
     """A failed output row: NaN in every output of design d at row."""
     P[d, row] = np.nan
@@ -649,7 +655,7 @@ def _nan_row(d, row, P, V, A, TH, OM, EP, S, SD, SDD, GP, GV, GA):
     GA[d, row] = np.nan
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, no_cpython_wrapper=True)
 def _eval_designs(d0, d1, units, params, p_lo, p_hi, march_phi, mc, ms, march_store,
                   march_omega, march_eps, grp, unk, terms, cams_i, arcs_i, n_points, n_links,
                   n_vars, tol, max_iter, need_th, pt_sel, lk_sel, var_sel, P, V, A, TH, OM, EP,
@@ -1168,7 +1174,7 @@ _FORCE_DOC = """Right-hand sides and pair forces of every design and position.
     """
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, no_cpython_wrapper=True)
 def _force_scratch(n_slots, n_fac, n_chunks, n_eq):
     c = FORCE_CHUNK
     return (np.zeros(n_chunks * n_slots * c), np.zeros(n_chunks * n_fac * c), np.zeros(n_eq * c),
@@ -1266,8 +1272,10 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
         settled = False
         while True:
             if step >= 0:  # the friction of the last step's forces as applied forces
-                # (settled: of the settled forces, the answer's; one call site, as each site
-                # of an inlined function is compiled on its own)
+                # (settled: of the settled forces, the answer's). The friction functions are
+                # called, not inlined by numba: numba types an inlined function again inside
+                # its caller, at 2 s more of the install's compile, while LLVM inlines or
+                # calls them at no measurable cost to the kernel (issue 34)
                 _friction(fr_int, FC, XT, XB0T, XBT, FF, FP, d, settled)
                 if settled:
                     for k in range(n_phi):
@@ -1509,8 +1517,9 @@ def force_solve(d0, d1, pairs, pair_angle, cam_rows, terms, params, P, EP, Q, TH
                     for k in range(n_phi):
                         for e in range(n_eq):
                             GT[e, k] += CW[d, k, e]
-                change, kw = _anderson(GT, XT, HF, HG, step, feasible, done, tol, T, MODE, A,
-                                       d)
+                # (the step as np.int64: typed as a literal -1 first, it would compile twice)
+                change, kw = _anderson(GT, XT, HF, HG, np.int64(step), feasible, done, tol, T,
+                                       MODE, A, d)
                 if change <= tol:  # every position settled (each keeps its own answer)
                     settled = True
                     continue
@@ -1532,7 +1541,7 @@ force_solve.__doc__ = _FORCE_DOC.format(
 # ---- friction -----------------------------------------------------------------------------------
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, no_cpython_wrapper=True)
 def _friction_motion(fr_int, fr_f, GEO, OM, GP, GV, FC, d):
     """What the friction of every frictional pair of design d takes from the motion (it does not
     change over the friction iteration), FC (n_fr, 7, n_phi): revolute pairs mu r s(r w),
@@ -1578,7 +1587,7 @@ def _friction_motion(fr_int, fr_f, GEO, OM, GP, GV, FC, d):
             FC[i, 6, k] = (px - GP[d, k, la, 0]) * ty - (py - GP[d, k, la, 1]) * tx
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, no_cpython_wrapper=True)
 def _friction(fr_int, FC, XT, XB0T, XBT, FF, FP, d, final):
     """The friction of every frictional pair of design d from its pair forces XT (n_eq, n_phi:
     unknown by position, the positions side by side), as generalized forces XBT = XB0T +
@@ -1633,7 +1642,7 @@ def _friction(fr_int, FC, XT, XB0T, XBT, FF, FP, d, final):
             FP[d, k, i] = -f * FC[i, 2, k]
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+@njit(cache=True, error_model="numpy", fastmath={"contract"}, no_cpython_wrapper=True)
 def _anderson(GT, XT, HF, HG, k, feasible, done, tol, T, MODE, A, d):
     """One step of Anderson acceleration (type II, depth HF.shape[0] - 1, at most 3) of the fixed
     point x = g(x) at every position of design d on its own, the positions side by side (the

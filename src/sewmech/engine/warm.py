@@ -3,15 +3,20 @@
 numba compiles a kernel on its first call and keeps the machine code on disk (beside the
 sources, or in ``NUMBA_CACHE_DIR``). ``make install`` (and so ``make demo`` and ``make test``)
 runs this right after installing: it compiles the kinematics interpreter and the force solver,
-which nearly every command calls first, in about 45 s of CPU from an empty cache on the busy
-2-core machine (35-40 s user; benchmarks/results/compile.json). The big kernels that only some commands call, the design
-sensitivities' tangent kernel (sensitivities, tolerances, gradients; about 40 s), the force
-analysis' derivatives by the design (dynamic gradients; about 20 s) and the run in time's
-integrator (about 10 s), are compiled by the first command that needs them, which says
+which nearly every command calls first, in 26-29 s of CPU from an empty cache on the 2-core
+machine (benchmarks/results/compile.json). The big kernels that only some commands call, the
+design sensitivities' tangent kernel (sensitivities, tolerances, gradients; about 30 s), the
+force analysis' derivatives by the design (dynamic gradients; about 18 s) and the run in
+time's integrator (about 8 s), are compiled by the first command that needs them, which says
 so on stderr (:mod:`sewmech.engine._compiling`); ``--all`` compiles them here too (``make
 test`` does, so that no test meets a compile). It says what it compiles, step by step, so that
 a silent ``make`` is never mistaken for a hung one. Running it again costs about a second (it
 only loads the kernels).
+
+Each step runs from a frame with room for numba's recursion (:func:`_compiling.roomy`), with
+the garbage collector paused (:mod:`sewmech.engine._compiling`) and glibc's malloc keeping
+what the compile frees (:func:`keep_freed_memory`): 41.5 s of CPU before these, of which
+8.6 s system time, mostly CPython's frame chunks mapped and unmapped.
 
 It also writes the package's bytecode (``__pycache__``): where ``PYTHONDONTWRITEBYTECODE`` is
 set, as on our 2-core CI machine, Python would otherwise compile every sewmech module from
@@ -84,12 +89,33 @@ def warm(progress=None, *, everything: bool = False) -> float:
             if progress is not None:
                 progress(k, len(steps), what, None)
             t = time.perf_counter()
-            run(step)
+            _compiling.roomy(run, step)  # numba's recursion on a data stack of its own
             if progress is not None:
                 progress(k, len(steps), what, time.perf_counter() - t)
     finally:
         _compiling.quiet = quiet
     return time.perf_counter() - t0
+
+
+def keep_freed_memory() -> bool:
+    """Ask glibc's malloc to keep the memory the compile frees for its next allocations, instead
+    of returning it to the system and faulting it in again (0.4-0.7 s of the install's compile,
+    benchmarks/HISTORY.md). For this process only, which compiles and exits. Returns whether
+    every setting was accepted; without glibc (macOS, Windows, musl) nothing is done."""
+    import ctypes
+
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):  # no mallopt
+        return False
+    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
+    mallopt.restype = ctypes.c_int
+    return all((
+        mallopt(-3, 32 << 20),  # M_MMAP_THRESHOLD: blocks below 32 MB on the heap (the most that
+        # older glibc accepts)
+        mallopt(-1, 1 << 30),  # M_TRIM_THRESHOLD: keep up to 1 GB free at the heap's top
+        mallopt(-2, 64 << 20),  # M_TOP_PAD: grow the heap 64 MB at a time
+    ))
 
 
 def bytecode() -> None:
@@ -108,16 +134,17 @@ def main(argv: list[str] | None = None) -> int:
               " in time's)", file=sys.stderr)
         return 2
     everything = args == ["--all"]
+    keep_freed_memory()
 
     def say(text: str) -> None:
         print(text, file=sys.stderr, flush=True)
 
     if everything:
         say("sewmech: compiling every numerical kernel once, so that no command waits for the"
-            " compiler later (about 2 min of CPU; each step is listed as it is compiled)")
+            " compiler later (about 75 s of CPU; each step is listed as it is compiled)")
     else:
         say("sewmech: compiling the numerical kernels the commands call first, so that they"
-            " need not wait for the compiler (about 45 s of CPU; each step is listed as it is"
+            " need not wait for the compiler (about 30 s of CPU; each step is listed as it is"
             " compiled; the design sensitivities' and the run in time's kernels are compiled"
             " on their first use)")
     bytecode()
