@@ -515,3 +515,17 @@ def test_one_off_calls_share_a_plan_but_not_their_arrays():
     assert len(m._plans) == 1  # one prepared plan served all three
     sewmech.kinematics(m, PHI[:10])
     assert len(m._plans) == 2
+
+
+def test_one_off_calls_key_their_plans_by_the_names_selected():
+    """The points, links and variables selected (lists or tuples of names) key the kept plan:
+    the same names share it, other names get their own."""
+    m = fourbar()
+    c = sewmech.kinematics(m, PHI, points=["C"], links=[])
+    assert sewmech.kinematics(m, PHI, points=("C",), links=()).point_names == ("C",)
+    assert len(m._plans) == 1
+    p = sewmech.kinematics(m, PHI, points=["P"], links=[])
+    both = sewmech.kinematics(m, PHI, points=["C", "P"], links=[])
+    assert (c.point_names, p.point_names, both.point_names) == (("C",), ("P",), ("C", "P"))
+    assert len(m._plans) == 3
+    assert np.array_equal(both.p[:, 1], p.p[:, 0]) and np.array_equal(both.p[:, 0], c.p[:, 0])

@@ -7,6 +7,7 @@ a :class:`~sewmech.results.KinematicsResult`.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -113,8 +114,9 @@ def check_finite(name: str, values: np.ndarray, unit: str, *, limit: float) -> N
                           f" finite number within +-{limit:g} {unit}")
 
 
+@functools.cache
 def _memory_bytes() -> float:
-    """Physical memory of this computer, bytes (inf where it cannot be read)."""
+    """Physical memory of this computer, bytes (inf where it cannot be read; read once)."""
     try:
         return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
     except (ValueError, OSError, AttributeError):
@@ -464,6 +466,8 @@ def _key(x):
     """A hashable stand-in for an argument of kinematics()."""
     if x is None or isinstance(x, (int, float, str)):
         return x
+    if isinstance(x, (list, tuple)) and all(isinstance(v, str) for v in x):
+        return tuple(x)  # names (points, links, variables): as np.ndim would, 20 times faster
     if isinstance(x, np.ndarray) or np.ndim(x):
         a = np.asarray(x)
         return (a.shape, a.dtype.str, a.tobytes()) if a.dtype != object else tuple(a.tolist())
