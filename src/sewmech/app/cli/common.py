@@ -276,13 +276,28 @@ def _print_error(text: str) -> None:
 @contextlib.contextmanager
 def _guard():
     """One place where every command's failures become one clear line and an exit code."""
+    from ..files import outdir
+
     old: dict = {}
+    outdir.request_stop(None)
     if threading.current_thread() is threading.main_thread():
+        # each handler notes its exception before raising it: one raised while a weakref
+        # callback or a __del__ runs is swallowed by Python, and the note still keeps the
+        # command's files from moving in (outdir.output_dir checks it before its commit)
         def on_term(signum, frame):
-            raise Terminated(signum)
+            exc = Terminated(signum)
+            outdir.request_stop(exc)
+            raise exc
+
+        def on_int(signum, frame):
+            exc = KeyboardInterrupt()
+            outdir.request_stop(exc)
+            raise exc
 
         for sig in (signal.SIGTERM, signal.SIGHUP):
             old[sig] = signal.signal(sig, on_term)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # (not if ignored)
+            old[signal.SIGINT] = signal.signal(signal.SIGINT, on_int)
     try:
         try:
             yield
@@ -329,6 +344,7 @@ def _guard():
     finally:
         for sig, handler in old.items():
             signal.signal(sig, handler)
+        outdir.request_stop(None)  # (a stop the command handled itself, as serve does Ctrl-C)
 
 
 def _internal_error(exc: BaseException):

@@ -342,6 +342,24 @@ def _name_too_long(root: Path, name: str, option: str) -> OutputError:
                        " [machine] name")
 
 
+#: the exception a command's signal handler raised to stop it (set by the command line, see
+#: :func:`request_stop`), or None. Python swallows an exception raised while a weakref callback
+#: or a ``__del__`` runs (matplotlib's figures run many), so a signal that lands in one would
+#: otherwise let the run go on and move its files in; the commit checks it once more.
+_stop: BaseException | None = None
+
+
+def request_stop(exc: BaseException | None) -> None:
+    """Note that the command is to stop with ``exc`` (None: forget an earlier request)."""
+    global _stop
+    _stop = exc
+
+
+def stop_requested() -> BaseException | None:
+    """The exception a stop was requested with (:func:`request_stop`), or None."""
+    return _stop
+
+
 @contextlib.contextmanager
 def _signals_held():
     """SIGINT, SIGTERM and SIGHUP wait while the staged files are moved into place."""
@@ -496,6 +514,8 @@ def output_dir(path: str | Path, *, command: str, option: str = "--out",
                 raise _name_too_long(root, Path(str(exc.filename)).name, option) from None
             raise
         with _signals_held():
+            if _stop is not None:  # a signal whose exception was swallowed: nothing moves in
+                raise _stop
             try:
                 _commit(root, staging, manifest, command, option, notice, machine)
             except OSError as exc:
